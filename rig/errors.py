@@ -1,0 +1,26 @@
+"""Exceptions of the rig. Each is still catchable as the built-in it specialises."""
+
+
+class RigError(Exception):
+    """Base class of every error raised by :mod:`rig`."""
+
+
+class ConfigError(RigError, ValueError):
+    """An invalid parameter or scene value; the message names the key, the value and what is valid."""
+
+
+class DivergenceError(RigError, FloatingPointError):
+    """A simulation produced a non-finite state.
+
+    Attributes
+    ----------
+    time_s : float
+        Simulated time of the last finite state [s].
+    state : numpy.ndarray
+        That state, ``(theta_1..theta_n [rad], omega_1..omega_n [rad/s])``.
+    """
+
+    def __init__(self, message: str, time_s: float, state):
+        super().__init__(message)
+        self.time_s = time_s
+        self.state = state
