@@ -45,10 +45,10 @@ def _float_tuple(name: str, values, *, minimum: float | None, strict: bool, n: i
         raise ConfigError(f"{name} is empty; a chain needs at least one body")
     for i, v in enumerate(out):
         if not math.isfinite(v):
-            raise ConfigError(f"{name}[{i}] = {v} is invalid: expected a finite number")
+            raise ConfigError(f"{name} of body {i + 1} = {v} is invalid: expected a finite number")
         if minimum is not None and (v < minimum or (strict and v == minimum)):
             rel = ">" if strict else ">="
-            raise ConfigError(f"{name}[{i}] = {v} is invalid: expected {rel} {minimum}")
+            raise ConfigError(f"{name} of body {i + 1} = {v} is invalid: expected {rel} {minimum}")
     return out
 
 
@@ -90,12 +90,14 @@ class Chain:
         if self.damping_mode not in DAMPING_MODES:
             raise ConfigError(f"damping_mode = {self.damping_mode!r} is invalid: expected one of "
                               f"{', '.join(DAMPING_MODES)}")
-        g = _float_tuple("g_mps2", [self.g_mps2], minimum=0.0, strict=True, n=1)[0]
-        set_(self, "g_mps2", g)
+        g = self.g_mps2
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g <= 0:
+            raise ConfigError(f"g_mps2 = {g!r} is invalid: expected a finite number > 0")
+        set_(self, "g_mps2", float(g))
         for j, s in enumerate(self.S):
             if not s > 0:
                 raise ConfigError(
-                    f"com_m[{j}] = {self.com_m[j]} gives S_{j + 1} = m c + l mu = {s:.6g} kg m; the "
+                    f"com_m of body {j + 1} = {self.com_m[j]} gives S_{j + 1} = m c + l mu = {s:.6g} kg m; the "
                     "hanging equilibrium needs S_j > 0 (centre of mass of everything below joint j "
                     "must hang below it)")
 

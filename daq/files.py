@@ -1,0 +1,48 @@
+"""Safe output files: nothing existing is overwritten without ``force``; a file appears complete or
+not at all (written under a temporary name in the same directory, then renamed)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+from rig.errors import ConfigError
+
+
+def check_writable(path: Path, *, force: bool) -> Path:
+    """Validate an output path before any work is done; returns it as a :class:`Path`."""
+    path = Path(path)
+    if path.exists() and not force:
+        raise ConfigError(f"output {str(path)!r} exists; pass --force to overwrite it")
+    if path.exists() and path.is_dir():
+        raise ConfigError(f"output {str(path)!r} is a directory; expected a file path")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise ConfigError(f"output {str(path)!r}: directory {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise ConfigError(f"output {str(path)!r}: directory {str(parent)!r} is not writable")
+    return path
+
+
+@contextlib.contextmanager
+def atomic_output(path: Path, *, force: bool, suffix: str = ""):
+    """Yield a temporary path beside ``path``; on success rename it to ``path``, on error remove it.
+
+    The existing file (if any, and only with ``force``) is replaced only once the new one is
+    complete.
+    """
+    path = check_writable(path, force=force)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix,
+                               dir=path.parent if str(path.parent) else ".")
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        if path.exists() and not force:  # appeared meanwhile
+            raise ConfigError(f"output {str(path)!r} exists; pass --force to overwrite it")
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()

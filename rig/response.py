@@ -1,0 +1,81 @@
+"""Analytic frequency responses of a scene's pendulum per unit base acceleration (linear model).
+
+The channels follow SPEC section 5: ``x`` is the horizontal displacement of the mirror centre
+relative to the stage [m per m/s^2], ``y`` the rotation of the mirror's body [rad per m/s^2]. Both
+have phase 180 deg at low frequency (x -> -s/g, y -> -1/g). Stage-1 curves (the dotted lines of the
+paper's Figs. 9 and 10) are the centre of mass of body 1 and theta_1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rig.errors import ConfigError
+from rig.scene import Scene
+
+
+@dataclass(frozen=True)
+class MirrorResponse:
+    """Exact linear frequency responses on a frequency grid.
+
+    Attributes
+    ----------
+    freqs_hz : (nf,) frequencies [Hz].
+    x : (nf,) mirror translation relative to the stage [m per m/s^2].
+    y : (nf,) mirror rotation, theta of the mirror body [rad per m/s^2].
+    stage1_x : (nf,) horizontal displacement of body 1's centre of mass [m per m/s^2].
+    stage1_theta : (nf,) theta_1 [rad per m/s^2].
+    last_com_x : (nf,) horizontal displacement of the last body's centre of mass [m per m/s^2]
+        (Ishizaki's H1 + H2 for n = 2).
+    theta : (nf, n) every angle [rad per m/s^2].
+    """
+
+    freqs_hz: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    stage1_x: np.ndarray
+    stage1_theta: np.ndarray
+    last_com_x: np.ndarray
+    theta: np.ndarray
+
+
+def log_grid(fmin_hz: float, fmax_hz: float, points: int) -> np.ndarray:
+    """``points`` log-spaced frequencies from fmin_hz to fmax_hz inclusive [Hz]."""
+    if not (np.isfinite(fmin_hz) and fmin_hz > 0):
+        raise ConfigError(f"fmin = {fmin_hz} Hz is invalid: expected a finite frequency > 0")
+    if not (np.isfinite(fmax_hz) and fmax_hz > fmin_hz):
+        raise ConfigError(f"fmax = {fmax_hz} Hz is invalid: expected a finite frequency > fmin "
+                          f"({fmin_hz} Hz)")
+    if points < 2:
+        raise ConfigError(f"points = {points} is invalid: expected >= 2")
+    return np.geomspace(fmin_hz, fmax_hz, points)
+
+
+def mirror_response(scene: Scene, freqs_hz) -> MirrorResponse:
+    """Exact linear responses of the scene's pendulum at ``freqs_hz`` (direct complex solve)."""
+    chain = scene.chain
+    f = np.atleast_1d(np.asarray(freqs_hz, float))
+    theta = chain.frf_angles(f)
+    last = chain.n - 1
+    return MirrorResponse(
+        freqs_hz=f,
+        x=theta @ scene.mirror_weights(),
+        y=theta[:, scene.mirror.body],
+        stage1_x=theta @ chain.point_weights(0, chain.com_m[0]),
+        stage1_theta=theta[:, 0],
+        last_com_x=theta @ chain.point_weights(last, chain.com_m[last]),
+        theta=theta,
+    )
+
+
+def gain_db(h) -> np.ndarray:
+    """20 log10 |h| [dB]."""
+    return 20 * np.log10(np.abs(h))
+
+
+def phase_deg(h) -> np.ndarray:
+    """Phase wrapped to (-180, 180] [deg]."""
+    p = np.degrees(np.angle(h))
+    return np.where(p <= -180.0, p + 360.0, p)
