@@ -92,6 +92,57 @@ SECTIONS: dict[str, dict[str, Key]] = {
                                  "default the body's centre of mass")},
     "initial": {"theta0_rad": Key("floats", 0.0, "initial angles [rad]"),
                 "omega0_rad_s": Key("floats", 0.0, "initial angular velocities [rad/s]")},
+    # -- the bench (issue 3): defaults are owned and documented by the module that uses them --
+    "source": {  # the analyzer's source: a DAC held between samples (rig/source.py)
+        "type": Key("str", "random", "source signal",
+                    ("random", "burst-random", "periodic-chirp", "pink", "sine")),
+        "level_vrms": Key("float", 0.1, "rms source voltage [V]"),
+        "fmin_hz": Key("float", 0.0, "lower band edge of random/pink/chirp [Hz]"),
+        "fmax_hz": Key("float", 12.5, "upper band edge (the analysis span) [Hz]"),
+        "frequency_hz": Key("float", 2.0, "frequency of the fixed sine [Hz]"),
+        "period_s": Key("float", 100.0, "period of chirp and burst random [s]"),
+        "burst_fraction": Key("float", 0.5, "on-fraction of each burst-random period [-]"),
+    },
+    "stage": {  # amplifier, voice-coil motor and X stage (rig/stage.py)
+        "amplifier_gain_vpv": Key("float", 1.0, "voltage gain of the power amplifier [V/V]"),
+        "force_constant_npa": Key("float", 5.0, "voice-coil force constant [N/A]"),
+        "coil_resistance_ohm": Key("float", 4.0, "coil resistance [ohm]"),
+        "coil_inductance_h": Key("float", 2e-3, "coil inductance [H]"),
+        "moving_mass_kg": Key("float", 1.0, "stage moving mass incl. coil, without pendulum [kg]"),
+        "stiffness_npm": Key("float", 40.0, "suspension stiffness of the guide [N/m]"),
+        "damping_nspm": Key("float", 2.0, "mechanical damping of the guide [N s/m]"),
+        "reaction": Key("bool", False, "include the pendulum's reaction force on the stage"),
+    },
+    "accelerometer": {  # the stage accelerometer (rig/accelerometer.py)
+        "sensitivity_vpmps2": Key("float", 0.1, "sensitivity [V per m/s^2] incl. conditioning"),
+        "highpass_hz": Key("float", 0.05, "low-frequency corner of a piezoelectric type [Hz]"),
+        "noise_mps2_rthz": Key("float", 1e-5, "input-referred noise density [m/s^2/sqrt(Hz)]"),
+        "range_mps2": Key("float", 50.0, "measuring range (output saturates beyond) [m/s^2]"),
+        "sign": Key("int", 1, "polarity of the mounted sensor, +1 or -1", (1, -1)),
+    },
+    "psd": {  # laser, optical lever and position sensitive detector (rig/psd.py)
+        "incidence_deg": Key("float", 30.0, "angle of incidence on the mirror [deg]"),
+        "distance_m": Key("float", 0.1, "mirror to PSD along the reflected beam [m]"),
+        "size_m": Key("float", 0.01, "side of the square detector [m]"),
+        "gain_vpm": Key("float", 1000.0, "PSD output per spot displacement [V/m]"),
+        "noise_m_rthz": Key("float", 1e-7, "spot-position noise density [m/sqrt(Hz)]"),
+        "sign_x": Key("int", 1, "orientation of the PSD x axis, +1 or -1", (1, -1)),
+        "sign_y": Key("int", 1, "orientation of the PSD y axis, +1 or -1", (1, -1)),
+    },
+    "acquisition": {  # synchronous sampling, anti-alias filter, ADC, records (daq/)
+        "rate_hz": Key("float", 100.0, "sample rate of every channel [Hz]"),
+        "simulation_rate_hz": Key("float", 1000.0, "rate of the analog simulation and source DAC "
+                                  "[Hz]; an integer multiple of rate_hz"),
+        "records": Key("int", 30, "number of records"),
+        "record_s": Key("float", 100.0, "duration of one record [s]"),
+        "settle_s": Key("float", 300.0, "settling time before the first record [s]"),
+        "adc_bits": Key("int", 16, "ADC resolution [bits]"),
+        "range_a_v": Key("float", 1.0, "ADC full scale of channel a, +-[V]"),
+        "range_x_v": Key("float", 10.0, "ADC full scale of channel x, +-[V]"),
+        "range_y_v": Key("float", 10.0, "ADC full scale of channel y, +-[V]"),
+        "model": Key("str", "linear", "pendulum model simulated", ("linear", "nonlinear")),
+        "truth": Key("bool", True, "store the ground truth beside the channels"),
+    },
 }
 
 
@@ -234,9 +285,16 @@ def _check_type(where: str, key: Key, value: Any) -> Any:
 
     if key.type == "float":
         return number(value, "a number")
+    if key.type == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where} = {value!r} is invalid: expected true or false")
+        return value
     if key.type == "int":
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(f"{where} = {value!r} is invalid: expected an integer")
+        if key.choices and value not in key.choices:
+            raise ConfigError(f"{where} = {value!r} is invalid: expected one of "
+                              f"{', '.join(map(str, key.choices))}")
         return value
     if key.type == "str":
         if not isinstance(value, str):
