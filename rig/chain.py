@@ -216,7 +216,8 @@ class Chain:
     def state_space(self) -> tuple[np.ndarray, np.ndarray]:
         """Linearisation about hanging at rest: z' = A z + B x0'', z = (theta, omega).
 
-        Returns ``A`` (2n, 2n) [1/s, 1/s^2] and ``B`` (2n, 1) [rad/(m s)... per m/s^2]. From
+        Returns ``A`` (2n, 2n) and ``B`` (2n, 1): the theta rows of B are 0 and the omega rows
+        are in [rad/s^2 per m/s^2]. From
         ``H th'' + C th' + g diag(S) th = -S x0''``; the vertical input drops out at first order.
         """
         n = self.n
@@ -247,6 +248,8 @@ class Chain:
         of the point at distance ``s_m`` [m] along body ``body`` (0-based) from its upper joint."""
         if not 0 <= body < self.n:
             raise ConfigError(f"body = {body} is invalid: expected 0 <= body < {self.n}")
+        if not math.isfinite(s_m):
+            raise ConfigError(f"s_m = {s_m} is invalid: expected a finite distance [m]")
         w = np.zeros(self.n)
         w[:body] = np.asarray(self.length_m)[:body]
         w[body] = float(s_m)
@@ -266,17 +269,34 @@ class Chain:
         """Damped modes of the linearised chain, ascending in frequency.
 
         Returns (natural frequency |lambda|/2pi [Hz], quality factor Q = |lambda| / (-2 Re lambda)),
-        one entry per mode; Q is ``inf`` for an undamped mode. Overdamped modes (two real
-        eigenvalues) are paired in order, with omega_n = sqrt(l1 l2) and Q = omega_n / -(l1 + l2).
+        one entry per mode; Q is ``inf`` for an undamped chain. The eigenvalues come from the
+        pencil ``[[0, I], [-K, -C]] - lambda [[I, 0], [0, H]]``, which never inverts H (accurate
+        also for a nearly singular mass matrix, beta^2 -> 1). Overdamped modes (two real
+        eigenvalues) are paired in order, with omega_n = sqrt(l1 l2) and Q = omega_n / -(l1 + l2);
+        where H is singular to working precision the massless mode (an infinite eigenvalue and its
+        fast real partner) is not reported.
         """
-        a, _ = self.state_space()
-        lam = np.linalg.eigvals(a)
+        n = self.n
+        a = np.zeros((2 * n, 2 * n))
+        a[:n, n:] = np.eye(n)
+        a[n:, :n] = -self.K
+        a[n:, n:] = -self.C
+        b = np.eye(2 * n)
+        b[n:, n:] = self.H
+        lam = scipy.linalg.eigvals(a, b)
+        lam = lam[np.isfinite(lam)]  # H singular to working precision: a massless mode, dropped
+        undamped = not np.any(self.C)
+        if undamped:  # exactly conservative: the eigenvalues are +-i w; drop round-off real parts
+            wn = np.sort(np.abs(lam.imag[lam.imag > 0]))
+            return wn / (2 * np.pi), np.full(wn.size, np.inf)
         scale = np.max(np.abs(lam))
         is_real = np.abs(lam.imag) <= 1e-12 * scale
         osc = lam[(~is_real) & (lam.imag > 0)]
         wn = list(np.abs(osc))
-        q = [np.inf if z.real == 0 else abs(z) / (-2 * z.real) for z in osc]
+        q = [abs(z) / (-2 * z.real) if z.real < 0 else np.inf for z in osc]
         real = np.sort(lam[is_real].real)
+        if real.size % 2:  # the partner of one went to infinity with the massless mode
+            real = real[1:] if abs(real[0]) >= abs(real[-1]) else real[:-1]  # drop the fastest
         for la, lb in zip(real[0::2], real[1::2]):
             w0 = math.sqrt(la * lb)
             wn.append(w0)

@@ -67,7 +67,8 @@ PENDULUM_KINDS: dict[str, dict[str, Key]] = {
         "q1": Key("float", doc="quality factor of stage 1, 1/(2 zeta1) [-]"),
         "q2": Key("float", doc="quality factor of stage 2, 1/(2 zeta2) [-]"),
         "l_m": Key("float", None, "O1 to O2 [m]; default r1_m (O2 at G1)"),
-        "length2_m": Key("float", 0.075, "length of body 2 below O2 [m] (no dynamical effect)"),
+        "length2_m": Key("float", 0.0375, "length of body 2 below O2 [m] (no dynamical effect; "
+                         "the mirror at O2 is the centre of the 75 mm pendulum)"),
     },
     "chain": {
         "mass_kg": Key("floats", doc="m_j [kg]"),
