@@ -158,5 +158,174 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     click.echo(resonance_table(sc))
 
 
+# -- acquisition -----------------------------------------------------------------------------
+
+class _ProgressBar:
+    """``progress(simulated_s, total_s)`` for :func:`daq.acquisition.acquire` as a click bar on
+    stderr (created on the first call, when the total is known)."""
+
+    def __init__(self, label: str):
+        self.label, self.bar, self.last = label, None, 0
+
+    def __call__(self, done_s: float, total_s: float) -> None:
+        if self.bar is None:
+            self.bar = click.progressbar(length=max(1, round(total_s * 1000)), file=sys.stderr,
+                                         label=f"{self.label} ({total_s:g} s simulated)")
+            self.bar.__enter__()
+        n = round(done_s * 1000)
+        self.bar.update(n - self.last)
+        self.last = n
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+
+
+def _size(n: int | None) -> str:
+    if n is None:
+        return "-"
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return str(n)
+
+
+def _model_lines(info: dict) -> list[str]:
+    """Which model ran, how, and its error estimate (the rest is in ``inspect --json``)."""
+    est = info.get("error_estimate", "-")
+    if isinstance(est, dict):
+        est = ", ".join(f"{k} {_fmt(v)}" for k, v in est.items())
+    return [f"model: {info.get('model', '-')}", f"  method: {info.get('method', '-')}",
+            f"  error estimate: {_fmt(est)}"]
+
+
+@main.command()
+@click.option("--scene", "scene_name", required=True, metavar="SCENE",
+              help="Preset name or scene TOML file.")
+@click.option("--records", type=int, help="Number of records (acquisition.records).")
+@click.option("--duration", type=float, help="Seconds per record (acquisition.record_s).")
+@click.option("--rate", type=float, help="Sample rate of every channel [Hz] (acquisition.rate_hz).")
+@click.option("--seed", type=click.IntRange(0, 2 ** 63 - 1),
+              help="Seed of the run (default: a fresh random one, printed and stored).")
+@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="HDF5 run file to write.")
+@_set_option
+@_force_option
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@_library_errors
+def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet):
+    """Acquire records of SCENE's bench into an HDF5 run file.
+
+    --records, --duration and --rate override the scene's acquisition.records, .record_s and
+    .rate_hz (after any --set). The file is written record by record and can be followed while
+    it grows; Ctrl-C keeps every finished record (status "interrupted").
+    """
+    import secrets
+
+    from daq.acquisition import AcquisitionInterrupted
+    from daq.acquisition import acquire as run_acquisition
+    from rig.scene import load_scene
+
+    extra = [f"acquisition.{key}={value!r}" for key, value in
+             (("records", records), ("record_s", duration), ("rate_hz", rate))
+             if value is not None]
+    sc = load_scene(scene_name, [*overrides, *extra])
+    if seed is None:
+        seed = secrets.randbits(63)
+    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}")
+    try:
+        summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar)
+    except AcquisitionInterrupted as exc:
+        if bar is not None:
+            bar.close()
+        s = exc.summary
+        where = f"{s.path} holds them (status interrupted)" if s.path else "no file was kept"
+        click.echo(f"interrupted after {s.records} of {s.records_planned} records; {where}",
+                   err=True)
+        raise click.exceptions.Exit(130) from None
+    finally:
+        if bar is not None:
+            bar.close()
+    click.echo(_acquire_summary(summary))
+
+
+def _acquire_summary(s) -> str:
+    clips = ", ".join(f"{c} {n}" for c, n in s.clip_totals().items())
+    return "\n".join([
+        f"wrote {s.path} ({_size(s.file_bytes)}): {s.records} records x {s.samples_per_record} "
+        f"samples at {s.rate_hz:g} Hz ({s.samples} samples per channel), channels "
+        f"{', '.join(s.channels)}",
+        f"seed: {s.seed}",
+        f"clipped samples: {clips}",
+        *_model_lines(s.model_info),
+        f"wall time: {s.wall_s:.2f} s",
+    ])
+
+
+@main.command()
+@click.argument("path", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
+@click.option("--repair", is_flag=True,
+              help="Clear the 'open for writing' mark a killed writer left in the file (like "
+                   "h5clear -s) so that any HDF5 reader opens it.")
+@_library_errors
+def inspect(path, as_json, repair):
+    """Show what the run file PATH holds: scene, seed, versions, status, channels, clipping,
+    model."""
+    from daq.hdf5 import clear_write_flags, run_info
+
+    if repair and clear_write_flags(path) and not as_json:
+        click.echo(f"cleared the open-for-writing mark of {path}")
+    info = run_info(path)
+    if as_json:
+        click.echo(json.dumps(info, indent=2))
+        return
+    click.echo(_inspect_text(info))
+
+
+def _inspect_text(i: dict) -> str:
+    n, planned = i["records_complete"], i["records_planned"]
+    if i["complete"]:
+        status = f"complete, {n} of {planned} records"
+    else:
+        why = {"acquiring": "writer killed or still running", "interrupted": "interrupted",
+               "failed": "failed"}.get(i["status"], i["status"])
+        status = f"INCOMPLETE ({why}), {n} of {planned} records"
+        if i["message"]:
+            status += f": {i['message']}"
+    a, f = i["acquisition"], i["antialias"]
+    lines = [
+        f"{i['path']} ({_size(i['file_bytes'])}): {i['file_format']} {i['file_format_version']}, "
+        f"written by pendulum-daq {i['software_version']}",
+        f"scene: {i['scene']} ({i['scene_source']}), seed {i['seed']}, started {i['start_time']}",
+        f"status: {status}",
+        f"sampling: {a['rate_hz']:g} Hz (simulated at {a['simulation_rate_hz']:g} Hz, decimation "
+        f"{a['decimation']}), {a['samples_per_record']} samples per record ({a['record_s']:g} s), "
+        f"settling {a['settle_s']:g} s",
+        f"anti-alias: {f['kind']} order {f['order']}, passband {f['passband_hz']:g} Hz "
+        f"({f['ripple_db']:g} dB ripple), >= {f['attenuation_db']:.1f} dB from "
+        f"{f['stopband_hz']:g} Hz",
+        "channels:",
+    ]
+    names = list(i["clip_counts"])
+    for name, c in zip(names, i["channels"]):
+        per = i["clip_counts"][name]
+        hit = sum(1 for x in per if x)
+        lines.append(
+            f"  {name}: {c['long_name']} -- {c['quantity']} [{c['engineering_unit']}], "
+            f"{_fmt(c['volts_per_unit'])} V per {c['engineering_unit']}, +-{_fmt(c['range_v'])} V, "
+            f"{c['bits']} bit (LSB {_fmt(c['lsb_v'])} V), clipped {sum(per)} samples in {hit} "
+            f"of {len(per)} records")
+    lines.extend(_model_lines(i["model_info"]))
+    lines.append(f"model responses: {', '.join(i['responses'])}")
+    lines.append(f"ground truth: {', '.join(i['truth']) if i['truth'] else 'not recorded'}")
+    if i["writer_flag_set"]:
+        lines.append("note: the file is still marked open for writing (writer running or "
+                     "killed); SWMR readers open it, others after 'daq inspect --repair'")
+    return "\n".join(lines)
+
+
 if __name__ == "__main__":
     sys.exit(main())

@@ -95,49 +95,68 @@ SECTIONS: dict[str, dict[str, Key]] = {
                 "omega0_rad_s": Key("floats", 0.0, "initial angular velocities [rad/s]")},
     # -- the bench (issue 3): defaults are owned and documented by the module that uses them --
     "source": {  # the analyzer's source: a DAC held between samples (rig/source.py)
-        "type": Key("str", "random", "source signal",
+        "type": Key("str", "random", "source signal (random: band-limited Gaussian noise)",
                     ("random", "burst-random", "periodic-chirp", "pink", "sine")),
-        "level_vrms": Key("float", 0.1, "rms source voltage [V]"),
-        "fmin_hz": Key("float", 0.0, "lower band edge of random/pink/chirp [Hz]"),
-        "fmax_hz": Key("float", 12.5, "upper band edge (the analysis span) [Hz]"),
-        "frequency_hz": Key("float", 2.0, "frequency of the fixed sine [Hz]"),
-        "period_s": Key("float", 100.0, "period of chirp and burst random [s]"),
-        "burst_fraction": Key("float", 0.5, "on-fraction of each burst-random period [-]"),
+        "level_vrms": Key("float", 0.1, "rms source voltage [V] (burst random: while on)"),
+        "fmin_hz": Key("float", 0.0, "lower band edge of random/pink/chirp [Hz], 0 <= fmin < fmax"),
+        "fmax_hz": Key("float", 12.5, "upper band edge (the analysis span) [Hz], <= fs/2"),
+        "frequency_hz": Key("float", 2.0, "frequency of the fixed sine [Hz], 0 < f < fs/2"),
+        "period_s": Key("float", 100.0, "period of chirp and burst random [s], whole samples"),
+        "burst_fraction": Key("float", 0.5, "on-fraction of each burst-random period, (0, 1]"),
     },
-    "stage": {  # amplifier, voice-coil motor and X stage (rig/stage.py)
-        "amplifier_gain_vpv": Key("float", 1.0, "voltage gain of the power amplifier [V/V]"),
-        "force_constant_npa": Key("float", 5.0, "voice-coil force constant [N/A]"),
-        "coil_resistance_ohm": Key("float", 4.0, "coil resistance [ohm]"),
-        "coil_inductance_h": Key("float", 2e-3, "coil inductance [H]"),
-        "moving_mass_kg": Key("float", 1.0, "stage moving mass incl. coil, without pendulum [kg]"),
-        "stiffness_npm": Key("float", 40.0, "suspension stiffness of the guide [N/m]"),
-        "damping_nspm": Key("float", 2.0, "mechanical damping of the guide [N s/m]"),
-        "reaction": Key("bool", False, "include the pendulum's reaction force on the stage"),
+    "stage": {  # amplifier, voice-coil motor and X stage (rig/stage.py; defaults justified there)
+        "amplifier_gain_vpv": Key("float", 1.0, "voltage gain of the power amplifier [V/V], > 0"),
+        "force_constant_npa": Key("float", 1.0, "voice-coil force constant = back-EMF constant "
+                                  "[N/A], > 0"),
+        "coil_resistance_ohm": Key("float", 8.0, "coil resistance [ohm], > 0"),
+        "coil_inductance_h": Key("float", 4e-3, "coil inductance [H], > 0 (L/R = 0.5 ms)"),
+        "moving_mass_kg": Key("float", 2.0, "stage moving mass incl. coil, laser and PSD, without "
+                              "the pendulum [kg], > 0"),
+        "stiffness_npm": Key("float", 0.8, "centring stiffness of the guide [N/m], >= 0 "
+                             "(suspension ~0.1 Hz)"),
+        "damping_nspm": Key("float", 1.0, "viscous damping of the guide [N s/m], >= 0"),
+        "reaction": Key("bool", True, "the pendulum's reaction force loads the stage (linear "
+                        "model only)"),
     },
-    "accelerometer": {  # the stage accelerometer (rig/accelerometer.py)
-        "sensitivity_vpmps2": Key("float", 0.1, "sensitivity [V per m/s^2] incl. conditioning"),
-        "highpass_hz": Key("float", 0.05, "low-frequency corner of a piezoelectric type [Hz]"),
-        "noise_mps2_rthz": Key("float", 1e-5, "input-referred noise density [m/s^2/sqrt(Hz)]"),
-        "range_mps2": Key("float", 50.0, "measuring range (output saturates beyond) [m/s^2]"),
+    "accelerometer": {  # piezoelectric + charge amplifier (rig/accelerometer.py)
+        "sensitivity_vpmps2": Key("float", 1.0, "sensitivity [V per m/s^2] incl. the charge "
+                                  "amplifier, > 0"),
+        "highpass_hz": Key("float", 0.05, "first-order low-frequency corner of the charge "
+                           "amplifier [Hz], >= 0 (0: flat to DC, servo type)"),
+        "noise_mps2_rthz": Key("float", 1e-5, "input-referred white noise density "
+                               "[m/s^2/sqrt(Hz)], >= 0"),
+        "range_mps2": Key("float", 10.0, "measuring range [m/s^2], > 0; the output clips beyond "
+                          "(flagged)"),
         "sign": Key("int", 1, "polarity of the mounted sensor, +1 or -1", (1, -1)),
     },
-    "psd": {  # laser, optical lever and position sensitive detector (rig/psd.py)
-        "incidence_deg": Key("float", 30.0, "angle of incidence on the mirror [deg]"),
-        "distance_m": Key("float", 0.1, "mirror to PSD along the reflected beam [m]"),
-        "size_m": Key("float", 0.01, "side of the square detector [m]"),
-        "gain_vpm": Key("float", 1000.0, "PSD output per spot displacement [V/m]"),
-        "noise_m_rthz": Key("float", 1e-7, "spot-position noise density [m/sqrt(Hz)]"),
+    "psd": {  # laser, optical lever and position sensitive detector on the stage (rig/psd.py)
+        "incidence_deg": Key("float", 30.0, "angle of incidence on the mirror in the horizontal "
+                             "plane [deg], 0 < phi < 90"),
+        "distance_m": Key("float", 0.2, "mirror to PSD along the reflected beam [m], > 0"),
+        "size_m": Key("float", 0.012, "side of the square detector [m], > 0; the output clips at "
+                      "its edge (flagged)"),
+        "gain_vpm": Key("float", 1000.0, "PSD output per spot displacement [V/m], > 0"),
+        "noise_m_rthz": Key("float", 3e-8, "spot-position noise density per axis "
+                            "[m/sqrt(Hz)], >= 0"),
         "sign_x": Key("int", 1, "orientation of the PSD x axis, +1 or -1", (1, -1)),
         "sign_y": Key("int", 1, "orientation of the PSD y axis, +1 or -1", (1, -1)),
     },
     "acquisition": {  # synchronous sampling, anti-alias filter, ADC, records (daq/)
         "rate_hz": Key("float", 100.0, "sample rate of every channel [Hz]"),
         "simulation_rate_hz": Key("float", 1000.0, "rate of the analog simulation and source DAC "
-                                  "[Hz]; an integer multiple of rate_hz"),
-        "records": Key("int", 30, "number of records"),
-        "record_s": Key("float", 100.0, "duration of one record [s]"),
-        "settle_s": Key("float", 300.0, "settling time before the first record [s]"),
-        "adc_bits": Key("int", 16, "ADC resolution [bits]"),
+                                  "[Hz]; an integer multiple q >= 2 of rate_hz"),
+        "records": Key("int", 30, "number of records (>= 1), taken back to back"),
+        "record_s": Key("float", 100.0, "duration of one record [s]; a whole number of samples"),
+        "settle_s": Key("float", 300.0, "settling time before the first record [s]; a whole "
+                        "number of samples"),
+        "adc_bits": Key("int", 16, "ADC resolution [bits], 2..32"),
+        "antialias": Key("str", "elliptic", "anti-alias low-pass before decimation ('none' "
+                         "decimates unfiltered, to show aliasing)", ("elliptic", "none")),
+        "antialias_passband": Key("float", 0.4, "anti-alias passband edge as a fraction of "
+                                  "rate_hz (< 0.5); the stopband starts at rate_hz / 2"),
+        "antialias_ripple_db": Key("float", 0.01, "anti-alias passband ripple [dB]"),
+        "antialias_attenuation_db": Key("float", None, "anti-alias attenuation at and above "
+                                        "rate_hz / 2 [dB]; default 20 log10(2^(adc_bits+1))"),
         "range_a_v": Key("float", 1.0, "ADC full scale of channel a, +-[V]"),
         "range_x_v": Key("float", 10.0, "ADC full scale of channel x, +-[V]"),
         "range_y_v": Key("float", 10.0, "ADC full scale of channel y, +-[V]"),

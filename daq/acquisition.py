@@ -1,0 +1,598 @@
+"""The acquisition: bench -> anti-alias filter -> ADC -> records, as a stream fanned out to sinks.
+
+:func:`acquire` runs one continuous acquisition of a scene and sends every sink, in order::
+
+    start(Header) -> block(Block) ... record(Record) ... -> stop(Footer)
+
+``block`` delivers digitised samples as soon as they exist (live views), ``record`` every finished
+record (files, memory). The loop knows nothing about files or viewers: a sink with
+``critical = True`` (files, memory) stops the run if it fails; one with ``critical = False`` (a live
+view) only warns and is dropped. Every sink receives ``stop`` whatever happens: with status
+"complete", "interrupted" (KeyboardInterrupt, e.g. Ctrl-C) or "failed" (an exception; re-raised
+after the sinks are closed). Records are handed to the sinks with SIGINT deferred, so a sink sees
+a whole record or none.
+
+The bench is anything with the :class:`Bench` interface; the default is the emulated rig
+(:func:`rig_bench`, ``rig.bench``); :class:`FunctionBench` turns functions of time into a bench
+(tests, demos).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import math
+import signal
+import threading
+import time
+import warnings
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable, Iterable, Iterator, Protocol
+
+import numpy as np
+
+from daq.adc import ADC
+from daq.antialias import AntiAliasFilter
+from daq.channels import channels_for
+from daq.files import check_writable
+from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan,
+                         Recording, TruthField)
+from rig.blocks import AnalogBlock, Calibration
+from rig.errors import ConfigError, RigError
+from rig.scene import Scene
+
+FORMAT_VERSION = "1.0"
+
+
+class StreamError(RigError, RuntimeError):
+    """The bench broke the block contract (gap, wrong rate, missing channel, non-finite volts)."""
+
+
+class AcquisitionInterrupted(KeyboardInterrupt):
+    """The run was interrupted (KeyboardInterrupt); the sinks hold every finished record.
+
+    Still a :class:`KeyboardInterrupt`. ``summary`` is the :class:`AcquisitionSummary` so far.
+    """
+
+    def __init__(self, summary: "AcquisitionSummary"):
+        super().__init__(f"acquisition interrupted after {summary.records} of "
+                         f"{summary.records_planned} records")
+        self.summary = summary
+
+
+def software_version() -> str:
+    """The installed version of pendulum-daq."""
+    try:
+        return importlib.metadata.version("pendulum-daq")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"
+
+
+def utc_now_iso() -> str:
+    """Current UTC time, ISO 8601 with microseconds and a ``Z`` (fixed length 27)."""
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+# -- benches ---------------------------------------------------------------------------------
+
+class Bench(Protocol):
+    """What :func:`acquire` needs from a bench.
+
+    ``blocks()`` yields consecutive :class:`rig.blocks.AnalogBlock` s at ``fs_hz`` from t = 0, with
+    one volts entry per calibrated channel; it may be endless (the acquisition stops pulling).
+    ``expected_response(freqs_hz)`` gives exact complex responses (name -> (nf,) array): those
+    named like a channel are the analog chain up to that channel's ADC input (the anti-alias
+    filter is applied by the acquisition); ``units`` and ``long_names`` (optional dicts) say what
+    they are. ``model_info()`` says what was simulated (model, method, error estimate...).
+    """
+
+    fs_hz: float
+
+    def blocks(self) -> Iterator[AnalogBlock]: ...
+
+    def calibrations(self) -> dict[str, Calibration]: ...
+
+    def expected_response(self, freqs_hz: np.ndarray) -> dict: ...
+
+    def model_info(self) -> dict: ...
+
+
+class FunctionBench:
+    """A bench whose signals are a function of time (sines, seeded noise...): tests and demos.
+
+    Parameters
+    ----------
+    fs_hz : simulation rate [Hz].
+    signals : ``signals(t_s, rng) -> (volts, truth)``, both dicts of arrays over the samples of
+        ``t_s`` (exact sample instants ``k / fs_hz``); ``rng`` is a :class:`numpy.random.Generator`
+        consumed in time order, so the stream does not depend on the block size.
+    calibrations : per channel name.
+    seed : seeds ``rng``.
+    block_samples : samples per block.
+    response : optional ``response(freqs_hz) -> dict`` of exact responses (see :class:`Bench`).
+    info : model description returned by :meth:`model_info`.
+    """
+
+    def __init__(self, fs_hz: float, signals: Callable, calibrations: dict[str, Calibration], *,
+                 seed: int = 0, block_samples: int = 1000, response: Callable | None = None,
+                 info: dict | None = None, units: dict | None = None):
+        self.fs_hz = float(fs_hz)
+        self._signals, self._cal, self._seed = signals, dict(calibrations), seed
+        self._block, self._response = int(block_samples), response
+        self._info = dict(info or {"model": "function", "method": "exact",
+                                   "error_estimate": 0.0})
+        self.units = dict(units or {})
+
+    def blocks(self) -> Iterator[AnalogBlock]:
+        rng = np.random.default_rng(self._seed)
+        k0 = 0
+        while True:
+            t = (k0 + np.arange(self._block)) / self.fs_hz
+            volts, truth = self._signals(t, rng)
+            yield AnalogBlock(t0_s=k0 / self.fs_hz, fs_hz=self.fs_hz, volts=volts, truth=truth)
+            k0 += self._block
+
+    def calibrations(self) -> dict[str, Calibration]:
+        return dict(self._cal)
+
+    def expected_response(self, freqs_hz) -> dict:
+        return {} if self._response is None else self._response(np.asarray(freqs_hz, float))
+
+    def model_info(self) -> dict:
+        return dict(self._info)
+
+
+def rig_bench(scene: Scene, seed: int) -> Bench:
+    """The emulated rig of ``scene`` (:class:`rig.bench.BenchSimulation`) as a :class:`Bench`."""
+    from rig import bench as rb
+
+    return _RigBench(rb, scene, seed)
+
+
+#: Units of the responses of :func:`rig.bench.expected_response` (per source volt unless stated).
+RIG_RESPONSE_UNITS = {
+    "a": "V/V", "x": "V/V", "y": "V/V", "stage_accel": "(m/s^2)/V", "stage_disp": "m/V",
+    "mirror_x": "m/V", "mirror_rot": "rad/V", "h_t": "m/(m/s^2)", "theta_2": "rad/(m/s^2)",
+    "h_t_pendulum": "m/(m/s^2)", "theta_2_pendulum": "rad/(m/s^2)",
+    "h_t_pendulum_continuous": "m/(m/s^2)", "theta_2_pendulum_continuous": "rad/(m/s^2)",
+}
+RIG_RESPONSE_NAMES = {
+    "a": "channel a per source volt: DAC hold, amplifier, coil, stage, accelerometer",
+    "x": "channel x per source volt: ... stage, pendulum, optical lever (linearised)",
+    "y": "channel y per source volt: ... stage, pendulum, optical lever (linearised)",
+    "stage_accel": "stage acceleration per source volt",
+    "stage_disp": "stage displacement per source volt",
+    "mirror_x": "mirror translation relative to the stage per source volt",
+    "mirror_rot": "mirror rotation per source volt",
+    "h_t": "H_t = (x / cal_x) / (a / cal_a): what the analyzer measures (accelerometer high-pass "
+           "in the denominator)",
+    "theta_2": "Theta_2 = (y / cal_y) / (a / cal_a): what the analyzer measures",
+    "h_t_pendulum": "mirror translation / stage acceleration of the sampled bench",
+    "theta_2_pendulum": "mirror rotation / stage acceleration of the sampled bench",
+    "h_t_pendulum_continuous": "mirror translation / stage acceleration, continuous linear "
+                               "pendulum (rig.response.mirror_response)",
+    "theta_2_pendulum_continuous": "mirror rotation / stage acceleration, continuous linear "
+                                   "pendulum",
+}
+#: The ground truth recorded from the rig (the contract of rig.blocks.AnalogBlock); the bench's
+#: other truth series (coil current, stage velocity, spot positions, flags) are not stored.
+RIG_TRUTH = ("stage_accel_mps2", "theta_rad", "mirror_x_m", "mirror_rot_rad", "source_v")
+BLOCK_S = 10.0  # bench block length (at most; a record if shorter)
+
+
+class _RigBench:
+    """:class:`rig.bench.BenchSimulation` behind the :class:`Bench` interface.
+
+    ``expected_response`` is the exact discrete-time response of the simulated samples
+    (``sampled=True``: DAC hold and folding included) for every (nf,) response of the bench, plus
+    the continuous pendulum alone (``*_continuous``, from ``sampled=False``).
+    """
+
+    units = RIG_RESPONSE_UNITS
+    long_names = RIG_RESPONSE_NAMES
+    truth_keys = RIG_TRUTH
+
+    def __init__(self, rb, scene: Scene, seed: int):
+        self._rb, self._scene = rb, scene
+        self._sim = rb.BenchSimulation(scene, seed)
+        self.fs_hz = float(self._sim.fs_hz)
+        acq = scene.settings["acquisition"]
+        n = min(round(BLOCK_S * acq["rate_hz"]), round(acq["record_s"] * acq["rate_hz"]))
+        self._block_s = max(1, n) / acq["rate_hz"]  # a whole number of ADC samples
+
+    def blocks(self) -> Iterator[AnalogBlock]:
+        return self._sim.blocks(self._block_s)
+
+    def calibrations(self) -> dict[str, Calibration]:
+        return dict(self._sim.calibrations())
+
+    def expected_response(self, freqs_hz) -> dict:
+        exact = self._rb.expected_response(self._scene, freqs_hz, sampled=True)
+        cont = self._rb.expected_response(self._scene, freqs_hz, sampled=False)
+        out = {k: v for k, v in _as_dict(exact).items()
+               if isinstance(v, np.ndarray) and v.ndim == 1 and k != "freqs_hz"}
+        out["h_t_pendulum_continuous"] = cont.h_t_pendulum
+        out["theta_2_pendulum_continuous"] = cont.theta_2_pendulum
+        return out
+
+    def model_info(self) -> dict:
+        return dict(self._sim.model_info())
+
+
+def _as_dict(obj) -> dict:
+    if isinstance(obj, dict):
+        return dict(obj)
+    import dataclasses
+
+    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
+
+
+# -- sinks -----------------------------------------------------------------------------------
+
+class Sink:
+    """Receives the stream; override what you need. ``critical``: a failure stops the run."""
+
+    critical = True
+
+    def start(self, header: Header) -> None:
+        pass
+
+    def block(self, block: Block) -> None:
+        pass
+
+    def record(self, record) -> None:
+        pass
+
+    def stop(self, footer: Footer) -> None:
+        pass
+
+
+class MemorySink(Sink):
+    """Keeps the run in memory; :attr:`recording` is a :class:`daq.records.Recording`."""
+
+    def __init__(self):
+        self.header = None
+        self.footer = None
+        self._records = []
+
+    def start(self, header: Header) -> None:
+        self.header, self.footer, self._records = header, None, []
+
+    def record(self, record) -> None:
+        self._records.append(record)
+
+    def stop(self, footer: Footer) -> None:
+        self.footer = footer
+
+    @property
+    def recording(self) -> Recording:
+        h = self.header
+        n, recs = h.plan.samples, self._records
+
+        def stack(get, key, shape, dtype):
+            if not recs:
+                return np.empty((0, n) + shape, dtype)
+            return np.stack([get(r)[key] for r in recs])
+
+        return Recording(
+            header=h,
+            codes={c.name: stack(lambda r: r.codes, c.name, (), c.adc.dtype) for c in h.channels},
+            clipped={c.name: stack(lambda r: r.clipped, c.name, (), bool) for c in h.channels},
+            truth={t.name: stack(lambda r: r.truth, t.name, t.shape, float) for t in h.truth},
+            status=self.footer.status if self.footer else "acquiring")
+
+
+class _Fanout:
+    def __init__(self, sinks: Iterable[Sink]):
+        self.sinks = list(sinks)
+
+    def send(self, method: str, event) -> None:
+        for s in list(self.sinks):
+            try:
+                getattr(s, method)(event)
+            except Exception as exc:
+                if getattr(s, "critical", True):
+                    raise
+                warnings.warn(f"sink {type(s).__name__} failed in {method}() and was dropped: "
+                              f"{type(exc).__name__}: {exc}", RuntimeWarning, stacklevel=2)
+                self.sinks.remove(s)
+
+    def stop_all(self, footer: Footer) -> list[BaseException]:
+        """Stop every sink; collect (not raise) their errors."""
+        errors = []
+        for s in self.sinks:
+            try:
+                s.stop(footer)
+            except Exception as exc:
+                if getattr(s, "critical", True):
+                    errors.append(exc)
+                else:
+                    warnings.warn(f"sink {type(s).__name__} failed in stop(): {exc}",
+                                  RuntimeWarning, stacklevel=2)
+        return errors
+
+
+@contextlib.contextmanager
+def _sigint_deferred():
+    """Hold a SIGINT (Ctrl-C) until the block exits, then raise KeyboardInterrupt."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    try:
+        old = signal.signal(signal.SIGINT, lambda sig, frame: caught.append(sig))
+    except ValueError:  # pragma: no cover - no signals here
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+    if caught:
+        raise KeyboardInterrupt
+
+
+# -- the run ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class AcquisitionSummary:
+    """What a run produced.
+
+    Attributes
+    ----------
+    status : "complete", "interrupted" or "failed".
+    records, records_planned, samples_per_record, rate_hz : the records taken.
+    channels : channel names; ``clip_counts`` is (records, channels).
+    model_info : what the bench simulated.
+    seed : the seed of the run.
+    wall_s : wall time of :func:`acquire` [s].
+    path : the file written (None without ``out``); ``file_bytes`` its size.
+    """
+
+    status: str
+    records: int
+    records_planned: int
+    samples_per_record: int
+    rate_hz: float
+    channels: tuple
+    clip_counts: np.ndarray
+    model_info: dict
+    seed: int
+    wall_s: float
+    path: Path | None = None
+    file_bytes: int | None = None
+    message: str = ""
+
+    @property
+    def samples(self) -> int:
+        """Samples per channel recorded."""
+        return self.records * self.samples_per_record
+
+    def clip_totals(self) -> dict:
+        """Clipped samples per channel over all records."""
+        return {c: int(self.clip_counts[:, i].sum()) for i, c in enumerate(self.channels)}
+
+
+def check_seed(seed) -> int:
+    """A seed is an integer 0 <= seed < 2**63 (stored in the file as int64)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (
+            0 <= seed < 2 ** 63):
+        raise ConfigError(f"seed = {seed!r} is invalid: expected an integer 0 <= seed < 2**63")
+    return int(seed)
+
+
+def antialias_for(acquisition: dict, plan: RecordPlan) -> AntiAliasFilter:
+    """The anti-alias filter of ``Scene.settings["acquisition"]``."""
+    return AntiAliasFilter.design(
+        plan.simulation_rate_hz, plan.rate_hz, bits=acquisition["adc_bits"],
+        kind=acquisition.get("antialias", "elliptic"),
+        passband=acquisition.get("antialias_passband", 0.4),
+        ripple_db=acquisition.get("antialias_ripple_db", 0.01),
+        attenuation_db=acquisition.get("antialias_attenuation_db"))
+
+
+def acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bool = False,
+            sinks: Iterable[Sink] = (), progress: Callable[[float, float], None] | None = None,
+            bench: Callable[[Scene, int], Bench] | None = None) -> AcquisitionSummary:
+    """Acquire ``scene.settings["acquisition"]["records"]`` records of the scene's bench.
+
+    Parameters
+    ----------
+    scene : the resolved scene; its ``[acquisition]`` section sets rates, records, ADC and filter.
+    seed : seeds the bench (0 <= seed < 2**63); written into every record.
+    out : if given, an HDF5 file (:class:`daq.hdf5.HDF5Sink`) is added to ``sinks``.
+    force : allow replacing an existing ``out`` (it is replaced only by a complete run).
+    sinks : more sinks (e.g. :class:`MemorySink`).
+    progress : called as ``progress(simulated_s, total_s)`` after every bench block.
+    bench : ``bench(scene, seed) -> Bench``; default :func:`rig_bench`.
+
+    Returns
+    -------
+    AcquisitionSummary
+
+    Raises
+    ------
+    rig.errors.ConfigError : invalid settings, seed or output path; raised before anything is
+        simulated or written.
+    AcquisitionInterrupted : on KeyboardInterrupt (a KeyboardInterrupt), after closing the sinks.
+    """
+    t_start = time.perf_counter()
+    acq = scene.settings["acquisition"]
+    plan = RecordPlan.from_settings(acq)
+    ADC(1.0, acq["adc_bits"])  # the resolution, before the filter design that depends on it
+    aa = antialias_for(acq, plan)
+    seed = check_seed(seed)
+    sinks = list(sinks)
+    file_sink = None
+    if out is not None:
+        check_writable(Path(out), force=force)
+        from daq.hdf5 import HDF5Sink
+
+        file_sink = HDF5Sink(out, force=force)
+        sinks.insert(0, file_sink)  # the file first: it is what must not miss a record
+    the_bench = (bench or rig_bench)(scene, seed)
+    if not math.isclose(the_bench.fs_hz, plan.simulation_rate_hz, rel_tol=1e-12):
+        raise ConfigError(f"the bench runs at {the_bench.fs_hz:g} Hz but acquisition."
+                          f"simulation_rate_hz = {plan.simulation_rate_hz:g} Hz")
+    channels = channels_for(acq, the_bench.calibrations())
+    response = model_response(the_bench, aa, plan, channels)
+    blocks = iter(the_bench.blocks())
+    first = next(blocks, None)
+    if first is None:
+        raise StreamError("the bench yielded no block")
+    keys = getattr(the_bench, "truth_keys", None) or tuple(first.truth)
+    truth = tuple(TruthField.from_array(k, np.asarray(first.truth[k])) for k in keys
+                  if k in first.truth) if acq.get("truth", True) else ()
+    header = Header(scene=scene, seed=seed, plan=plan, channels=channels, antialias=aa,
+                    truth=truth, model_info=the_bench.model_info(), response=response,
+                    software_version=software_version(), start_time=utc_now_iso())
+
+    fan = _Fanout(sinks)
+    clips: list[list[int]] = []
+    status, message = "failed", ""
+    try:
+        fan.send("start", header)
+        _run(header, _chain(first, blocks), fan, progress, clips)
+        status = "complete"
+    except KeyboardInterrupt:
+        status, message = "interrupted", "KeyboardInterrupt"
+        raise
+    except BaseException as exc:
+        message = f"{type(exc).__name__}: {exc}"
+        raise
+    finally:
+        clip_counts = np.array(clips, dtype=np.int64).reshape(len(clips), len(channels))
+        footer = Footer(status=status, records_complete=len(clips), clip_counts=clip_counts,
+                        message=message, wall_s=time.perf_counter() - t_start)
+        with _sigint_deferred():
+            errors = fan.stop_all(footer)
+        path = file_sink.path if file_sink is not None else None
+        summary = AcquisitionSummary(
+            status=status, records=len(clips), records_planned=plan.records,
+            samples_per_record=plan.samples, rate_hz=plan.rate_hz, channels=header.names,
+            clip_counts=clip_counts, model_info=header.model_info, seed=seed,
+            wall_s=time.perf_counter() - t_start, path=path,
+            file_bytes=path.stat().st_size if path is not None and path.exists() else None,
+            message=message)
+        if status == "interrupted":
+            raise AcquisitionInterrupted(summary) from None
+        if errors and status == "complete":
+            raise errors[0]
+    return summary
+
+
+def _chain(first, rest):
+    yield first
+    yield from rest
+
+
+def model_response(bench: Bench, aa: AntiAliasFilter, plan: RecordPlan,
+                   channels: tuple) -> ModelResponse:
+    """Exact responses of the whole chain on the record's FFT grid (0 .. rate/2).
+
+    Responses named like a channel are multiplied by the anti-alias response (the channel passes
+    through it); the others (e.g. H_t = x/a, Theta_2 = y/a, where the filter cancels) are kept as
+    the bench gives them; ``antialias`` is the filter itself.
+    """
+    f = plan.frequencies_hz()
+    raw = bench.expected_response(f)
+    units = dict(getattr(bench, "units", {}) or {})
+    long_names = dict(getattr(bench, "long_names", {}) or {})
+    if "units" in raw and isinstance(raw["units"], dict):
+        units.update(raw.pop("units"))
+    if "long_names" in raw and isinstance(raw["long_names"], dict):
+        long_names.update(raw.pop("long_names"))
+    h_aa = aa.response(f)
+    values, names = {}, {c.name for c in channels}
+    for k, v in raw.items():
+        if k in ("freqs_hz", "frequency_hz", "freqs"):
+            continue
+        v = np.asarray(v)
+        if v.shape != f.shape:
+            continue  # not a response on this grid (e.g. a scalar note)
+        v = v.astype(complex)
+        if k in names:
+            v = v * h_aa
+            long_names.setdefault(k, f"channel {k}: analog chain x anti-alias filter")
+        values[k] = v
+    values["antialias"] = h_aa
+    units["antialias"] = "1"
+    long_names["antialias"] = f"anti-alias filter ({aa.kind}, order {aa.order})"
+    return ModelResponse(freqs_hz=f, values=values, units=units, long_names=long_names)
+
+
+def _run(header: Header, blocks: Iterator[AnalogBlock], fan: _Fanout, progress,
+         clips: list) -> None:
+    """The acquisition loop. Appends each finished record's clip counts to ``clips`` in the same
+    SIGINT-free section that hands the record to the sinks, so ``len(clips)`` is the number of
+    records every sink has."""
+    plan, aa = header.plan, header.antialias
+    names = header.names
+    adcs = [c.adc for c in header.channels]
+    truth_names = [t.name for t in header.truth]
+    fs, n_rec, settle = plan.simulation_rate_hz, plan.samples, plan.settle_samples
+    need = plan.simulation_samples
+    state = aa.initial_state(len(names))
+    buf = RecordBuffer(header)
+    done_sim = 0  # simulation samples consumed
+    done_out = 0  # output samples produced
+    for ab in blocks:
+        if not math.isclose(ab.fs_hz, fs, rel_tol=1e-12):
+            raise StreamError(f"bench block at t = {ab.t0_s:g} s has fs = {ab.fs_hz:g} Hz; "
+                              f"expected {fs:g} Hz")
+        if abs(ab.t0_s - done_sim / fs) > 1e-9 * max(1.0, done_sim / fs) + 0.1 / fs:
+            raise StreamError(f"bench block starts at t = {ab.t0_s!r} s; expected the next sample "
+                              f"at t = {done_sim / fs!r} s (blocks must be consecutive)")
+        missing = [k for k in names if k not in ab.volts]
+        if missing:
+            raise StreamError(f"bench block at t = {ab.t0_s:g} s has no volts for channel(s) "
+                              f"{', '.join(missing)}")
+        n = min(ab.samples, need - done_sim)
+        x = np.empty((len(names), n))
+        for i, k in enumerate(names):
+            x[i] = ab.volts[k][:n]
+        if not np.isfinite(x).all():
+            bad = [k for i, k in enumerate(names) if not np.isfinite(x[i]).all()]
+            i = int(np.argmin(np.isfinite(x).all(axis=0)))
+            raise StreamError(f"non-finite volts on channel(s) {', '.join(bad)} at t = "
+                              f"{ab.t0_s + i / fs:.6g} s")
+        kept = aa.kept(state, n)
+        y, state = aa.step(state, x)
+        m = y.shape[1]
+        codes, clipped = {}, {}
+        for i, (k, adc) in enumerate(zip(names, adcs)):
+            codes[k], clipped[k] = adc.digitize(y[i])
+        truth = {}
+        for k in truth_names:
+            truth[k] = np.asarray(ab.truth[k])[:n][kept]
+        pos = 0
+        while pos < m:
+            g = done_out + pos
+            if g < settle:
+                pos += min(m - pos, settle - g)
+                continue
+            r, off = divmod(g - settle, n_rec)
+            take = min(m - pos, n_rec - off)
+            sl = slice(pos, pos + take)
+            blk = Block(record=r, start=off, t0_s=g / plan.rate_hz,
+                        codes={k: v[sl] for k, v in codes.items()},
+                        clipped={k: v[sl] for k, v in clipped.items()},
+                        truth={k: v[sl] for k, v in truth.items()})
+            fan.send("block", blk)
+            rec = buf.add(blk)
+            if rec is not None:
+                with _sigint_deferred():
+                    fan.send("record", rec)
+                    counts = rec.clip_counts()
+                    clips.append([counts[c] for c in header.names])
+            pos += take
+        done_out += m
+        done_sim += n
+        if progress is not None:
+            progress(done_sim / fs, need / fs)
+        if done_sim >= need:
+            return
+    raise StreamError(f"the bench stopped at t = {done_sim / fs:g} s; the run needs "
+                      f"{need / fs:g} s")

@@ -1,0 +1,229 @@
+"""Anti-alias filter and decimation: the simulation rate -> the sample rate of every channel.
+
+A real DAQ puts an analog low-pass in front of each ADC and samples on one clock. Here the bench
+is simulated at ``fs_hz`` (``acquisition.simulation_rate_hz``), an integer multiple ``q >= 2`` of
+the sample rate ``rate_hz``; every channel goes through the *same* digital low-pass running at
+``fs_hz`` (standing in for the analog filter) and then every ``q``-th filtered sample is kept.
+
+Design (``kind="elliptic"``, the default)
+-----------------------------------------
+An elliptic (Cauer) low-pass in second-order sections (:func:`scipy.signal.ellip`, ``fs=fs_hz``):
+
+- passband edge ``f_p = passband * rate_hz`` (default 0.4 rate: 40 Hz at 100 Hz), peak-to-peak
+  ripple ``ripple_db`` (default 0.01 dB; the gain stays within [-ripple_db, 0] dB below f_p);
+- stopband edge ``f_s = rate_hz / 2`` (the Nyquist frequency of the decimated signal), attenuation
+  ``attenuation_db`` (default ``20 log10(2^(bits+1))``, 102.35 dB for a 16-bit ADC) at and above
+  f_s, up to ``fs_hz / 2``;
+- order from :func:`scipy.signal.ellipord` (12 for 1000 Hz -> 100 Hz).
+
+Whatever lies at or above the Nyquist frequency folds back into 0..rate/2 attenuated by at least
+``attenuation_db``: with the default, a full-scale sine (amplitude ``2^(bits-1)`` LSB) aliases to
+at most LSB/4, below the ADC's rounding threshold, so it leaves no code. Between f_p and f_s the
+filter rolls off and the content there is still not aliased (it stays below Nyquist); an analysis
+should use 0..f_p.
+
+``kind="none"`` decimates without filtering (to show what aliasing does).
+
+Exact response
+--------------
+Sample ``j`` of the decimated output is the filtered signal at simulation index ``j q`` (time
+``j / rate_hz``; decimation adds no delay). For ``f < rate_hz / 2`` the output of a sine
+``exp(2 pi i f t)`` sampled at ``fs_hz`` is, in steady state, ``H(f) exp(2 pi i f t)`` with::
+
+    H(f) = prod_k (b0k + b1k z^-1 + b2k z^-2) / (1 + a1k z^-1 + a2k z^-2),
+    z = exp(2 pi i f / fs_hz)
+
+(:meth:`AntiAliasFilter.response`, exact for the simulated samples; the rows of ``sos`` are
+``[b0k, b1k, b2k, 1, a1k, a2k]``). A component at ``f >= rate_hz / 2`` appears at its alias
+``|f - m rate_hz|`` scaled by ``|H(f)|``. The filter is not linear-phase: its group delay is about
+``group_delay_s(0)`` (27.6 ms for the default design at 100 Hz) at low frequency and rises towards
+f_p; the same filter on every channel cancels in any ratio of channels (H_t = x/a, Theta_2 = y/a).
+
+State
+-----
+The filter starts at rest (zero state) with the bench at t = 0; the settling time before the first
+record absorbs its transient. :class:`FilterState` (the ``sosfilt`` ``zi`` of every channel and the
+decimation phase) is passed in and handed back by :meth:`AntiAliasFilter.step`, so filtering a run
+in blocks of any sizes gives the same samples, bit for bit, as filtering it in one piece.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+
+from rig.errors import ConfigError
+
+KINDS = ("elliptic", "none")
+
+
+def default_attenuation_db(bits: int) -> float:
+    """Stopband attenuation that makes a full-scale alias at most LSB/4 [dB]:
+    ``20 log10(2^(bits+1))``."""
+    return 20.0 * math.log10(2.0 ** (bits + 1))
+
+
+def decimation_factor(fs_hz: float, rate_hz: float, *, fs_name: str = "simulation_rate_hz",
+                      rate_name: str = "rate_hz") -> int:
+    """``fs_hz / rate_hz`` as an integer >= 2, or :class:`ConfigError` naming both values."""
+    for name, v in ((rate_name, rate_hz), (fs_name, fs_hz)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ConfigError(f"{name} = {v!r} is invalid: expected a finite rate > 0 Hz")
+    if rate_hz > fs_hz:
+        raise ConfigError(f"{rate_name} = {rate_hz:g} Hz is invalid: it is above {fs_name} = "
+                          f"{fs_hz:g} Hz; expected {fs_name} / q for an integer q >= 2")
+    r = fs_hz / rate_hz
+    q = int(round(r))
+    if abs(r - q) > 1e-9 * r:
+        raise ConfigError(f"{rate_name} = {rate_hz:g} Hz is invalid: {fs_name} = {fs_hz:g} Hz is "
+                          f"not an integer multiple of it (ratio {r:.6g}); expected {fs_name} / q "
+                          "for an integer q >= 2")
+    if q < 2:
+        raise ConfigError(f"{rate_name} = {rate_hz:g} Hz is invalid: it equals {fs_name}; the "
+                          "anti-alias filter runs at the simulation rate and needs room above "
+                          f"Nyquist: expected {fs_name} / q for an integer q >= 2")
+    return q
+
+
+@dataclass(frozen=True)
+class FilterState:
+    """What carries over between blocks.
+
+    Attributes
+    ----------
+    zi : (sections, channels, 2) ``sosfilt`` state (empty for ``kind="none"``).
+    phase : index, within the next block, of its first sample to keep (0 <= phase < q).
+    """
+
+    zi: np.ndarray
+    phase: int
+
+
+@dataclass(frozen=True, eq=False)
+class AntiAliasFilter:
+    """One anti-alias low-pass + decimator, shared by every channel (see the module docstring).
+
+    Build it with :meth:`design`. Attributes are in Hz and dB; ``sos`` is (sections, 6), read-only.
+    """
+
+    fs_hz: float
+    rate_hz: float
+    kind: str
+    passband_hz: float
+    stopband_hz: float
+    ripple_db: float
+    attenuation_db: float
+    order: int
+    sos: np.ndarray = field(repr=False)
+
+    @classmethod
+    def design(cls, fs_hz: float, rate_hz: float, *, bits: int = 16, kind: str = "elliptic",
+               passband: float = 0.4, ripple_db: float = 0.01,
+               attenuation_db: float | None = None) -> "AntiAliasFilter":
+        """Design the filter for ``fs_hz -> rate_hz``.
+
+        Parameters
+        ----------
+        fs_hz : simulation rate [Hz], an integer multiple q >= 2 of ``rate_hz``.
+        rate_hz : sample rate after decimation [Hz].
+        bits : ADC resolution; sets the default ``attenuation_db`` = 20 log10(2^(bits+1)).
+        kind : "elliptic" or "none" (decimation only).
+        passband : passband edge as a fraction of ``rate_hz``, 0 < passband < 0.5.
+        ripple_db : passband ripple [dB], > 0.
+        attenuation_db : minimum attenuation at and above ``rate_hz / 2`` [dB], > 0.
+        """
+        decimation_factor(fs_hz, rate_hz)
+        if kind not in KINDS:
+            raise ConfigError(f"antialias = {kind!r} is invalid: expected one of "
+                              f"{', '.join(KINDS)}")
+        if not (isinstance(passband, (int, float)) and 0 < passband < 0.5):
+            raise ConfigError(f"antialias_passband = {passband!r} is invalid: expected a fraction "
+                              "of rate_hz with 0 < passband < 0.5")
+        if not (isinstance(ripple_db, (int, float)) and 0 < ripple_db <= 3):
+            raise ConfigError(f"antialias_ripple_db = {ripple_db!r} is invalid: expected "
+                              "0 < ripple <= 3 dB")
+        if attenuation_db is None:
+            attenuation_db = default_attenuation_db(bits)
+        if not (isinstance(attenuation_db, (int, float)) and 20 <= attenuation_db <= 200):
+            raise ConfigError(f"antialias_attenuation_db = {attenuation_db!r} is invalid: expected "
+                              "20 .. 200 dB")
+        fp, fst = passband * rate_hz, rate_hz / 2
+        if kind == "none":
+            order, sos = 0, np.array([[1.0, 0, 0, 1.0, 0, 0]])
+        else:
+            order, wn = signal.ellipord(fp, fst, ripple_db, attenuation_db, fs=fs_hz)
+            sos = signal.ellip(order, ripple_db, attenuation_db, wn, btype="low", output="sos",
+                               fs=fs_hz)
+        sos = np.ascontiguousarray(sos, dtype=float)
+        sos.setflags(write=False)
+        return cls(fs_hz=float(fs_hz), rate_hz=float(rate_hz), kind=kind, passband_hz=float(fp),
+                   stopband_hz=float(fst), ripple_db=float(ripple_db),
+                   attenuation_db=float(attenuation_db), order=int(order), sos=sos)
+
+    # -- derived -------------------------------------------------------------------------------
+    @property
+    def decimation(self) -> int:
+        """q = fs_hz / rate_hz."""
+        return int(round(self.fs_hz / self.rate_hz))
+
+    def response(self, freqs_hz) -> np.ndarray:
+        """Exact complex response H(f) at ``freqs_hz`` [Hz] (any shape; module docstring)."""
+        f = np.asarray(freqs_hz, dtype=float)
+        zinv = np.exp(-2j * np.pi * f / self.fs_hz)
+        h = np.ones(f.shape, dtype=complex)
+        for b0, b1, b2, a0, a1, a2 in self.sos:
+            h *= (b0 + zinv * (b1 + zinv * b2)) / (a0 + zinv * (a1 + zinv * a2))
+        return h
+
+    def group_delay_s(self, freqs_hz) -> np.ndarray:
+        """Group delay -d(phase)/d(omega) at ``freqs_hz`` [s] (per section, summed)."""
+        f = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
+        tau = np.zeros(f.shape)
+        for sec in self.sos:
+            _, gd = signal.group_delay((sec[:3], sec[3:]), w=f, fs=self.fs_hz)
+            tau += gd
+        return tau / self.fs_hz
+
+    def describe(self) -> dict:
+        """The design as plain data (for file attributes and summaries)."""
+        return {"kind": self.kind, "fs_hz": self.fs_hz, "rate_hz": self.rate_hz,
+                "decimation": self.decimation, "order": self.order,
+                "passband_hz": self.passband_hz, "stopband_hz": self.stopband_hz,
+                "ripple_db": self.ripple_db, "attenuation_db": self.attenuation_db}
+
+    # -- stepping ------------------------------------------------------------------------------
+    def initial_state(self, channels: int) -> FilterState:
+        """At rest: zero filter state, the first sample of the run is kept."""
+        zi = np.zeros((0 if self.kind == "none" else len(self.sos), channels, 2))
+        return FilterState(zi=zi, phase=0)
+
+    def kept(self, state: FilterState, samples: int) -> slice:
+        """Which of the next ``samples`` input samples the decimation keeps."""
+        return slice(state.phase, samples, self.decimation)
+
+    def step(self, state: FilterState, x: np.ndarray) -> tuple[np.ndarray, FilterState]:
+        """Filter and decimate one block.
+
+        Parameters
+        ----------
+        state : from :meth:`initial_state` or the previous call.
+        x : (channels, samples) volts at ``fs_hz``.
+
+        Returns
+        -------
+        y : (channels, kept) filtered volts at ``rate_hz``,
+            ``kept = len(range(phase, samples, q))``.
+        state : the state after this block.
+        """
+        x = np.asarray(x, dtype=float)
+        n = x.shape[-1]
+        sl = self.kept(state, n)
+        if self.kind == "none":
+            y, zi = x, state.zi
+        else:
+            y, zi = signal.sosfilt(self.sos.copy(), x, axis=-1, zi=state.zi)
+        return (np.ascontiguousarray(y[..., sl]),
+                FilterState(zi=zi, phase=(state.phase - n) % self.decimation))

@@ -1,0 +1,641 @@
+"""The run file: a self-describing HDF5 (NeXus-style) file written record by record.
+
+Readable without this package: every group has an ``NX_class``; ``default`` attributes lead from
+the root to the raw channels (``/entry/data``, an NXdata); every array has dimension scales with
+``units`` and ``long_name``, so ``xarray.open_dataset(path, group="entry/data",
+engine="h5netcdf")`` returns labelled arrays (also for ``entry/truth``, ``entry/clipping`` and
+``entry/model``). Layout (format version :data:`FORMAT_VERSION`)::
+
+    /                       @NX_class=NXroot @default=entry @creator @file_format
+                            @file_format_version @HDF5_Version @h5py_version
+    entry/                  NXentry @default=data @title @start_time (UTC ISO 8601) @seed
+                            @software @software_version @file_format_version @scene_name
+      status                S16 scalar: acquiring | complete | interrupted | failed
+      records_complete      int64 scalar: records fully written (the rest of the file agrees)
+      records_planned       int64 scalar
+      message               S512 scalar: why the run stopped early ("" if complete)
+      data/                 NXdata @signal=a @auxiliary_signals=[x, y] @axes=[record, time]
+        record  (record,)   int64, dimension scale, the record index
+        time    (time,)     float64 [s] dimension scale, time within a record
+        record_start (record,) float64 [s] first sample of each record from the start of the run
+        a, x, y (record, time) int16 ADC codes, chunk = one record, shuffle + gzip;
+                            @scale_factor = lsb_v, @add_offset = offset_v, @units = V (CF packing:
+                            xarray decodes to volts) @long_name @quantity @engineering_unit
+                            @volts_per_unit (signed) @units_per_volt @range_v @bits @lsb_v
+                            @offset_v @code_min @code_max
+      clipping/             NXcollection: record, time, channel (names) scales;
+        count   (record, channel) int64: clipped samples per record and channel
+        a, x, y (record, time) uint8: 1 where a sample was clipped
+      truth/                NXdata (only if acquisition.truth): record, time, body scales;
+        stage_accel_mps2, mirror_x_m, mirror_rot_rad, source_v (record, time) float64,
+        theta_rad (record, time, body) float64 -- sampled, not filtered (see daq.records);
+                            chunk = one record, not compressed (float64 noise barely shrinks)
+      model/                NXcollection @model @method @error_estimate[.<key>] ... (the bench's
+                            model_info, nested keys joined by dots) @model_info_json (all of it
+                            but wall-clock timings, which would make identical runs differ)
+        frequency (frequency,) [Hz] scale: the record's FFT grid k / record_s, 0 .. rate/2
+        <name>_real, <name>_imag (frequency,): exact complex responses @units @long_name; from
+                            the rig: a, x, y [V/V] (channel volts per source volt, the whole
+                            chain: DAC hold, stage, pendulum, sensors *and* the anti-alias
+                            filter), h_t [m/(m/s^2)] and theta_2 [rad/(m/s^2)] (what the
+                            analyzer should measure; the filter cancels), stage_accel,
+                            stage_disp, mirror_x, mirror_rot, h_t_pendulum, theta_2_pendulum
+                            (exact for the simulated samples: rig.bench.expected_response
+                            sampled=True), *_pendulum_continuous (the continuous pendulum),
+                            antialias [1]. NaN where undefined (0 Hz ratios).
+      instrument/           NXinstrument
+        antialias/          NXcollection @kind @order @fs_hz @rate_hz @decimation @passband_hz
+                            @stopband_hz @ripple_db @attenuation_db @sos (sections, 6)
+        acquisition/        NXcollection: the plan @rate_hz @records @samples_per_record ...
+      scene/                NXcollection @name @source @description
+        settings_json       str scalar: Scene.settings (rig.scene.scene_from_settings rebuilds it)
+
+Writing
+-------
+The file is created with ``libver="latest"``; after every dataset and attribute exists it switches
+to SWMR mode, so a reader can follow it while it grows (``h5py.File(path, "r", swmr=True)``,
+``refresh()`` the datasets). Each finished record is appended (datasets resized by one row) and
+flushed, then ``records_complete`` is updated and flushed: a follower reads ``records_complete``
+first, then refreshes the data, and finds at least that many complete rows. An interrupted run (KeyboardInterrupt, an
+exception) closes the file with status "interrupted"/"failed" and every finished record. If the
+process is killed, the file stays valid with every flushed record and status "acquiring", but
+HDF5 marks it "open for writing": SWMR readers (and :func:`open_run`) read it as it is; others
+need the mark cleared first (``h5clear -s FILE`` or :func:`clear_write_flags`, ``daq inspect
+--repair``).
+
+An existing file is never overwritten without ``force``; with ``force`` the new run is written
+beside it (``<stem>.partial-XXXX<suffix>``) and replaces it only when complete; an incomplete
+run stays in that partial file (deleted if it holds no record).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from daq.acquisition import FORMAT_VERSION, Sink
+from daq.antialias import AntiAliasFilter
+from daq.channels import Channel
+from daq.files import check_writable
+from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Recording, STATUSES,
+                         TruthField)
+from rig.errors import ConfigError
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX
+    fcntl = None
+
+FORMAT = "pendulum-daq run"
+_STATUS_LEN, _MESSAGE_LEN = 16, 512
+_STR = h5py.string_dtype()
+
+
+def _fixed(text: str, n: int) -> np.bytes_:
+    return np.bytes_(text.encode("utf-8")[:n])
+
+
+def _attr(value):
+    """A value h5py and netCDF readers both understand (bools as 0/1, None as "")."""
+    if value is None:
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return int(value)
+    if isinstance(value, (list, tuple)):
+        if all(isinstance(v, str) for v in value):
+            return np.array(value, dtype=_STR)
+        return np.asarray(value)
+    if isinstance(value, dict):
+        return json.dumps(value, default=_json_default)
+    return value
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    return repr(o)
+
+
+def _without_timings(d: dict) -> dict:
+    """The model info without wall-clock timings (``*wall_time*`` keys): they differ between
+    identical runs, and files of the same seed are identical apart from ``start_time``."""
+    return {k: _without_timings(v) if isinstance(v, dict) else v for k, v in d.items()
+            if "wall_time" not in k}
+
+
+def _flat_scalars(d: dict, prefix: str = "") -> dict:
+    """Scalar entries of a nested dict, keys joined by dots (``error_estimate.max_abs...``)."""
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat_scalars(v, f"{prefix}{k}."))
+        elif isinstance(v, (str, int, float, bool, np.generic)) and not (
+                isinstance(v, int) and not isinstance(v, bool) and not -2**63 <= v < 2**63):
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _set_attrs(obj, d: dict) -> None:
+    for k, v in d.items():
+        obj.attrs[k] = _attr(v)
+
+
+def _group(parent, name: str, nx_class: str, /, **attrs):
+    g = parent.create_group(name)
+    g.attrs["NX_class"] = nx_class
+    _set_attrs(g, attrs)
+    return g
+
+
+class HDF5Sink(Sink):
+    """Writes the stream into an HDF5 run file (see the module docstring).
+
+    Parameters
+    ----------
+    path : the file to write.
+    force : allow replacing an existing file (only once the new run is complete).
+    compression_level : gzip level (with shuffle) of the channels and clip flags.
+    truth_compression_level : gzip level of the truth; 0 (default): none -- float64 samples of
+        noise-driven signals shrink by ~11 % for ~0.03 s per 10^5 samples written.
+
+    After :meth:`stop`, :attr:`path` is the file that holds the run (None if none was kept).
+    """
+
+    critical = True
+
+    def __init__(self, path: str | Path, *, force: bool = False, compression_level: int = 4,
+                 truth_compression_level: int = 0):
+        self.target = Path(path)
+        self.force = force
+        self.level, self.truth_level = compression_level, truth_compression_level
+        self.path: Path | None = None
+        self._f = None
+        self._tmp = None
+        self._lock = None
+        self._n = 0
+
+    # -- stream ---------------------------------------------------------------------------
+    def start(self, header: Header) -> None:
+        target = check_writable(self.target, force=self.force)
+        if target.exists():
+            fd, tmp = tempfile.mkstemp(prefix=f"{target.stem}.partial-", suffix=target.suffix,
+                                       dir=target.parent)
+            os.close(fd)
+            self._tmp = Path(tmp)
+            self._f = h5py.File(self._tmp, "w", libver="latest")
+        else:
+            self._f = h5py.File(target, "x", libver="latest")
+        self.path = self._tmp or target
+        self._header = header
+        try:
+            self._layout(header)
+            self._f.swmr_mode = True
+            self._f.flush()
+        except BaseException:
+            self._f.close()
+            self._f = None
+            self.path.unlink()
+            self.path = None
+            raise
+        if fcntl is not None:  # tells clear_write_flags that the writer is alive
+            self._lock = open(self.path, "rb")
+            fcntl.flock(self._lock, fcntl.LOCK_SH)
+
+    def record(self, record: Record) -> None:
+        k = record.index
+        if k != self._n:
+            raise ValueError(f"record {k} arrives out of order (expected {self._n})")
+        for ds in self._grow:
+            ds.resize(k + 1, axis=0)
+        for rec in self._record_scales:
+            rec[k] = k
+        self._rec_start[k] = record.t0_s
+        for i, name in enumerate(self._header.names):
+            self._codes[name][k] = record.codes[name]
+            self._flags[name][k] = record.clipped[name]
+        self._count[k] = [np.count_nonzero(record.clipped[c]) for c in self._header.names]
+        for name, ds in self._truth.items():
+            ds[k] = record.truth[name]
+        self._f.flush()  # the record (data and metadata) first ...
+        self._n = k + 1
+        self._records_complete[()] = self._n  # ... then the count a reader trusts
+        self._f.flush()
+
+    def stop(self, footer: Footer) -> None:
+        if self._f is None:
+            return
+        try:
+            for ds in self._grow:  # a record cut short by an exception: drop its rows
+                if ds.shape[0] != self._n:
+                    ds.resize(self._n, axis=0)
+            self._status[()] = _fixed(footer.status, _STATUS_LEN)
+            self._message[()] = _fixed(footer.message, _MESSAGE_LEN)
+            self._f.flush()
+        finally:
+            self._f.close()
+            self._f = None
+            if self._lock is not None:
+                self._lock.close()
+                self._lock = None
+        if self._tmp is not None:
+            if footer.status == "complete":
+                os.replace(self._tmp, self.target)
+                self.path = self.target
+            elif self._n == 0:
+                self._tmp.unlink()
+                self.path = None
+
+    # -- layout ---------------------------------------------------------------------------
+    def _layout(self, h: Header) -> None:
+        f, plan = self._f, h.plan
+        n = plan.samples
+        f.attrs["NX_class"] = "NXroot"
+        f.attrs["default"] = "entry"
+        _set_attrs(f, {"creator": f"pendulum-daq {h.software_version}", "file_format": FORMAT,
+                       "file_format_version": FORMAT_VERSION,
+                       "HDF5_Version": h5py.version.hdf5_version,
+                       "h5py_version": h5py.version.version})
+        entry = _group(f, "entry", "NXentry", default="data",
+                       title=f"{h.scene.name}: {plan.records} records x {plan.record_s:g} s at "
+                             f"{plan.rate_hz:g} Hz, seed {h.seed}",
+                       start_time=h.start_time, seed=np.int64(h.seed), software="pendulum-daq",
+                       software_version=h.software_version, file_format_version=FORMAT_VERSION,
+                       scene_name=h.scene.name,
+                       status_note="status and records_complete are updated as the run "
+                                   "proceeds; any status but 'complete' means incomplete")
+        self._status = entry.create_dataset("status", data=_fixed("acquiring", _STATUS_LEN),
+                                            dtype=f"S{_STATUS_LEN}", track_times=False)
+        self._status.attrs["long_name"] = "run status: " + " | ".join(STATUSES)
+        self._records_complete = entry.create_dataset("records_complete", data=np.int64(0),
+                                                      track_times=False)
+        self._records_complete.attrs["long_name"] = "records fully written"
+        entry.create_dataset("records_planned", data=np.int64(plan.records),
+                             track_times=False).attrs["long_name"] = "records requested"
+        self._message = entry.create_dataset("message", data=_fixed("", _MESSAGE_LEN),
+                                             dtype=f"S{_MESSAGE_LEN}", track_times=False)
+        self._message.attrs["long_name"] = "why the run stopped early"
+        self._grow, self._record_scales = [], []
+
+        # raw channels
+        data = _group(entry, "data", "NXdata", signal=h.names[0],
+                      auxiliary_signals=list(h.names[1:]), axes=["record", "time"],
+                      record_indices=0, time_indices=1)
+        rec, tim = self._scales(data, n)
+        self._rec_start = self._series(data, "record_start", (), np.float64, rec, tim, None,
+                                       units="s", long_name="time of the record's first sample "
+                                       "from the start of the run (settling included)")
+        self._codes = {}
+        for c in h.channels:
+            d = c.describe()
+            adc = c.adc
+            attrs = {"long_name": c.long_name, "units": "V",
+                     "scale_factor": adc.lsb_v, "add_offset": adc.offset_v,
+                     "quantity": c.quantity, "engineering_unit": c.unit,
+                     "volts_per_unit": c.volts_per_unit, "units_per_volt": c.units_per_volt,
+                     "calibration": f"{c.quantity} [{c.unit}] = (code * {adc.lsb_v!r} + "
+                                    f"{adc.offset_v!r}) / {c.volts_per_unit!r}",
+                     **{k: v for k, v in d.items() if k not in ("long_name", "unit", "name")}}
+            self._codes[c.name] = self._series(data, c.name, (n,), adc.dtype, rec, tim,
+                                               self.level, **attrs)
+        # clipping
+        clip = _group(entry, "clipping", "NXcollection")
+        crec, ctim = self._scales(clip, n)
+        chan = clip.create_dataset("channel", data=np.array(h.names, dtype=_STR),
+                                   track_times=False)
+        chan.make_scale("channel")
+        chan.attrs["long_name"] = "channel name"
+        self._count = clip.create_dataset("count", shape=(0, len(h.names)),
+                                          maxshape=(None, len(h.names)), dtype=np.int64,
+                                          chunks=(64, len(h.names)), track_times=False)
+        self._count.dims[0].attach_scale(crec)
+        self._count.dims[1].attach_scale(chan)
+        _set_attrs(self._count, {"long_name": "clipped samples per record and channel",
+                                 "units": "1"})
+        self._grow.append(self._count)
+        self._flags = {c: self._series(clip, c, (n,), np.uint8, crec, ctim, self.level,
+                                       long_name=f"1 where channel {c} clipped", units="1")
+                       for c in h.names}
+
+        # truth
+        self._truth = {}
+        if h.truth:
+            signal = "mirror_x_m" if any(t.name == "mirror_x_m" for t in h.truth) \
+                else h.truth[0].name
+            tg = _group(entry, "truth", "NXdata", signal=signal, axes=["record", "time"],
+                        record_indices=0, time_indices=1,
+                        note="sampled at the channels' instants without anti-alias filter, "
+                             "sensor or ADC")
+            trec, ttim = self._scales(tg, n)
+            extra = {}
+            for t in h.truth:
+                for dim, size in zip(t.dims, t.shape):
+                    if dim not in extra:
+                        s = tg.create_dataset(dim, data=np.arange(1, size + 1, dtype=np.int64),
+                                              track_times=False)
+                        s.make_scale(dim)
+                        s.attrs["long_name"] = "body (1-based)" if dim == "body" else dim
+                        extra[dim] = s
+                self._truth[t.name] = self._series(
+                    tg, t.name, (n,) + t.shape, np.float64, trec, ttim, self.truth_level,
+                    extra=[extra[d] for d in t.dims], units=t.unit, long_name=t.long_name)
+
+        # model response
+        info = _without_timings(h.model_info)
+        m = _group(entry, "model", "NXcollection",
+                   model_info_json=json.dumps(info, default=_json_default),
+                   **_flat_scalars(info))
+        fr = m.create_dataset("frequency", data=h.response.freqs_hz, track_times=False)
+        fr.make_scale("frequency")
+        _set_attrs(fr, {"units": "Hz", "long_name": "frequency (the record's FFT grid)"})
+        for name, v in h.response.values.items():
+            for part, arr in (("real", v.real), ("imag", v.imag)):
+                ds = m.create_dataset(f"{name}_{part}", data=arr, track_times=False)
+                ds.dims[0].attach_scale(fr)
+                _set_attrs(ds, {"units": h.response.units.get(name, ""),
+                                "long_name": f"{part} part of "
+                                             f"{h.response.long_names.get(name, name)}"})
+
+        # instrument
+        inst = _group(entry, "instrument", "NXinstrument")
+        aa = _group(inst, "antialias", "NXcollection", **h.antialias.describe())
+        aa.attrs["sos"] = np.asarray(h.antialias.sos)
+        aa.attrs["description"] = ("digital elliptic low-pass in second-order sections at the "
+                                   "simulation rate, then decimation; H(f) = prod_k (b0 + b1 z^-1 "
+                                   "+ b2 z^-2) / (1 + a1 z^-1 + a2 z^-2), z = exp(2 pi i f / fs)")
+        _group(inst, "acquisition", "NXcollection", **plan.describe())
+
+        sc = _group(entry, "scene", "NXcollection", name=h.scene.name, source=h.scene.source,
+                    description=h.scene.description)
+        js = sc.create_dataset("settings_json", data=json.dumps(h.scene.settings, sort_keys=True),
+                               dtype=_STR, track_times=False)
+        js.attrs["long_name"] = "resolved scene settings (rig.scene.scene_from_settings)"
+
+    def _scales(self, g, n: int):
+        rec = g.create_dataset("record", shape=(0,), maxshape=(None,), dtype=np.int64,
+                               chunks=(256,), track_times=False)
+        rec.make_scale("record")
+        _set_attrs(rec, {"long_name": "record index", "units": "1"})
+        tim = g.create_dataset("time", data=self._header.plan.times_s(), track_times=False)
+        tim.make_scale("time")
+        _set_attrs(tim, {"long_name": "time within the record", "units": "s"})
+        self._grow.append(rec)
+        self._record_scales.append(rec)
+        return rec, tim
+
+    def _series(self, g, name, row_shape, dtype, rec, tim, level, /, extra=(), **attrs):
+        shape = tuple(row_shape)
+        kw = dict(compression="gzip", compression_opts=level, shuffle=True) if level else {}
+        ds = g.create_dataset(name, shape=(0,) + shape, maxshape=(None,) + shape, dtype=dtype,
+                              chunks=(1,) + shape if shape else (256,), track_times=False, **kw)
+        ds.dims[0].attach_scale(rec)
+        if shape:
+            ds.dims[1].attach_scale(tim)
+        for i, s in enumerate(extra):
+            ds.dims[2 + i].attach_scale(s)
+        _set_attrs(ds, attrs)
+        self._grow.append(ds)
+        return ds
+
+
+# -- reading ---------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def open_run(path: str | Path):
+    """Open a run file read-only; a file still marked open for writing (a live or killed writer)
+    is opened as a SWMR reader."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"run file {str(path)!r} does not exist")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        try:
+            f = h5py.File(path, "r", swmr=True)
+        except OSError:
+            raise ConfigError(f"{str(path)!r} is not a readable HDF5 file: {exc}") from None
+    try:
+        if f.attrs.get("file_format") != FORMAT:
+            raise ConfigError(f"{str(path)!r} is not a pendulum-daq run file (no "
+                              f"file_format = {FORMAT!r} attribute)")
+        yield f
+    finally:
+        f.close()
+
+
+def _s(v) -> str:
+    if isinstance(v, bytes):
+        return v.decode("utf-8", "replace")
+    if isinstance(v, np.ndarray) and v.shape == ():
+        return _s(v[()])
+    return str(v)
+
+
+def _status(f) -> tuple[str, int]:
+    e = f["entry"]
+    return _s(e["status"][()]).strip("\x00 "), int(e["records_complete"][()])
+
+
+def run_info(path: str | Path) -> dict:
+    """What a run file holds, as plain data (no sample data is read; used by ``daq inspect``)."""
+    path = Path(path)
+    with open_run(path) as f:
+        e = f["entry"]
+        status, n = _status(f)
+        data = e["data"]
+        names = [data.attrs["signal"]] + [_s(s) for s in data.attrs.get("auxiliary_signals", [])]
+        channels = []
+        for c in names:
+            a = dict(data[c].attrs)
+            channels.append({k: (_s(v) if isinstance(v, (bytes, str)) else
+                                 (v.item() if isinstance(v, np.generic) else v))
+                             for k, v in a.items()
+                             if k not in ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")})
+        counts = e["clipping/count"][:n] if "clipping" in e else np.zeros((n, len(names)), int)
+        model = e["model"]
+        info = {
+            "path": str(path),
+            "file_bytes": path.stat().st_size,
+            "file_format": _s(f.attrs["file_format"]),
+            "file_format_version": _s(f.attrs["file_format_version"]),
+            "software_version": _s(e.attrs["software_version"]),
+            "start_time": _s(e.attrs["start_time"]),
+            "scene": _s(e["scene"].attrs["name"]),
+            "scene_source": _s(e["scene"].attrs["source"]),
+            "seed": int(e.attrs["seed"]),
+            "status": status,
+            "complete": status == "complete",
+            "records_complete": n,
+            "records_planned": int(e["records_planned"][()]),
+            "message": _s(e["message"][()]).strip("\x00 "),
+            "acquisition": {k: (v.item() if isinstance(v, np.generic) else v)
+                            for k, v in e["instrument/acquisition"].attrs.items()
+                            if k != "NX_class"},
+            "antialias": {k: (v.item() if isinstance(v, np.generic) else _s(v))
+                          for k, v in e["instrument/antialias"].attrs.items()
+                          if k not in ("NX_class", "sos", "description")},
+            "channels": channels,
+            "clip_counts": {c: [int(x) for x in counts[:, i]] for i, c in enumerate(names)},
+            "model_info": json.loads(_s(model.attrs["model_info_json"])),
+            "truth": sorted(k for k in e["truth"] if e["truth"][k].ndim >= 2)
+            if "truth" in e else [],
+            "responses": sorted(k[:-5] for k in model if k.endswith("_real")),
+        }
+        info["writer_flag_set"] = _flags_byte(path) not in (0, None)
+    return info
+
+
+def _channel(name: str, attrs) -> Channel:
+    a = {k: (_s(v) if isinstance(v, (bytes, str)) else v) for k, v in attrs.items()}
+    return Channel.from_description({**a, "name": name, "unit": a["engineering_unit"]})
+
+
+def read_run(path: str | Path) -> Recording:
+    """Read a run file back into a :class:`daq.records.Recording` (finished records only)."""
+    from rig.scene import scene_from_settings
+
+    with open_run(path) as f:
+        e = f["entry"]
+        status, n = _status(f)
+        settings = json.loads(_s(e["scene/settings_json"][()]))
+        scene = scene_from_settings(settings, source=_s(e["scene"].attrs["source"]))
+        plan = RecordPlan.from_settings(settings["acquisition"])
+        data = e["data"]
+        names = [_s(data.attrs["signal"])] + [_s(s) for s in data.attrs["auxiliary_signals"]]
+        channels = tuple(_channel(c, data[c].attrs) for c in names)
+        a = e["instrument/antialias"].attrs
+        sos = np.array(a["sos"], dtype=float)
+        sos.setflags(write=False)
+        aa = AntiAliasFilter(fs_hz=float(a["fs_hz"]), rate_hz=float(a["rate_hz"]),
+                             kind=_s(a["kind"]), passband_hz=float(a["passband_hz"]),
+                             stopband_hz=float(a["stopband_hz"]), ripple_db=float(a["ripple_db"]),
+                             attenuation_db=float(a["attenuation_db"]), order=int(a["order"]),
+                             sos=sos)
+        truth, truth_fields = {}, []
+        if "truth" in e:
+            tg = e["truth"]
+            for k in tg:
+                ds = tg[k]
+                if ds.ndim < 2 or k == "record_start":
+                    continue
+                shape = ds.shape[2:]
+                dims = tuple((list(ds.dims[2 + i].keys()) or [f"{k}_dim{i}"])[0]
+                             for i in range(len(shape)))
+                truth_fields.append(TruthField(k, _s(ds.attrs.get("units", "")),
+                                               _s(ds.attrs.get("long_name", k)), shape, dims))
+                truth[k] = ds[:n]
+        m = e["model"]
+        values = {k[:-5]: m[k][()] + 1j * m[k[:-5] + "_imag"][()] for k in m
+                  if k.endswith("_real")}
+        response = ModelResponse(
+            freqs_hz=m["frequency"][()], values=values,
+            units={k: _s(m[k + "_real"].attrs.get("units", "")) for k in values},
+            long_names={k: _s(m[k + "_real"].attrs.get("long_name", k))[len("real part of "):]
+                        for k in values})
+        header = Header(scene=scene, seed=int(e.attrs["seed"]), plan=plan, channels=channels,
+                        antialias=aa, truth=tuple(truth_fields),
+                        model_info=json.loads(_s(m.attrs["model_info_json"])),
+                        response=response, software_version=_s(e.attrs["software_version"]),
+                        start_time=_s(e.attrs["start_time"]))
+        codes = {c: data[c][:n] for c in names}
+        clipped = {c: e["clipping"][c][:n].astype(bool) for c in names}
+    return Recording(header=header, codes=codes, clipped=clipped, truth=truth, status=status)
+
+
+# -- repair ----------------------------------------------------------------------------------
+
+_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def _flags_byte(path: Path) -> int | None:
+    with open(path, "rb") as fh:
+        head = fh.read(12)
+    if len(head) < 12 or head[:8] != _SIGNATURE or head[8] < 2:
+        return None
+    return head[11]
+
+
+def _lookup3(data: bytes, initval: int = 0) -> int:
+    """Bob Jenkins' lookup3 ``hashlittle``: the checksum of HDF5's version 2/3 superblock."""
+    mask = 0xFFFFFFFF
+
+    def rot(x, k):
+        return ((x << k) | (x >> (32 - k))) & mask
+
+    length = len(data)
+    a = b = c = (0xDEADBEEF + length + initval) & mask
+    i = 0
+    while length > 12:
+        a = (a + int.from_bytes(data[i:i + 4], "little")) & mask
+        b = (b + int.from_bytes(data[i + 4:i + 8], "little")) & mask
+        c = (c + int.from_bytes(data[i + 8:i + 12], "little")) & mask
+        a = (a - c) & mask; a ^= rot(c, 4); c = (c + b) & mask    # noqa: E702
+        b = (b - a) & mask; b ^= rot(a, 6); a = (a + c) & mask    # noqa: E702
+        c = (c - b) & mask; c ^= rot(b, 8); b = (b + a) & mask    # noqa: E702
+        a = (a - c) & mask; a ^= rot(c, 16); c = (c + b) & mask   # noqa: E702
+        b = (b - a) & mask; b ^= rot(a, 19); a = (a + c) & mask   # noqa: E702
+        c = (c - b) & mask; c ^= rot(b, 4); b = (b + a) & mask    # noqa: E702
+        i += 12
+        length -= 12
+    if length == 0:
+        return c
+    tail = data[i:] + bytes(12 - length)
+    a = (a + int.from_bytes(tail[0:4], "little")) & mask
+    b = (b + int.from_bytes(tail[4:8], "little")) & mask
+    c = (c + int.from_bytes(tail[8:12], "little")) & mask
+    c ^= b; c = (c - rot(b, 14)) & mask   # noqa: E702
+    a ^= c; a = (a - rot(c, 11)) & mask   # noqa: E702
+    b ^= a; b = (b - rot(a, 25)) & mask   # noqa: E702
+    c ^= b; c = (c - rot(b, 16)) & mask   # noqa: E702
+    a ^= c; a = (a - rot(c, 4)) & mask    # noqa: E702
+    b ^= a; b = (b - rot(a, 14)) & mask   # noqa: E702
+    c ^= b; c = (c - rot(b, 24)) & mask   # noqa: E702
+    return c
+
+
+def clear_write_flags(path: str | Path) -> bool:
+    """Clear the "open for writing" mark a killed writer left in the superblock (``h5clear -s``).
+
+    Only the superblock's file-consistency flags byte and its checksum are rewritten. Refuses
+    while the writer of a run is still alive (it holds a shared lock on the file). Returns True if
+    a mark was cleared, False if there was none.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"run file {str(path)!r} does not exist")
+    flags = _flags_byte(path)
+    if flags is None:
+        raise ConfigError(f"{str(path)!r} has no version 2/3 HDF5 superblock at offset 0; "
+                          "nothing to clear")
+    if flags == 0:
+        return False
+    with open(path, "r+b") as fh:
+        if fcntl is not None:
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                raise ConfigError(f"{str(path)!r} is still being written (its writer holds a "
+                                  "lock); read it with SWMR instead") from None
+        head = bytearray(fh.read(12))
+        size_of_offsets = head[9]
+        n = 12 + 4 * size_of_offsets
+        fh.seek(0)
+        sb = bytearray(fh.read(n + 4))
+        if int.from_bytes(sb[n:n + 4], "little") != _lookup3(bytes(sb[:n])):
+            raise ConfigError(f"{str(path)!r}: superblock checksum mismatch; not touching it")
+        sb[11] = 0
+        sb[n:n + 4] = _lookup3(bytes(sb[:n])).to_bytes(4, "little")
+        fh.seek(0)
+        fh.write(sb)
+        fh.flush()
+        os.fsync(fh.fileno())
+    return True

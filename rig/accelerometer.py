@@ -1,0 +1,207 @@
+"""The stage accelerometer (the paper's TEAC 710) with its conditioning amplifier.
+
+Type chosen: piezoelectric, read by a charge amplifier
+------------------------------------------------------
+The paper names the sensor only as a TEAC 710; we take it to be what TEAC's 700-series vibration
+transducers are, a piezoelectric (charge-output) accelerometer read through a charge amplifier (an
+assumption: the papers give no data sheet). A piezoelectric element cannot pass DC, and the charge
+amplifier's feedback time constant (far shorter than the element's own leakage time constant) sets
+the low-frequency corner. The model is therefore a first-order high-pass in front of a flat
+sensitivity::
+
+    volts = sign * S * s / (s + w_c) * x0''        (w_c = 2 pi highpass_hz)
+    state form:  q' = -w_c q + x0'',   volts = sign * S * (x0'' - w_c q)
+
+``highpass_hz = 0.05`` (time constant 3.2 s, the charge amplifier's "long" setting): at 0.1 Hz the
+accelerometer reads -0.97 dB and leads by +26.6 deg, at 1 Hz -0.011 dB, +2.9 deg. The corner is
+inside the analysis band on purpose: a real bench shows it in H_t = x/a at the low end, and
+:func:`rig.bench.expected_response` includes it. ``highpass_hz = 0`` models a servo
+(force-balance) accelerometer, flat to DC (no state). The piezo's own mounted resonance (tens of
+kHz) is far above the simulation band and is not modelled.
+
+Output stage: the measured volts are ``front end + noise``, then clipped to ``+-|S| range``.
+
+* ``sensitivity_vpmps2 = 1.0`` V per m/s^2 (charge amplifier gain at 1000 mV/unit): the default
+  drive, 6.5e-3 m/s^2 rms, gives 6.5 mV rms.
+* ``noise_mps2_rthz = 1e-5`` m/s^2/rtHz input-referred, white (a charge amplifier's 1/f rise
+  below ~1 Hz is not modelled): 45 dB below the default drive's acceleration density from 0.1 to
+  10 Hz, 26 dB in the stage's notch at the 2.48 Hz pendulum mode (:func:`rig.bench.
+  signal_to_noise`).
+* ``range_mps2 = 10`` m/s^2: the amplifier's +-10 V output at 1 V per m/s^2. Samples beyond are
+  clipped (flat-topped, as a saturated amplifier does) and flagged (``overrange``).
+* ``sign`` = +1/-1: polarity of the mounting; it is part of the :class:`~rig.blocks.Calibration`,
+  and processing must undo it (SPEC section 5).
+
+The noise is white over the simulation band: each sample gets ``|S| noise sqrt(fs / 2)`` rms (a
+one-sided density ``noise`` up to the Nyquist frequency).
+
+Public API: :class:`Accelerometer`, :class:`AccelerometerState`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from rig.blocks import Calibration
+from rig.errors import ConfigError
+from rig.integrators import discretise
+
+
+def _finite(where: str, value, *, lo: float, strict: bool, unit: str) -> float:
+    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+    if not ok or value < lo or (strict and value == lo):
+        rel = ">" if strict else ">="
+        raise ConfigError(f"{where} = {value!r} is invalid: expected a finite number {rel} {lo:g}"
+                          f" {unit}")
+    return float(value)
+
+
+@dataclass(frozen=True, eq=False)
+class AccelerometerState:
+    """Carried between blocks by :meth:`Accelerometer.measure`: the high-pass state ``q``
+    [m/s] and the last input sample [m/s^2] (the input is linear between samples)."""
+
+    q: float = 0.0
+    last_accel_mps2: float | None = None
+
+
+@dataclass(frozen=True)
+class Accelerometer:
+    """Piezoelectric accelerometer + charge amplifier (frozen, validated; module docstring).
+
+    Parameters
+    ----------
+    sensitivity_vpmps2 : S [V per m/s^2] in the pass band, > 0.
+    highpass_hz : first-order low-frequency corner [Hz], >= 0 (0: flat to DC, servo type).
+    noise_mps2_rthz : input-referred white noise density [m/s^2/rtHz], >= 0.
+    range_mps2 : measuring range [m/s^2], > 0; the output clips at +-S range.
+    sign : mounting polarity, +1 or -1.
+    """
+
+    sensitivity_vpmps2: float = 1.0
+    highpass_hz: float = 0.05
+    noise_mps2_rthz: float = 1e-5
+    range_mps2: float = 10.0
+    sign: int = 1
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        set_(self, "sensitivity_vpmps2", _finite("accelerometer.sensitivity_vpmps2",
+                                                 self.sensitivity_vpmps2, lo=0.0, strict=True,
+                                                 unit="V per m/s^2 (the polarity is sign)"))
+        set_(self, "highpass_hz", _finite("accelerometer.highpass_hz", self.highpass_hz, lo=0.0,
+                                          strict=False, unit="Hz (0: flat to DC)"))
+        set_(self, "noise_mps2_rthz", _finite("accelerometer.noise_mps2_rthz",
+                                              self.noise_mps2_rthz, lo=0.0, strict=False,
+                                              unit="m/s^2/rtHz"))
+        set_(self, "range_mps2", _finite("accelerometer.range_mps2", self.range_mps2, lo=0.0,
+                                         strict=True, unit="m/s^2"))
+        if isinstance(self.sign, bool) or self.sign not in (1, -1):
+            raise ConfigError(f"accelerometer.sign = {self.sign!r} is invalid: expected +1 or -1")
+
+    @classmethod
+    def from_settings(cls, accelerometer: dict) -> "Accelerometer":
+        """Build from a scene's ``settings["accelerometer"]``."""
+        return cls(**{k: accelerometer[k] for k in (
+            "sensitivity_vpmps2", "highpass_hz", "noise_mps2_rthz", "range_mps2", "sign")})
+
+    # -- description ------------------------------------------------------------------------
+    @property
+    def volts_per_mps2(self) -> float:
+        """Signed pass-band sensitivity sign * S [V per m/s^2]."""
+        return self.sign * self.sensitivity_vpmps2
+
+    @property
+    def corner_rad_s(self) -> float:
+        """w_c = 2 pi highpass_hz [rad/s]."""
+        return 2 * math.pi * self.highpass_hz
+
+    @property
+    def n_states(self) -> int:
+        """States of the front end (1 with a high-pass, 0 flat to DC)."""
+        return 1 if self.highpass_hz > 0 else 0
+
+    def calibration(self) -> Calibration:
+        """Pass-band calibration: volts = sign S x0''."""
+        return Calibration(quantity="stage acceleration x0''", unit="m/s^2",
+                           volts_per_unit=self.volts_per_mps2)
+
+    def frequency_response(self, freqs_hz) -> np.ndarray:
+        """Volts per m/s^2 of stage acceleration, complex (nf,): sign S s / (s + w_c)."""
+        s = 2j * np.pi * np.atleast_1d(np.asarray(freqs_hz, float))
+        if self.highpass_hz == 0:
+            return np.full(s.shape, self.volts_per_mps2, dtype=complex)
+        return self.volts_per_mps2 * s / (s + self.corner_rad_s)
+
+    def sensed(self, accel_mps2, q) -> np.ndarray:
+        """The front end's output in m/s^2 (high-passed acceleration, x0'' - w_c q), given the
+        acceleration and the high-pass state at the same instants."""
+        return np.asarray(accel_mps2, float) - self.corner_rad_s * np.asarray(q, float)
+
+    def noise_rms_v(self, fs_hz: float) -> float:
+        """Rms of the white noise per sample at the rate ``fs_hz`` [V]."""
+        return self.sensitivity_vpmps2 * self.noise_mps2_rthz * math.sqrt(fs_hz / 2)
+
+    # -- measurement ------------------------------------------------------------------------
+    def output(self, sensed_mps2, fs_hz: float, rng: np.random.Generator | None, *,
+               noise: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Output stage: volts = clip(sign S sensed + noise, +-S range), and the overrange flags.
+
+        ``sensed_mps2`` is the front end's output (:meth:`sensed`) at the sample instants;
+        ``rng`` draws the noise (one standard normal per sample) unless ``noise`` is False.
+        Returns (volts (N,), overrange (N,) bool).
+        """
+        v = self.volts_per_mps2 * np.asarray(sensed_mps2, float)
+        if noise and self.noise_mps2_rthz > 0:
+            v = v + self.noise_rms_v(fs_hz) * rng.standard_normal(v.shape[0])
+        lim = self.sensitivity_vpmps2 * self.range_mps2
+        over = np.abs(v) > lim
+        return np.minimum(np.maximum(v, -lim), lim), over
+
+    def measure(self, accel_mps2, fs_hz: float, state: AccelerometerState | None,
+                rng: np.random.Generator | None, *, noise: bool = True
+                ) -> tuple[np.ndarray, AccelerometerState, np.ndarray]:
+        """Measure an acceleration record given at the sample instants (standalone use).
+
+        The front end is integrated exactly for an acceleration that is linear between the
+        samples (first-order hold, exact discretisation of ``q' = -w_c q + x0''``); :mod:`rig.bench`
+        instead carries ``q`` inside its exact discretisation of the whole bench, where x0'' is
+        known between the samples. ``state`` (None: at rest, q = 0) is handed back for the next
+        block; the first block's first sample starts the hold.
+
+        Returns (volts (N,), state after the block, overrange (N,) bool).
+        """
+        a = np.asarray(accel_mps2, float)
+        if a.ndim != 1:
+            raise ConfigError(f"accel_mps2 has shape {a.shape}: expected a 1-D record")
+        state = AccelerometerState() if state is None else state
+        if a.size == 0:
+            return np.empty(0), state, np.zeros(0, bool)
+        if self.highpass_hz == 0:
+            q = np.zeros_like(a)
+        else:
+            phi, g0, g1 = self._foh_coefficients(fs_hz)
+            # q_k = phi q_{k-1} + g0 a_{k-1} + g1 (a_k - a_{k-1})   (a linear between samples)
+            if state.last_accel_mps2 is None:  # the record starts the hold: q_0 = state.q
+                prev = np.concatenate([[a[0]], a[:-1]])
+                drive = g0 * prev + g1 * (a - prev)
+                drive[0] = state.q
+                zi = np.array([0.0])
+            else:
+                prev = np.concatenate([[state.last_accel_mps2], a[:-1]])
+                drive = g0 * prev + g1 * (a - prev)
+                zi = np.array([phi * state.q])
+            q, _ = scipy.signal.lfilter([1.0], [1.0, -phi], drive, zi=zi)
+        new = AccelerometerState(q=float(q[-1]), last_accel_mps2=float(a[-1]))
+        volts, over = self.output(self.sensed(a, q), fs_hz, rng, noise=noise)
+        return volts, new, over
+
+    def _foh_coefficients(self, fs_hz: float) -> tuple[float, float, float]:
+        """phi, Gamma0, Gamma1 of the exact first-order-hold step of q' = -w_c q + u."""
+        phi, g0, g1 = discretise(np.array([[-self.corner_rad_s]]), np.array([[1.0]]),
+                                 1.0 / fs_hz, "linear")
+        return float(phi[0, 0]), float(g0[0, 0]), float(g1[0, 0])

@@ -1,0 +1,1147 @@
+"""Steppers for the chain on a moving base, each with its order and error behaviour.
+
+Every method integrates ``M(th) th'' + N(th) th'^2 + C th' + diag(S)[(g + y0'') sin th + x0'' cos th]
+= 0`` (:mod:`rig.chain`) through a *held* base input: input interval ``k`` is ``[k h_in, (k+1) h_in)``
+and inside it the base accelerations are ``u(t_k + s) = u_k`` (``hold="zoh"``) or
+``u_k + (u_{k+1} - u_k) s / h_in`` (``hold="linear"``). The input is smooth inside an interval and
+may jump at its ends, so every method steps *exactly onto* each sample instant: fixed-step methods
+take ``substeps`` equal steps per interval, the adaptive method never steps across an instant
+(it splits what is left of an interval into equal steps no longer than its proposal) and carries its
+proposed step over to the next interval. Stage times are local to the interval, so the result does
+not depend on the absolute time (block-wise runs reproduce one-shot runs bit for bit).
+
+=========  =====  ========  ===================================================================
+method     order  kind      error behaviour
+=========  =====  ========  ===================================================================
+rk4        4      fixed     global error O(h^4); energy drifts secularly, ~ t h^4
+dop853     8      adaptive  local error kept near ``rtol |y| + atol`` per step (Hairer's 5th/3rd
+                            order blend); global error roughly proportional to the tolerance
+gauss4     4      implicit  2-stage Gauss-Legendre in (theta, p = M omega): symplectic, energy
+                            error O(h^4) and bounded (no drift) for undamped, unforced runs
+midpoint   2      implicit  1-stage Gauss (implicit midpoint) in (theta, p): symplectic, O(h^2)
+linear     exact  exact     exact discretisation of the *linearised* model for the held input;
+                            only round-off (the linearisation is a model error, ~ theta^3)
+=========  =====  ========  ===================================================================
+
+All hot loops are ``numba.njit(cache=True)`` kernels that run a whole block (many input intervals)
+per call into caller-owned output arrays; the state goes in and the state comes out. Non-finite
+values are looked for once per output sample (not per step); :func:`integrate` turns a kernel's
+status into :class:`rig.errors.DivergenceError` with the time and the last finite state.
+
+The kernels have their own right-hand sides (see :func:`rhs`; scalar code for n = 2, O(n)
+transcendental calls for any n); tests hold them to :func:`rig.chain.accel_kernel`. They do not call
+into ``rig.chain``'s kernels, so numba's per-file cache cannot go stale when ``chain.py`` changes.
+
+References
+----------
+E. Hairer, S. P. Norsett, G. Wanner, *Solving Ordinary Differential Equations I: Nonstiff
+Problems*, 2nd ed., Springer 1993, sections II.4 (step size control, initial step) and II.5 (the
+Dormand-Prince 8(5,3) pair, code DOP853). E. Hairer, C. Lubich, G. Wanner, *Geometric Numerical
+Integration*, 2nd ed., Springer 2006, sections II.1.3, VI.4, VIII.6 (Gauss methods, fixed-point
+iteration of the stage equations).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import scipy.linalg
+
+from rig.chain import Chain
+from rig.errors import DivergenceError
+
+HOLDS = ("zoh", "linear")
+
+
+@dataclass(frozen=True)
+class MethodInfo:
+    """What a method is and how its error behaves.
+
+    Attributes
+    ----------
+    name : registry key.
+    order : global order of accuracy p (error ~ h^p); ``None`` for the exact linear method.
+    kind : ``"fixed"``, ``"adaptive"``, ``"implicit"`` (fixed step, implicit stages) or ``"exact"``.
+    description : one line.
+    symplectic : whether the map is symplectic for undamped, unforced chains (bounded energy error).
+    native : the state vector the kernel carries, ``"theta,omega"`` or ``"theta,p"`` with
+        ``p = M(theta) omega`` [kg m^2/s].
+    """
+
+    name: str
+    order: int | None
+    kind: str
+    description: str
+    symplectic: bool = False
+    native: str = "theta,omega"
+
+
+METHODS: dict[str, MethodInfo] = {
+    "rk4": MethodInfo("rk4", 4, "fixed", "classic 4-stage Runge-Kutta, fixed step dt_s"),
+    "dop853": MethodInfo("dop853", 8, "adaptive",
+                         "Dormand-Prince 8(5,3) with Hairer/scipy step-size control (rtol, atol)"),
+    "gauss4": MethodInfo("gauss4", 4, "implicit",
+                         "2-stage Gauss-Legendre in (theta, p), symplectic, stages solved to round-off",
+                         symplectic=True, native="theta,p"),
+    "midpoint": MethodInfo("midpoint", 2, "implicit",
+                           "implicit midpoint (1-stage Gauss) in (theta, p), symplectic",
+                           symplectic=True, native="theta,p"),
+    "linear": MethodInfo("linear", None, "exact",
+                         "exact discretisation (matrix exponential) of the linearised model"),
+}
+
+# Kernel status codes
+OK, NONFINITE, STEP_TOO_SMALL, NO_CONVERGENCE = 0, 1, 2, 3
+
+# _NOTE_LITERALS: numba compiles a separate copy of a jitted function for every integer *literal*
+# it is called with (f(x, 0) and f(x, 1) are two compilations, each inlined where called); the
+# kernels therefore pass run-time integers (e.g. ``zero = n - n``) to their helpers, which keeps the
+# first (cold-cache) compilation several seconds shorter.
+
+# -- Dormand-Prince 8(5,3) coefficients -----------------------------------------------------------
+# Copied from Hairer's DOP853 (Hairer, Norsett & Wanner 1993, via scipy's
+# scipy/integrate/_ivp/dop853_coefficients.py); only the 12 stages of the step and the error
+# estimators (not the dense-output extension) are needed.
+DOP_C = np.array([
+    0.0,
+    0.526001519587677318785587544488e-01,
+    0.789002279381515978178381316732e-01,
+    0.118350341907227396726757197510,
+    0.281649658092772603273242802490,
+    0.333333333333333333333333333333,
+    0.25,
+    0.307692307692307692307692307692,
+    0.651282051282051282051282051282,
+    0.6,
+    0.857142857142857142857142857142,
+    1.0,
+    1.0])  # the 13th entry is the end of the step, where f(t + h, y_new) is evaluated
+
+DOP_A = np.zeros((13, 12))
+DOP_A[1, 0] = 5.26001519587677318785587544488e-2
+DOP_A[2, :2] = [1.97250569845378994544595329183e-2, 5.91751709536136983633785987549e-2]
+DOP_A[3, 0] = 2.95875854768068491816892993775e-2
+DOP_A[3, 2] = 8.87627564304205475450678981324e-2
+DOP_A[4, 0] = 2.41365134159266685502369798665e-1
+DOP_A[4, 2] = -8.84549479328286085344864962717e-1
+DOP_A[4, 3] = 9.24834003261792003115737966543e-1
+DOP_A[5, 0] = 3.7037037037037037037037037037e-2
+DOP_A[5, 3] = 1.70828608729473871279604482173e-1
+DOP_A[5, 4] = 1.25467687566822425016691814123e-1
+DOP_A[6, 0] = 3.7109375e-2
+DOP_A[6, 3] = 1.70252211019544039314978060272e-1
+DOP_A[6, 4] = 6.02165389804559606850219397283e-2
+DOP_A[6, 5] = -1.7578125e-2
+DOP_A[7, 0] = 3.70920001185047927108779319836e-2
+DOP_A[7, 3] = 1.70383925712239993810214054705e-1
+DOP_A[7, 4] = 1.07262030446373284651809199168e-1
+DOP_A[7, 5] = -1.53194377486244017527936158236e-2
+DOP_A[7, 6] = 8.27378916381402288758473766002e-3
+DOP_A[8, 0] = 6.24110958716075717114429577812e-1
+DOP_A[8, 3] = -3.36089262944694129406857109825
+DOP_A[8, 4] = -8.68219346841726006818189891453e-1
+DOP_A[8, 5] = 2.75920996994467083049415600797e1
+DOP_A[8, 6] = 2.01540675504778934086186788979e1
+DOP_A[8, 7] = -4.34898841810699588477366255144e1
+DOP_A[9, 0] = 4.77662536438264365890433908527e-1
+DOP_A[9, 3] = -2.48811461997166764192642586468
+DOP_A[9, 4] = -5.90290826836842996371446475743e-1
+DOP_A[9, 5] = 2.12300514481811942347288949897e1
+DOP_A[9, 6] = 1.52792336328824235832596922938e1
+DOP_A[9, 7] = -3.32882109689848629194453265587e1
+DOP_A[9, 8] = -2.03312017085086261358222928593e-2
+DOP_A[10, 0] = -9.3714243008598732571704021658e-1
+DOP_A[10, 3] = 5.18637242884406370830023853209
+DOP_A[10, 4] = 1.09143734899672957818500254654
+DOP_A[10, 5] = -8.14978701074692612513997267357
+DOP_A[10, 6] = -1.85200656599969598641566180701e1
+DOP_A[10, 7] = 2.27394870993505042818970056734e1
+DOP_A[10, 8] = 2.49360555267965238987089396762
+DOP_A[10, 9] = -3.0467644718982195003823669022
+DOP_A[11, 0] = 2.27331014751653820792359768449
+DOP_A[11, 3] = -1.05344954667372501984066689879e1
+DOP_A[11, 4] = -2.00087205822486249909675718444
+DOP_A[11, 5] = -1.79589318631187989172765950534e1
+DOP_A[11, 6] = 2.79488845294199600508499808837e1
+DOP_A[11, 7] = -2.85899827713502369474065508674
+DOP_A[11, 8] = -8.87285693353062954433549289258
+DOP_A[11, 9] = 1.23605671757943030647266201528e1
+DOP_A[11, 10] = 6.43392746015763530355970484046e-1
+# Row 12 holds the 8th-order weights b (the solution is y + h sum_j b_j k_j).
+DOP_A[12, 0] = 5.42937341165687622380535766363e-2
+DOP_A[12, 5] = 4.45031289275240888144113950566
+DOP_A[12, 6] = 1.89151789931450038304281599044
+DOP_A[12, 7] = -5.8012039600105847814672114227
+DOP_A[12, 8] = 3.1116436695781989440891606237e-1
+DOP_A[12, 9] = -1.52160949662516078556178806805e-1
+DOP_A[12, 10] = 2.01365400804030348374776537501e-1
+DOP_A[12, 11] = 4.47106157277725905176885569043e-2
+DOP_B = DOP_A[12].copy()
+
+# Error estimators over the 12 stages plus f(t + h, y_new) (13 entries).
+DOP_E3 = np.zeros(13)
+DOP_E3[:12] = DOP_B
+DOP_E3[0] -= 0.244094488188976377952755905512
+DOP_E3[8] -= 0.733846688281611857341361741547
+DOP_E3[11] -= 0.220588235294117647058823529412e-1
+DOP_E5 = np.zeros(13)
+DOP_E5[0] = 0.1312004499419488073250102996e-1
+DOP_E5[5] = -0.1225156446376204440720569753e+1
+DOP_E5[6] = -0.4957589496572501915214079952
+DOP_E5[7] = 0.1664377182454986536961530415e+1
+DOP_E5[8] = -0.3503288487499736816886487290
+DOP_E5[9] = 0.3341791187130174790297318841
+DOP_E5[10] = 0.8192320648511571246570742613e-1
+DOP_E5[11] = -0.2235530786388629525884427845e-1
+
+# Step-size controller (scipy.integrate's RungeKutta, after Hairer II.4): accept if err <= 1,
+# h_new = h * min(MAX, max(MIN, SAFETY * err^(-1/8))); no growth right after a rejection.
+SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
+DOP_ERROR_EXPONENT = -1.0 / 8.0
+
+# -- Gauss-Legendre coefficients ----------------------------------------------------------------
+_R3 = math.sqrt(3.0)
+GAUSS4_A = np.array([[0.25, 0.25 - _R3 / 6.0], [0.25 + _R3 / 6.0, 0.25]])
+GAUSS4_B = np.array([0.5, 0.5])
+GAUSS4_C = np.array([0.5 - _R3 / 6.0, 0.5 + _R3 / 6.0])
+MIDPOINT_A = np.array([[0.5]])
+MIDPOINT_B = np.array([1.0])
+MIDPOINT_C = np.array([0.5])
+GAUSS_MAX_FIXED_POINT = 40   # fixed-point sweeps before switching to simplified Newton
+GAUSS_MAX_NEWTON = 60
+GAUSS_ROUNDOFF_FLOOR = 1e-13  # a stagnating iteration below this relative change is at round-off
+
+
+# ================================================================================================
+# compiled helpers
+# ================================================================================================
+
+@numba.njit(cache=True)
+def _cholesky_solve(w, f, r, off, n):
+    """Solve M x = f[r, off:off+n] in place for M (SPD) in the lower triangle of w[:, :n]
+    (overwritten by its Cholesky factor)."""
+    for j in range(n):
+        acc = w[j, j]
+        for k in range(j):
+            acc -= w[j, k] * w[j, k]
+        d = math.sqrt(acc)
+        w[j, j] = d
+        for i in range(j + 1, n):
+            acc = w[i, j]
+            for k in range(j):
+                acc -= w[i, k] * w[j, k]
+            w[i, j] = acc / d
+    for i in range(n):
+        acc = f[r, off + i]
+        for k in range(i):
+            acc -= w[i, k] * f[r, off + k]
+        f[r, off + i] = acc / w[i, i]
+    for i in range(n - 1, -1, -1):
+        acc = f[r, off + i]
+        for k in range(i + 1, n):
+            acc -= w[k, i] * f[r, off + k]
+        f[r, off + i] = acc / w[i, i]
+
+
+# Right-hand sides. Each writes row r of a 2-D output f (no array views are made in the hot loops:
+# numba's reference counting of views and of calls that may take them costs more than the physics
+# here). ``_rhs2``/``_canon2`` are branch-free scalar code for n = 2 (the paper's pendulum), which
+# LLVM inlines into the kernels; ``_rhs_n``/``_canon_n`` take any n with one sin/cos per body,
+# cos(th_j - th_k) = c_j c_k + s_j s_k and sin(th_j - th_k) = s_j c_k - c_j s_k (O(n) transcendental
+# calls instead of O(n^2)), and a Cholesky solve; ``w`` is their scratch of shape (n, n + 2).
+# Kernels choose between them once per call site (``if two: ... else: ...``).
+
+@numba.njit(cache=True)
+def _rhs2(hc, s, cm, g, y, ax, ay, f, r):
+    """f[r] = (omega, th'') for y = (theta, omega), n = 2."""
+    ga = g + ay
+    w0 = y[2]
+    w1 = y[3]
+    s0 = math.sin(y[0])
+    c0 = math.cos(y[0])
+    s1 = math.sin(y[1])
+    c1 = math.cos(y[1])
+    h01 = hc[0, 1]
+    m01 = h01 * (c0 * c1 + s0 * s1)
+    hs = h01 * (s0 * c1 - c0 * s1)
+    f0 = -s[0] * (ga * s0 + ax * c0) - cm[0, 0] * w0 - cm[0, 1] * w1 - hs * w1 * w1
+    f1 = -s[1] * (ga * s1 + ax * c1) - cm[1, 0] * w0 - cm[1, 1] * w1 + hs * w0 * w0
+    h00 = hc[0, 0]
+    h11 = hc[1, 1]
+    det = h00 * h11 - m01 * m01
+    f[r, 0] = w0
+    f[r, 1] = w1
+    f[r, 2] = (h11 * f0 - m01 * f1) / det
+    f[r, 3] = (h00 * f1 - m01 * f0) / det
+
+
+@numba.njit(cache=True)
+def _rhs_n(hc, s, cm, g, y, ax, ay, f, r, w):
+    """f[r] = (omega, th'') for y = (theta, omega), any n."""
+    n = hc.shape[0]
+    ga = g + ay
+    for j in range(n):
+        sj = math.sin(y[j])
+        cj = math.cos(y[j])
+        w[j, n] = sj
+        w[j, n + 1] = cj
+        w[j, j] = hc[j, j]
+        f[r, j] = y[n + j]
+        fj = -s[j] * (ga * sj + ax * cj)
+        for k in range(n):
+            fj -= cm[j, k] * y[n + k]
+        f[r, n + j] = fj
+    for j in range(n):
+        sj = w[j, n]
+        cj = w[j, n + 1]
+        wj2 = y[n + j] * y[n + j]
+        for k in range(j + 1, n):
+            sk = w[k, n]
+            ck = w[k, n + 1]
+            w[k, j] = hc[j, k] * (cj * ck + sj * sk)
+            hsd = hc[j, k] * (sj * ck - cj * sk)
+            f[r, n + j] -= hsd * y[n + k] * y[n + k]
+            f[r, n + k] += hsd * wj2
+    _cholesky_solve(w, f, r, n, n)
+
+
+@numba.njit(cache=True)
+def _canon2(hc, s, cm, g, y, ax, ay, f, r):
+    """f[r] = (theta', p') for y = (theta, p), n = 2."""
+    ga = g + ay
+    s0 = math.sin(y[0])
+    c0 = math.cos(y[0])
+    s1 = math.sin(y[1])
+    c1 = math.cos(y[1])
+    h01 = hc[0, 1]
+    m01 = h01 * (c0 * c1 + s0 * s1)
+    hs = h01 * (s0 * c1 - c0 * s1)
+    h00 = hc[0, 0]
+    h11 = hc[1, 1]
+    det = h00 * h11 - m01 * m01
+    w0 = (h11 * y[2] - m01 * y[3]) / det
+    w1 = (h00 * y[3] - m01 * y[2]) / det
+    t = hs * w0 * w1
+    f[r, 0] = w0
+    f[r, 1] = w1
+    f[r, 2] = -t - cm[0, 0] * w0 - cm[0, 1] * w1 - s[0] * (ga * s0 + ax * c0)
+    f[r, 3] = t - cm[1, 0] * w0 - cm[1, 1] * w1 - s[1] * (ga * s1 + ax * c1)
+
+
+@numba.njit(cache=True)
+def _canon_n(hc, s, cm, g, y, ax, ay, f, r, w):
+    """f[r] = (theta', p') for y = (theta, p), any n:
+    theta' = omega = M^{-1} p;  p'_j = -sum_k H_jk sin(th_j - th_k) w_j w_k - (C w)_j
+    - S_j ((g + ay) sin th_j + ax cos th_j)."""
+    n = hc.shape[0]
+    ga = g + ay
+    for j in range(n):
+        w[j, n] = math.sin(y[j])
+        w[j, n + 1] = math.cos(y[j])
+        w[j, j] = hc[j, j]
+        f[r, j] = y[n + j]
+    for j in range(n):
+        for k in range(j + 1, n):
+            w[k, j] = hc[j, k] * (w[j, n + 1] * w[k, n + 1] + w[j, n] * w[k, n])
+    _cholesky_solve(w, f, r, n - n, n)  # f[r, :n] = omega (n - n: see _NOTE_LITERALS)
+    for j in range(n):
+        fp = -s[j] * (ga * w[j, n] + ax * w[j, n + 1])
+        for k in range(n):
+            fp -= cm[j, k] * f[r, k]
+        f[r, n + j] = fp
+    for j in range(n):
+        for k in range(j + 1, n):
+            t = hc[j, k] * (w[j, n] * w[k, n + 1] - w[j, n + 1] * w[k, n]) * f[r, j] * f[r, k]
+            f[r, n + j] -= t
+            f[r, n + k] += t
+
+
+def rhs(chain: Chain, y, ax: float = 0.0, ay: float = 0.0, *, canonical: bool = False,
+        generic: bool = False) -> np.ndarray:
+    """The kernels' right-hand side at one state (for tests and inspection), shape (2n,).
+
+    ``y = (theta, omega)`` gives ``(omega, th'')``; with ``canonical=True``, ``y = (theta, p)``
+    gives ``(theta', p')``. ``generic=True`` forces the any-n code path for n = 2.
+    """
+    y = np.ascontiguousarray(y, dtype=float)
+    f = np.empty((1, y.size))
+    w = np.empty((chain.n, chain.n + 2))
+    args = (chain.H, chain.S, chain.C, chain.g_mps2, y, float(ax), float(ay), f, 0)
+    if chain.n == 2 and not generic:
+        (_canon2 if canonical else _rhs2)(*args)
+    else:
+        (_canon_n if canonical else _rhs_n)(*args, w)
+    return f[0]
+
+
+@numba.njit(cache=True)
+def omega_to_momentum(hc, theta, omega, p):
+    """p = M(theta) omega for rows of theta, omega (T, n) into p (T, n)."""
+    t_len, n = theta.shape
+    for t in range(t_len):
+        for j in range(n):
+            acc = hc[j, j] * omega[t, j]
+            for k in range(n):
+                if k != j:
+                    acc += hc[j, k] * math.cos(theta[t, j] - theta[t, k]) * omega[t, k]
+            p[t, j] = acc
+
+
+@numba.njit(cache=True)
+def momentum_to_omega(hc, theta, p, omega):
+    """omega = M(theta)^{-1} p for rows of theta, p (T, n) into omega (T, n)."""
+    t_len, n = theta.shape
+    m = np.empty((n, n + 2))
+    b = np.empty((1, n))
+    zero = n - n
+    for t in range(t_len):
+        for j in range(n):
+            m[j, j] = hc[j, j]
+            b[0, j] = p[t, j]
+            for k in range(j + 1, n):
+                m[k, j] = hc[j, k] * math.cos(theta[t, j] - theta[t, k])
+        _cholesky_solve(m, b, zero, zero, n)
+        for j in range(n):
+            omega[t, j] = b[0, j]
+
+
+@numba.njit(cache=True)
+def _all_finite(y):
+    for i in range(y.shape[0]):
+        if not math.isfinite(y[i]):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _record(y, y_out, row, i_done, n_int, out_every):
+    """Store y in y_out[row] if interval count i_done is an output instant; returns (row, ok)."""
+    if i_done % out_every == 0 or i_done == n_int:
+        for c in range(y.shape[0]):
+            y_out[row, c] = y[c]
+        return row + 1, _all_finite(y)
+    return row, True
+
+
+# ================================================================================================
+# rk4
+# ================================================================================================
+
+@numba.njit(cache=True)
+def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
+    """Classic RK4, ``nsub`` equal steps per input interval, over ``n_int`` intervals.
+
+    Input (all kernels): interval i holds ``ax[i] + (ax[i + la] - ax[i]) s / h_in`` (la = 1 for
+    linear hold, 0 for zoh) and likewise ``ay[i sa]`` (sa = 0 with ay = [0.]: no vertical input);
+    written with indices rather than branches so LLVM does not unswitch (duplicate) the loops.
+
+    ``y`` (2n,) is the state at the start and is overwritten with the state at the end. Rows of
+    ``y_out`` receive the state at interval counts 0, out_every, 2 out_every, ..., n_int.
+    Returns (status, rows written, intervals done).
+    """
+    n2 = y.shape[0]
+    n = n2 // 2
+    two = n == 2
+    kk = np.zeros((4, n2))
+    yt = np.empty(n2)
+    work = np.empty((n, n + 2))
+    h = h_in / nsub
+    inv = 1.0 / h_in
+    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    one = zero + 1
+    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    for i in range(n_int):
+        a0 = ax[i]
+        da = ax[i + la] - a0
+        b0 = ay[i * sa]
+        db = ay[(i + la) * sa] - b0
+        for j in range(nsub):
+            s0 = j * h
+            for st in range(4):
+                # stage st at y + a h k_{st-1}, time s0 + a h, a = 0, 1/2, 1/2, 1
+                a = 0.0 if st == 0 else (1.0 if st == 3 else 0.5)
+                for c in range(n2):
+                    yt[c] = y[c] + (a * h) * kk[st - 1 if st > 0 else 0, c]
+                fr = (s0 + a * h) * inv
+                if two:
+                    _rhs2(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st)
+                else:
+                    _rhs_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
+            for c in range(n2):
+                y[c] += h / 6.0 * (kk[0, c] + 2.0 * (kk[1, c] + kk[2, c]) + kk[3, c])
+        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
+        if not ok:
+            return NONFINITE, row, i + 1
+    return OK, row, n_int
+
+
+# ================================================================================================
+# dop853
+# ================================================================================================
+
+@numba.njit(cache=True)
+def _dop_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, kk, yt, work, st0):
+    """One DOP853 step of size h from local time s_loc.
+
+    Evaluates kk[0] = f(s_loc, y) if st0 = 0 (else kk[0] must hold it), the stages kk[1..11],
+    yt = y_new = y + h sum_j b_j k_j (DOP_A[12] = b) and kk[12] = f(s_loc + h, y_new)."""
+    n2 = y.shape[0]
+    for st in range(st0, 13):
+        for c in range(n2):
+            acc = 0.0
+            for j in range(st):
+                acc += DOP_A[st, j] * kk[j, c]
+            yt[c] = y[c] + h * acc
+        fr = (s_loc + DOP_C[st] * h) * inv
+        if hc.shape[0] == 2:
+            _rhs2(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st)
+        else:
+            _rhs_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
+
+
+@numba.njit(cache=True)
+def _dop_error_norm(kk, h, y, y_new, rtol, atol):
+    """Hairer's DOP853 error norm (scipy's _estimate_error_norm): <= 1 means accept."""
+    n2 = y.shape[0]
+    e5 = 0.0
+    e3 = 0.0
+    for c in range(n2):
+        sc = atol + max(abs(y[c]), abs(y_new[c])) * rtol
+        a5 = 0.0
+        a3 = 0.0
+        for j in range(13):
+            a5 += DOP_E5[j] * kk[j, c]
+            a3 += DOP_E3[j] * kk[j, c]
+        a5 /= sc
+        a3 /= sc
+        e5 += a5 * a5
+        e3 += a3 * a3
+    if e5 == 0.0 and e3 == 0.0:
+        return 0.0
+    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n2)
+
+
+@numba.njit(cache=True)
+def _rms_scaled(v, r, y, rtol, atol):
+    """RMS of v[r] / (atol + |y| rtol)."""
+    n2 = y.shape[0]
+    acc = 0.0
+    for c in range(n2):
+        x = v[r, c] / (atol + abs(y[c]) * rtol)
+        acc += x * x
+    return math.sqrt(acc / n2)
+
+
+@numba.njit(cache=True)
+def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out,
+                  rtol, atol, h_prop, min_step, adaptive, nsub):
+    """Dormand-Prince 8(5,3) over ``n_int`` input intervals.
+
+    Adaptive (``adaptive=True``): steps never cross a sample instant; the rest of an interval is
+    split into equal steps no longer than the proposal ``h_prop`` (computed by Hairer's initial
+    step algorithm if it is not > 0); the proposal is carried over to the next interval.
+    Fixed (``adaptive=False``): ``nsub`` equal steps per interval, no error control (used to
+    measure the order of the tableau).
+
+    Returns (status, rows written, intervals done, local time reached in that interval,
+    next proposed step, accepted steps, rejected steps, rhs evaluations).
+    """
+    n2 = y.shape[0]
+    n = n2 // 2
+    kk = np.zeros((13, n2))
+    yt = np.empty(n2)
+    y_new = np.empty(n2)
+    work = np.empty((n, n + 2))
+    inv = 1.0 / h_in
+    n_acc = 0
+    n_rej = 0
+    nfev = 0
+    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    one = zero + 1
+    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    for i in range(n_int):
+        a0 = ax[i]
+        da = ax[i + la] - a0
+        b0 = ay[i * sa]
+        db = ay[(i + la) * sa] - b0
+        # the input may jump at the sample instant: f at the interval start is always fresh
+        fresh = True
+        s_loc = 0.0
+        if adaptive and not h_prop > 0.0:
+            _rhs_n(hc, s, cm, g, y, a0, b0, kk, zero, work)
+            nfev += 1
+            # Hairer's initial step (scipy select_initial_step, error estimator order 7)
+            d0 = 0.0
+            for c in range(n2):
+                d0 += (y[c] / (atol + abs(y[c]) * rtol)) ** 2
+            d0 = math.sqrt(d0 / n2)
+            d1 = _rms_scaled(kk, zero, y, rtol, atol)
+            h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+            h0 = min(h0, h_in)
+            for c in range(n2):
+                yt[c] = y[c] + h0 * kk[0, c]
+            fr = h0 * inv
+            _rhs_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, one, work)
+            nfev += 1
+            for c in range(n2):
+                kk[1, c] -= kk[0, c]
+            d2 = _rms_scaled(kk, one, y, rtol, atol) / h0
+            if d1 <= 1e-15 and d2 <= 1e-15:
+                h1 = max(1e-6, h0 * 1e-3)
+            else:
+                h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+            h_prop = min(100.0 * h0, h1)
+        done = False
+        while not done:
+            rem = h_in - s_loc
+            rejected = False
+            while True:
+                if adaptive:
+                    if h_prop < min_step:
+                        return STEP_TOO_SMALL, row, i, s_loc, h_prop, n_acc, n_rej, nfev
+                    if h_prop >= rem:
+                        m = 1
+                    else:
+                        m = int(math.ceil(rem / h_prop))
+                else:
+                    m = nsub - int(round(s_loc * nsub * inv))
+                h = rem if m == 1 else rem / m
+                _dop_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, kk, y_new, work,
+                          0 if fresh else 1)
+                nfev += 13 if fresh else 12
+                fresh = False
+                if not adaptive:
+                    break
+                err = _dop_error_norm(kk, h, y, y_new, rtol, atol)
+                if err < 1.0:
+                    if err == 0.0:
+                        factor = MAX_FACTOR
+                    else:
+                        factor = min(MAX_FACTOR, SAFETY * err ** DOP_ERROR_EXPONENT)
+                    if rejected:
+                        factor = min(1.0, factor)
+                    h_new = h * factor
+                    # a step shortened to land on a sample instant says nothing against the
+                    # longer proposal
+                    h_prop = max(h_new, h_prop) if h < h_prop else h_new
+                    break
+                n_rej += 1
+                rejected = True
+                if math.isfinite(err):
+                    h_prop = h * max(MIN_FACTOR, SAFETY * err ** DOP_ERROR_EXPONENT)
+                else:
+                    h_prop = h * MIN_FACTOR
+            n_acc += 1
+            for c in range(n2):
+                y[c] = y_new[c]
+            if m == 1:
+                done = True
+            else:
+                s_loc += h
+                for c in range(n2):
+                    kk[0, c] = kk[12, c]
+        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
+        if not ok:
+            return NONFINITE, row, i + 1, 0.0, h_prop, n_acc, n_rej, nfev
+    return OK, row, n_int, 0.0, h_prop, n_acc, n_rej, nfev
+
+
+# ================================================================================================
+# Gauss-Legendre (implicit midpoint, gauss4) in canonical coordinates
+# ================================================================================================
+
+@numba.njit(cache=True)
+def _lu_factor(a, piv):
+    """In-place LU with partial pivoting of a (m, m); returns False if singular."""
+    m = a.shape[0]
+    for k in range(m):
+        p = k
+        big = abs(a[k, k])
+        for i in range(k + 1, m):
+            if abs(a[i, k]) > big:
+                big = abs(a[i, k])
+                p = i
+        piv[k] = p
+        if big == 0.0 or not math.isfinite(big):
+            return False
+        if p != k:
+            for j in range(m):
+                t = a[k, j]
+                a[k, j] = a[p, j]
+                a[p, j] = t
+        for i in range(k + 1, m):
+            a[i, k] /= a[k, k]
+            lik = a[i, k]
+            for j in range(k + 1, m):
+                a[i, j] -= lik * a[k, j]
+    return True
+
+
+@numba.njit(cache=True)
+def _lu_solve(a, piv, b):
+    m = a.shape[0]
+    for k in range(m):
+        p = piv[k]
+        if p != k:
+            t = b[k]
+            b[k] = b[p]
+            b[p] = t
+    for i in range(m):
+        acc = b[i]
+        for j in range(i):
+            acc -= a[i, j] * b[j]
+        b[i] = acc
+    for i in range(m - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, m):
+            acc -= a[i, j] * b[j]
+        b[i] = acc / a[i, i]
+
+
+@numba.njit(cache=True)
+def _stage_change(znew, zold, y):
+    """max over stages and components of |dZ| / (|y| + |Z|); the relative change of the stages."""
+    ns, n2 = znew.shape
+    big = 0.0
+    for c in range(n2):
+        sc = abs(y[c])
+        for i in range(ns):
+            sc = max(sc, abs(znew[i, c]))
+        if sc == 0.0:
+            sc = 1e-300
+        for i in range(ns):
+            d = abs(znew[i, c] - zold[i, c]) / sc
+            if d != d:
+                return d
+            if d > big:
+                big = d
+    return big
+
+
+@numba.njit(cache=True)
+def _converged(d, old):
+    """Stopping rule for the stage iterations, from the last two relative changes d, old.
+
+    Returns 1 (solved to round-off), 0 (go on) or -1 (not converging). Solved when the change is
+    zero, when the geometric tail d rho / (1 - rho), rho = d / old, is below the unit round-off
+    (Hairer & Wanner IV.8), or when the change stops decreasing at round-off level
+    (<= GAUSS_ROUNDOFF_FLOOR). A change that stops decreasing above that level is a failure.
+    """
+    if d != d:
+        return -1
+    if d == 0.0:
+        return 1
+    if old == np.inf:
+        return 0
+    rho = d / old
+    if rho < 1.0:
+        if d * rho / (1.0 - rho) <= 1.1102230246251565e-16:
+            return 1
+        return 0
+    if old <= GAUSS_ROUNDOFF_FLOOR:
+        return 1
+    return -1
+
+
+@numba.njit(cache=True)
+def _gauss_newton(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gc, z, zold, ff, yt, work,
+                  jac, big, piv, rhs, fy):
+    """Solve the stage equations Z = h A F(y + Z) by simplified Newton,
+    (I - h A (x) J) dZ = h A F(y + Z) - Z with J = dF/dy at y by forward differences.
+    On success ff holds F(y + Z) at the solution. Returns (converged, rhs evaluations).
+    (Any n; one call site per right-hand side keeps the compiled code small.)"""
+    ns, n2 = z.shape
+    nfev = 0
+    fr = (s_loc + 0.5 * h) * inv
+    for col in range(-1, n2):  # col = -1: F(y); then F(y + dlt e_col)
+        dlt = 0.0
+        for k in range(n2):
+            yt[k] = y[k]
+        if col >= 0:
+            dlt = 1.4901161193847656e-08 * max(abs(y[col]), 1e-6)
+            yt[col] += dlt
+        _canon_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, fy, min(col + 1, 1), work)
+        nfev += 1
+        if col >= 0:
+            for k in range(n2):
+                jac[k, col] = (fy[1, k] - fy[0, k]) / dlt
+    m = ns * n2
+    for i in range(ns):
+        for j in range(ns):
+            for k in range(n2):
+                for c in range(n2):
+                    big[i * n2 + k, j * n2 + c] = -h * ga[i, j] * jac[k, c]
+    for r in range(m):
+        big[r, r] += 1.0
+    if not _lu_factor(big, piv):
+        return False, nfev
+    for i in range(ns):
+        for c in range(n2):
+            z[i, c] = 0.0
+    old = np.inf
+    done = False
+    for it in range(GAUSS_MAX_NEWTON + 1):
+        for i in range(ns):  # ff = F(y + Z) at the stage times
+            for c in range(n2):
+                yt[c] = y[c] + z[i, c]
+            fri = (s_loc + gc[i] * h) * inv
+            _canon_n(hc, s, cm, g, yt, a0 + da * fri, b0 + db * fri, ff, i, work)
+        nfev += ns
+        if done:
+            return True, nfev
+        for i in range(ns):
+            for c in range(n2):
+                acc = 0.0
+                for j in range(ns):
+                    acc += ga[i, j] * ff[j, c]
+                rhs[i * n2 + c] = h * acc - z[i, c]
+        _lu_solve(big, piv, rhs)
+        for i in range(ns):
+            for c in range(n2):
+                zold[i, c] = z[i, c]
+                z[i, c] += rhs[i * n2 + c]
+        d = _stage_change(z, zold, y)
+        state = _converged(d, old)
+        if state == 1:
+            done = True
+        elif state == -1 and (it >= 3 or d != d):
+            return False, nfev
+        old = d
+    return False, nfev
+
+
+@numba.njit(cache=True)
+def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, zold, ff, yt,
+                work, jac, big, piv, rhs, fy):
+    """One Gauss-Legendre step (stages ``ga``, ``gb``, ``gc``) of y = (theta, p) in place.
+
+    Fixed-point iteration Z <- h A F(y + Z) from Z = 0 until :func:`_converged` (round-off); if
+    that fails (h L too large, the iteration does not contract), simplified Newton
+    (:func:`_gauss_newton`). Then y <- y + h sum_i b_i F(y + Z_i).
+    Returns (status, rhs evaluations, used Newton).
+    """
+    ns, n2 = z.shape
+    two = hc.shape[0] == 2
+    nfev = 0
+    for i in range(ns):
+        for c in range(n2):
+            z[i, c] = 0.0
+    converged = False
+    old = np.inf
+    for it in range(GAUSS_MAX_FIXED_POINT):
+        for i in range(ns):
+            for c in range(n2):
+                yt[c] = y[c] + z[i, c]
+            fr = (s_loc + gc[i] * h) * inv
+            if two:
+                _canon2(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, ff, i)
+            else:
+                _canon_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, ff, i, work)
+        nfev += ns
+        for i in range(ns):
+            for c in range(n2):
+                zold[i, c] = z[i, c]
+                acc = 0.0
+                for j in range(ns):
+                    acc += ga[i, j] * ff[j, c]
+                z[i, c] = h * acc
+        d = _stage_change(z, zold, y)
+        state = _converged(d, old)
+        if state == 1:
+            converged = True
+            break
+        if state == -1 and (it >= 3 or d != d):
+            break
+        old = d
+    used_newton = False
+    if not converged:
+        if not _all_finite(y):
+            return OK, nfev, False  # leave y non-finite: the next output check reports it
+        used_newton = True
+        ok, nf = _gauss_newton(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gc, z, zold,
+                               ff, yt, work, jac, big, piv, rhs, fy)
+        nfev += nf
+        if not ok:
+            return NO_CONVERGENCE, nfev, True
+    # y_new = y + h sum_i b_i F(y + Z_i), F from the last (converged) sweep
+    for c in range(n2):
+        acc = 0.0
+        for i in range(ns):
+            acc += gb[i] * ff[i, c]
+        y[c] += h * acc
+    return OK, nfev, used_newton
+
+
+@numba.njit(cache=True)
+def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out,
+                 ga, gb, gc):
+    """Gauss-Legendre collocation (tableau ga, gb, gc) in y = (theta, p), nsub steps per interval.
+
+    Returns (status, rows written, intervals done, local time reached, rhs evaluations,
+    steps that needed Newton)."""
+    n2 = y.shape[0]
+    n = n2 // 2
+    ns = gb.shape[0]
+    z = np.empty((ns, n2))
+    zold = np.empty((ns, n2))
+    ff = np.empty((ns, n2))
+    yt = np.empty(n2)
+    fy = np.empty((2, n2))
+    work = np.empty((n, n + 2))
+    jac = np.empty((n2, n2))
+    big = np.empty((ns * n2, ns * n2))
+    piv = np.empty(ns * n2, dtype=np.int64)
+    rhs = np.empty(ns * n2)
+    h = h_in / nsub
+    inv = 1.0 / h_in
+    nfev = 0
+    n_newton = 0
+    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    one = zero + 1
+    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    for i in range(n_int):
+        a0 = ax[i]
+        da = ax[i + la] - a0
+        b0 = ay[i * sa]
+        db = ay[(i + la) * sa] - b0
+        for j in range(nsub):
+            s_loc = j * h
+            status, nf, used = _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb,
+                                           gc, z, zold, ff, yt, work, jac, big, piv, rhs, fy)
+            nfev += nf
+            if used:
+                n_newton += 1
+            if status != OK:
+                return status, row, i, s_loc, nfev, n_newton
+        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
+        if not ok:
+            return NONFINITE, row, i + 1, 0.0, nfev, n_newton
+    return OK, row, n_int, 0.0, nfev, n_newton
+
+
+# ================================================================================================
+# exact discretisation of the linear model
+# ================================================================================================
+
+def discretise(a, b, h, hold="zoh"):
+    """Exact discretisation of z' = A z + B u over one step h for a held input (Van Loan).
+
+    With ``u(t_k + s) = u_k + (u_{k+1} - u_k) s / h`` (``linear``; ``zoh`` drops the second term)::
+
+        z_{k+1} = Phi z_k + Gamma0 u_k + Gamma1 (u_{k+1} - u_k)
+        Phi = e^{A h},  Gamma0 = int_0^h e^{A r} dr B,  Gamma1 = int_0^h e^{A (h - r)} B r / h dr
+
+    all read off ``expm([[A h, B h, 0], [0, 0, I], [0, 0, 0]]) = [[Phi, Gamma0, Gamma1], ...]``.
+    No one-sample delay and no start-up transient are introduced (unlike ``zpk2sos`` of a hold
+    model or ``dlsim`` with first-order hold from a zero state).
+
+    Returns (Phi (N, N), Gamma0 (N, m), Gamma1 (N, m)); Gamma1 is zero for ``zoh``.
+    """
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    nz, m = b.shape
+    big = np.zeros((nz + 2 * m, nz + 2 * m))
+    big[:nz, :nz] = a * h
+    big[:nz, nz:nz + m] = b * h
+    big[nz:nz + m, nz + m:] = np.eye(m)
+    e = scipy.linalg.expm(big)
+    phi = e[:nz, :nz].copy()
+    g0 = e[:nz, nz:nz + m].copy()
+    g1 = e[:nz, nz + m:].copy() if hold == "linear" else np.zeros_like(g0)
+    return phi, g0, g1
+
+
+@numba.njit(cache=True)
+def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
+    """z <- Phi z + Gamma0 u_a + Gamma1 (u_b - u_a) per substep (single input x0'').
+
+    ``phi``, ``g0``, ``g1`` are for the substep h_in / nsub; inside interval i the substep j sees
+    the held input at its ends, u_a = u(j/nsub), u_b = u((j+1)/nsub). Returns (status, rows,
+    intervals done)."""
+    n2 = y.shape[0]
+    yt = np.empty(n2)
+    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    one = zero + 1
+    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    for i in range(n_int):
+        a0 = ax[i]
+        da = ax[i + la] - a0
+        for j in range(nsub):
+            ua = a0 + da * (j / nsub)
+            ub = a0 + da * ((j + 1) / nsub)
+            du = ub - ua
+            for r in range(n2):
+                acc = g0[r, 0] * ua + g1[r, 0] * du
+                for c in range(n2):
+                    acc += phi[r, c] * y[c]
+                yt[r] = acc
+            for r in range(n2):
+                y[r] = yt[r]
+        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
+        if not ok:
+            return NONFINITE, row, i + 1
+    return OK, row, n_int
+
+
+# ================================================================================================
+# Python entry point
+# ================================================================================================
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """Result of one :func:`integrate` call.
+
+    Attributes
+    ----------
+    y_out : (T, 2n) states (theta [rad], omega [rad/s]) at the output instants (interval counts
+        0, out_every, ..., n_intervals).
+    native_end : (2n,) the method's own state at the end (``theta, omega`` or ``theta, p``); pass it
+        back as ``native0`` to continue bit for bit.
+    h_next_s : proposed next step of an adaptive method [s] (``nan`` otherwise).
+    n_steps, n_rejected, n_fev, n_newton : accepted steps, rejected steps, right-hand-side
+        evaluations, Gauss steps that needed Newton.
+    """
+
+    y_out: np.ndarray
+    native_end: np.ndarray
+    h_next_s: float
+    n_steps: int
+    n_rejected: int
+    n_fev: int
+    n_newton: int
+
+
+def output_rows(n_intervals: int, out_every: int) -> np.ndarray:
+    """Interval counts at which states are output: 0, out_every, 2 out_every, ..., and the end."""
+    idx = np.arange(0, n_intervals + 1, out_every)
+    if idx[-1] != n_intervals:
+        idx = np.append(idx, n_intervals)
+    return idx
+
+
+def to_native(chain: Chain, method: str, y) -> np.ndarray:
+    """(theta, omega) -> the method's native state (adds p = M omega for the Gauss methods)."""
+    y = np.array(y, dtype=float)
+    if METHODS[method].native == "theta,omega":
+        return y
+    n = chain.n
+    p = np.empty((1, n))
+    omega_to_momentum(chain.H, y[None, :n], y[None, n:], p)
+    return np.concatenate([y[:n], p[0]])
+
+
+def from_native(chain: Chain, method: str, rows) -> np.ndarray:
+    """Native states (T, 2n) -> (theta, omega) (T, 2n)."""
+    rows = np.asarray(rows, float)
+    if METHODS[method].native == "theta,omega":
+        return rows
+    n = chain.n
+    out = rows.copy()
+    momentum_to_omega(chain.H, np.ascontiguousarray(rows[:, :n]), np.ascontiguousarray(rows[:, n:]),
+                      out[:, n:])
+    return out
+
+
+def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_intervals: int,
+              out_every: int, method: str, substeps: int = 1, rtol: float = 1e-10,
+              atol: float = 1e-12, h0_s: float = float("nan"), adaptive: bool = True,
+              t0_s: float = 0.0) -> Run:
+    """Run one method over ``n_intervals`` held-input intervals of ``h_in`` seconds.
+
+    Parameters
+    ----------
+    chain : the model.
+    native0 : (2n,) start state in the method's native form (see :func:`to_native`).
+    ax, ay : base accelerations x0'', y0'' [m/s^2] at the sample instants, at least
+        ``n_intervals`` (+1 for ``hold="linear"``) samples; ``ay`` may be ``None`` (zero).
+    hold : ``"zoh"`` or ``"linear"``.
+    h_in : input sample interval [s].
+    out_every : output every this many intervals (and at the end).
+    method : key of :data:`METHODS`.
+    substeps : steps per interval for fixed-step methods (rk4, gauss4, midpoint, linear; also
+        dop853 with ``adaptive=False``).
+    rtol, atol : dop853 tolerances (relative, absolute per state component [rad, rad/s]).
+    h0_s : dop853 proposed first step [s]; ``nan`` selects it (Hairer's algorithm).
+    adaptive : dop853 only: ``False`` drives the tableau with fixed steps (order checks).
+    t0_s : absolute time of the start [s], only used to report where a divergence happened.
+
+    Raises
+    ------
+    DivergenceError : a non-finite state at an output instant (reports the last finite output),
+        a dop853 step below 10 ulp of the time, or Gauss stage equations that did not converge.
+    """
+    hc, s, cm, g = chain.H, chain.S, chain.C, chain.g_mps2
+    lin = hold == "linear"
+    need = n_intervals + (1 if lin else 0)
+    ax = np.ascontiguousarray(ax, dtype=float)
+    if ax.shape[0] < need:
+        raise ValueError(f"ax has {ax.shape[0]} samples, {need} are needed")
+    use_ay = ay is not None
+    ay = np.ascontiguousarray(ay, dtype=float) if use_ay else np.zeros(1)
+    sa, la = int(use_ay), int(lin)
+    if use_ay and ay.shape[0] < need:
+        raise ValueError(f"ay has {ay.shape[0]} samples, {need} are needed")
+    rows = output_rows(n_intervals, out_every)
+    y = np.array(native0, dtype=float)
+    y_out = np.empty((rows.size, y.size))
+    h_next, n_rej, n_newton = float("nan"), 0, 0
+    s_fail = 0.0
+    if method == "rk4":
+        status, nrow, i_done = rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, substeps,
+                                          n_intervals, out_every, y, y_out)
+        n_steps, nfev = i_done * substeps, 4 * i_done * substeps
+    elif method == "dop853":
+        min_step = 10.0 * np.spacing(max(abs(t0_s) + n_intervals * h_in, h_in))
+        (status, nrow, i_done, s_fail, h_next, n_steps, n_rej,
+         nfev) = dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_intervals, out_every, y,
+                               y_out, rtol, atol, h0_s, min_step, adaptive, substeps)
+        if not adaptive:
+            h_next = float("nan")
+    elif method in ("gauss4", "midpoint"):
+        tab = (GAUSS4_A, GAUSS4_B, GAUSS4_C) if method == "gauss4" else (
+            MIDPOINT_A, MIDPOINT_B, MIDPOINT_C)
+        status, nrow, i_done, s_fail, nfev, n_newton = gauss_kernel(
+            hc, s, cm, g, ax, ay, sa, la, h_in, substeps, n_intervals, out_every, y, y_out,
+            *tab)
+        n_steps = i_done * substeps
+    elif method == "linear":
+        a, b = chain.state_space()
+        phi, g0, g1 = discretise(a, b, h_in / substeps, hold)
+        status, nrow, i_done = linear_kernel(phi, g0, g1, ax, la, substeps, n_intervals,
+                                             out_every, y, y_out)
+        n_steps, nfev = i_done * substeps, 0
+    else:
+        raise ValueError(f"method = {method!r} is unknown; expected one of {', '.join(METHODS)}")
+
+    if status != OK:
+        _raise_divergence(chain, method, status, y, y_out, rows, nrow, i_done, s_fail, h_in, t0_s,
+                          substeps)
+    return Run(y_out=from_native(chain, method, y_out), native_end=y, h_next_s=float(h_next),
+               n_steps=int(n_steps), n_rejected=int(n_rej), n_fev=int(nfev),
+               n_newton=int(n_newton))
+
+
+def _raise_divergence(chain, method, status, y, y_out, rows, nrow, i_done, s_fail, h_in, t0_s,
+                      substeps):
+    if status == NONFINITE:
+        last = nrow - 2  # the row just written is the first non-finite one
+        state = from_native(chain, method, y_out[last:last + 1])[0]
+        t = t0_s + rows[last] * h_in
+        t_bad = t0_s + rows[nrow - 1] * h_in
+        raise DivergenceError(
+            f"{method}: the state became non-finite between t = {t:.9g} s and {t_bad:.9g} s "
+            f"(last finite state at t = {t:.9g} s: theta = {state[:chain.n]}, omega = "
+            f"{state[chain.n:]}); reduce the step (dt_s, rtol) or check the input", t, state)
+    state = from_native(chain, method, y[None, :])[0]
+    t = t0_s + i_done * h_in + s_fail
+    if status == STEP_TOO_SMALL:
+        raise DivergenceError(
+            f"dop853: the step size fell below 10 ulp of the time at t = {t:.9g} s (the solution "
+            f"is singular or non-finite there); last accepted state {state}", t, state)
+    raise DivergenceError(
+        f"{method}: the implicit stage equations did not converge at t = {t:.9g} s with "
+        f"dt_s = {h_in / substeps:.6g} s (neither fixed-point iteration nor simplified Newton); "
+        f"reduce dt_s. Last state {state}", t, state)

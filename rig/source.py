@@ -1,0 +1,390 @@
+"""The analyzer's source: a DAC at the simulation rate whose value is held between samples.
+
+The Agilent 35670A drives the voice-coil amplifier from its source output (SPEC sections 1, 6, 8).
+Here the source is a sequence of DAC samples ``v[k]`` at ``t_k = k / fs`` (``fs`` =
+``acquisition.simulation_rate_hz``, 1 kHz by default); the physical source voltage is that value
+held on ``[t_k, t_{k+1})`` (a zero-order hold). Everything downstream is continuous and integrated
+exactly from the held value (:mod:`rig.bench`).
+
+Signal types (``source.type``), level ``L = source.level_vrms``:
+
+``random``
+    Gaussian noise band-limited to ``[fmin_hz, fmax_hz]`` (default the analysis span, 0-12.5 Hz),
+    flat inside the band, rms ``L`` (the expectation; the rms of a record of T seconds fluctuates
+    by about ``1 / (2 sqrt(B T))`` relative, B = fmax - fmin).
+``burst-random``
+    the same noise generator running continuously but switched to the output only during the first
+    ``burst_fraction`` of every ``period_s`` (on/off with hard edges at sample instants; 0 V
+    otherwise). ``L`` is the rms *while on*.
+``periodic-chirp``
+    a linear sine sweep from ``fmin_hz`` to ``fmax_hz`` over ``period_s``, restarted (phase 0) every
+    period, amplitude ``sqrt(2) L`` (rms ``L``). Exactly periodic with ``period_s`` (which must be
+    a whole number of samples); continuous at the restart only if ``period_s (fmin + fmax) / 2`` is
+    an integer.
+``pink``
+    Gaussian noise with one-sided PSD proportional to ``1 / max(f, f_shelf)`` in ``[fmin_hz,
+    fmax_hz]`` (-10 dB per decade, -3 dB per octave), rms ``L``; ``f_shelf = fmin_hz`` if it is
+    > 0, else ``fmax_hz / 1000`` (below it the spectrum is flat down to DC instead of diverging).
+``sine``
+    ``sqrt(2) L sin(2 pi frequency_hz t_k)``, phase 0 at t = 0.
+
+How the noise is made (random, burst-random, pink)
+--------------------------------------------------
+White unit-variance Gaussian samples ``w[k]`` from a seeded :class:`numpy.random.Generator` are
+filtered by a long linear-phase FIR filter ``h`` (``v = L (h * w)`` with ``sum h^2 = 1``, so the
+expected variance is exactly ``L^2``). ``h`` is designed by frequency sampling: the ideal amplitude
+response (1 in the band, or ``1/sqrt(max(f, f_shelf))``; at the edges each grid point gets the
+fraction of its cell inside the band, so the edges fall exactly where asked) is inverse
+transformed on a grid 8 times finer than the filter, the central ``n_taps`` samples are kept and
+tapered by a Kaiser window (beta = 8.6, ~ 87 dB stopband). ``n_taps`` is the power of two reaching
+``FILTER_SPAN_S`` = 128 s (131072 taps at 1 kHz), so the band edges are about
+``2 sqrt(1 + (beta/pi)^2) / span`` = 0.045 Hz wide with -6.02 dB at the nominal edge, the pass
+band is flat to 1e-3 dB and the stop band is below -80 dB 0.05 Hz beyond the edges
+(tests/test_source.py). The filter runs by overlap-save in frames of ``4 n_taps`` samples (FFT), each frame
+producing ``3 n_taps + 1`` outputs that are buffered; a request for any number of samples is
+served from that buffer. Because frames never depend on how the output is requested, blocks of
+any size reproduce a one-shot run bit for bit, and the signal is continuous across blocks (it is
+one stationary process; there are no joins). The filter's history is primed with ``n_taps - 1``
+white samples before the first output, so the noise is stationary from t = 0. Deterministic types
+(sine, chirp) draw nothing from the generator.
+
+The one-sided PSD of the DAC samples is ``2 L^2 |H(f)|^2 / fs`` with ``H`` the normalised FIR's
+response (:meth:`Source.design_psd` gives the ideal design, without the window's edge smoothing).
+
+Public API: :class:`Source`, :class:`SourceState`, :func:`start_source`, :func:`generate`,
+:data:`SOURCE_TYPES`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from rig.errors import ConfigError
+
+SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine")
+NOISE_TYPES = ("random", "burst-random", "pink")
+FILTER_SPAN_S = 128.0  # minimum duration of the noise-shaping FIR [s]
+KAISER_BETA = 8.6
+FRAME_FACTOR = 4  # FFT length of one overlap-save frame = FRAME_FACTOR * n_taps
+_DESIGN_OVERSAMPLE = 8
+_REL = 1e-9
+
+
+def _number(where: str, value, *, lo=None, hi=None, lo_open=False, hi_open=False,
+            valid: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}") from None
+    if isinstance(value, bool) or not math.isfinite(v):
+        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}")
+    if lo is not None and (v < lo or (lo_open and v == lo)):
+        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}")
+    if hi is not None and (v > hi or (hi_open and v == hi)):
+        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}")
+    return v
+
+
+def _whole_samples(where: str, duration_s: float, fs_hz: float) -> int:
+    r = duration_s * fs_hz
+    k = int(round(r))
+    if k < 1 or abs(r - k) > _REL * max(1.0, r):
+        raise ConfigError(f"{where} = {duration_s!r} s is invalid: expected a whole number (>= 1) "
+                          f"of samples at the simulation rate {fs_hz!r} Hz (a multiple of "
+                          f"{1 / fs_hz!r} s)")
+    return k
+
+
+@dataclass(frozen=True)
+class Source:
+    """The analyzer's source as a DAC (parameters frozen and validated; see the module docstring).
+
+    Parameters
+    ----------
+    type : one of :data:`SOURCE_TYPES`.
+    level_vrms : rms voltage [V], >= 0 (rms while on for burst random).
+    fmin_hz, fmax_hz : band edges [Hz], 0 <= fmin < fmax <= fs / 2.
+    frequency_hz : fixed-sine frequency [Hz], 0 < f < fs / 2.
+    period_s : period of the chirp and of the bursts [s], a whole number of samples.
+    burst_fraction : on-fraction of each burst period, 0 < fraction <= 1.
+    fs_hz : DAC (simulation) rate [Hz], > 0.
+    """
+
+    type: str = "random"
+    level_vrms: float = 0.1
+    fmin_hz: float = 0.0
+    fmax_hz: float = 12.5
+    frequency_hz: float = 2.0
+    period_s: float = 100.0
+    burst_fraction: float = 0.5
+    fs_hz: float = 1000.0
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        if self.type not in SOURCE_TYPES:
+            raise ConfigError(f"source.type = {self.type!r} is invalid: expected one of "
+                              f"{', '.join(SOURCE_TYPES)}")
+        fs = _number("acquisition.simulation_rate_hz", self.fs_hz, lo=0.0, lo_open=True,
+                     valid="a finite rate > 0 Hz")
+        set_(self, "fs_hz", fs)
+        nyq = fs / 2
+        set_(self, "level_vrms", _number("source.level_vrms", self.level_vrms, lo=0.0,
+                                         valid="a finite rms voltage >= 0 V"))
+        set_(self, "fmax_hz", _number("source.fmax_hz", self.fmax_hz, lo=0.0, hi=nyq,
+                                      lo_open=True,
+                                      valid=f"0 < fmax_hz <= {nyq:g} Hz (half the simulation "
+                                            "rate)"))
+        set_(self, "fmin_hz", _number("source.fmin_hz", self.fmin_hz, lo=0.0, hi=self.fmax_hz,
+                                      hi_open=True,
+                                      valid=f"0 <= fmin_hz < fmax_hz = {self.fmax_hz:g} Hz"))
+        set_(self, "frequency_hz", _number("source.frequency_hz", self.frequency_hz, lo=0.0,
+                                           hi=nyq, lo_open=True, hi_open=True,
+                                           valid=f"0 < frequency_hz < {nyq:g} Hz (half the "
+                                                 "simulation rate)"))
+        set_(self, "period_s", _number("source.period_s", self.period_s, lo=0.0, lo_open=True,
+                                       valid="a finite period > 0 s"))
+        _whole_samples("source.period_s", self.period_s, fs)
+        set_(self, "burst_fraction", _number("source.burst_fraction", self.burst_fraction,
+                                             lo=0.0, hi=1.0, lo_open=True,
+                                             valid="0 < burst_fraction <= 1"))
+        if self.type == "burst-random" and self.burst_samples < 1:
+            raise ConfigError(f"source.burst_fraction = {self.burst_fraction!r} is invalid: "
+                              f"the burst would be shorter than one sample of the period "
+                              f"{self.period_s!r} s")
+
+    @classmethod
+    def from_settings(cls, source: dict, fs_hz: float) -> "Source":
+        """Build from a scene's ``settings["source"]`` and the simulation rate [Hz]."""
+        return cls(type=source["type"], level_vrms=source["level_vrms"],
+                   fmin_hz=source["fmin_hz"], fmax_hz=source["fmax_hz"],
+                   frequency_hz=source["frequency_hz"], period_s=source["period_s"],
+                   burst_fraction=source["burst_fraction"], fs_hz=fs_hz)
+
+    # -- derived constants ----------------------------------------------------------------
+    @property
+    def period_samples(self) -> int:
+        """Samples per chirp/burst period."""
+        return int(round(self.period_s * self.fs_hz))
+
+    @property
+    def burst_samples(self) -> int:
+        """Samples switched on at the start of each burst period."""
+        return int(round(self.burst_fraction * self.period_samples))
+
+    @property
+    def shelf_hz(self) -> float:
+        """Lower corner of the pink spectrum [Hz] (fmin_hz if > 0, else fmax_hz / 1000)."""
+        return self.fmin_hz if self.fmin_hz > 0 else self.fmax_hz / 1000.0
+
+    @property
+    def n_taps(self) -> int:
+        """Length of the noise-shaping FIR (a power of two spanning >= FILTER_SPAN_S)."""
+        return 1 << int(math.ceil(math.log2(FILTER_SPAN_S * self.fs_hz)))
+
+    @property
+    def frame_len(self) -> int:
+        """FFT length of one overlap-save frame."""
+        return FRAME_FACTOR * self.n_taps
+
+    def design_amplitude(self, freqs_hz) -> np.ndarray:
+        """Ideal (unnormalised) amplitude response of the noise shaping at ``freqs_hz`` [Hz]."""
+        return _amplitude(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                          np.asarray(freqs_hz, float))
+
+    @property
+    def taps(self) -> np.ndarray:
+        """The normalised FIR (``sum taps^2 = 1``), shape (n_taps,), read-only (noise types)."""
+        return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                       self.fs_hz)[0]
+
+    @property
+    def _taps_spectrum(self) -> np.ndarray:
+        return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                       self.fs_hz)[1]
+
+    def design_psd(self, freqs_hz) -> np.ndarray:
+        """Design one-sided PSD of the DAC samples [V^2/Hz] for the noise types (random, pink;
+        for burst random the PSD while on), without the window's smoothing of the edges."""
+        f = np.asarray(freqs_hz, float)
+        if self.type not in NOISE_TYPES:
+            raise ConfigError(f"design_psd is defined for noise sources ({', '.join(NOISE_TYPES)}),"
+                              f" not for source.type = {self.type!r}")
+        return self.level_vrms**2 * self.design_amplitude(f) ** 2 / self.design_power
+
+    @property
+    def design_power(self) -> float:
+        """Integral of the ideal |amplitude|^2 over [0, fs/2] [Hz] (the PSD's normalisation)."""
+        lo, hi = self.fmin_hz, self.fmax_hz
+        if self.type != "pink":
+            return hi - lo
+        sh = self.shelf_hz  # 1/max(f, shelf): flat below the shelf, 1/f above
+        return max(sh - lo, 0.0) / sh + math.log(hi / max(lo, sh))
+
+    def describe(self) -> dict:
+        """Plain-data description (what to record beside a run)."""
+        d = {"type": self.type, "level_vrms": self.level_vrms, "fs_hz": self.fs_hz,
+             "hold": "zoh"}
+        if self.type in NOISE_TYPES or self.type == "periodic-chirp":
+            d.update(fmin_hz=self.fmin_hz, fmax_hz=self.fmax_hz)
+        if self.type in NOISE_TYPES:
+            d.update(fir_taps=self.n_taps, kaiser_beta=KAISER_BETA)
+        if self.type == "pink":
+            d.update(shelf_hz=self.shelf_hz)
+        if self.type in ("periodic-chirp", "burst-random"):
+            d.update(period_s=self.period_s)
+        if self.type == "burst-random":
+            d.update(burst_fraction=self.burst_fraction)
+        if self.type == "sine":
+            d.update(frequency_hz=self.frequency_hz)
+        return d
+
+
+def _amplitude(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
+               f: np.ndarray, cell_hz: float = 0.0) -> np.ndarray:
+    """Ideal amplitude at ``f``; with ``cell_hz`` > 0 the band indicator is averaged over a cell
+    of that width around each point (so a design grid places the edges between its points)."""
+    f = np.abs(f)
+    if cell_hz > 0:
+        inband = (np.clip((f + cell_hz / 2 - fmin_hz) / cell_hz, 0.0, 1.0)
+                  * np.clip((fmax_hz - (f - cell_hz / 2)) / cell_hz, 0.0, 1.0))
+        if fmin_hz == 0:
+            inband = np.clip((fmax_hz - (f - cell_hz / 2)) / cell_hz, 0.0, 1.0)
+    else:
+        inband = ((f >= fmin_hz) & (f <= fmax_hz)).astype(float)
+    amp = 1.0 / np.sqrt(np.maximum(f, shelf_hz)) if pink else np.ones_like(f)
+    return inband * amp
+
+
+@lru_cache(maxsize=8)
+def _design(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: float):
+    """(taps, rfft of taps over one frame) of the noise-shaping FIR (module docstring); cached
+    by its parameters, both read-only."""
+    n = 1 << int(math.ceil(math.log2(FILTER_SPAN_S * fs_hz)))
+    big = _DESIGN_OVERSAMPLE * n
+    grid = np.fft.rfftfreq(big, 1.0 / fs_hz)
+    ideal = np.fft.irfft(_amplitude(pink, fmin_hz, fmax_hz, shelf_hz, grid, fs_hz / big),
+                         n=big)  # zero phase, circular
+    h = np.roll(ideal, n // 2)[:n] * np.kaiser(n, KAISER_BETA)
+    h /= math.sqrt(float(np.sum(h * h)))
+    spec = np.fft.rfft(h, n=FRAME_FACTOR * n)
+    h.setflags(write=False)
+    spec.setflags(write=False)
+    return h, spec
+
+
+@dataclass(frozen=True, eq=False)
+class SourceState:
+    """What the source carries from block to block.
+
+    Attributes
+    ----------
+    index : samples emitted so far (the next sample is at ``t = index / fs``).
+    rng_state : the generator's ``bit_generator.state`` (a dict; copied, never shared).
+    history : (n_taps - 1,) last white samples fed to the FIR (noise types), else ``None``.
+    buffer : the last filtered frame (read-only; noise types), of which ``buffer[offset:]`` is
+        not emitted yet.
+    offset : first sample of ``buffer`` not yet emitted.
+    """
+
+    index: int
+    rng_state: dict
+    history: np.ndarray | None
+    buffer: np.ndarray
+    offset: int = 0
+
+
+def _generator(state: dict) -> np.random.Generator:
+    bg = getattr(np.random, state["bit_generator"])(0)  # fixed seed, overwritten at once
+    bg.state = state
+    return np.random.Generator(bg)
+
+
+def _copy_state(rng: np.random.Generator) -> dict:
+    return rng.bit_generator.state  # a fresh dict of ints (a snapshot), not shared
+
+
+def start_source(source: Source, seed) -> SourceState:
+    """The state at t = 0. ``seed``: an int, a :class:`numpy.random.SeedSequence` or a
+    :class:`numpy.random.Generator` (whose current state is copied, not consumed)."""
+    if isinstance(seed, np.random.Generator):
+        rng = _generator(_copy_state(seed))
+    else:
+        rng = np.random.Generator(np.random.PCG64(seed))
+    history = None
+    if source.type in NOISE_TYPES:
+        history = rng.standard_normal(source.n_taps - 1)  # primes the FIR: stationary from t = 0
+    return SourceState(index=0, rng_state=_copy_state(rng), history=_readonly(history),
+                       buffer=_readonly(np.empty(0)), offset=0)
+
+
+def _readonly(a):
+    if a is not None:
+        a.setflags(write=False)
+    return a
+
+
+def _noise(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, SourceState]:
+    """n samples of the shaped unit-rms noise (before the level), from whole frames."""
+    buffer, offset, history = state.buffer, state.offset, state.history
+    rng = None
+    parts = []
+    need = n
+    n_taps, frame = source.n_taps, source.frame_len
+    while True:
+        take = min(need, buffer.size - offset)
+        if take > 0:
+            parts.append(buffer[offset:offset + take])
+            offset += take
+            need -= take
+        if need == 0:
+            break
+        if rng is None:
+            rng = _generator(state.rng_state)
+        fresh = rng.standard_normal(frame - n_taps + 1)
+        x = np.concatenate([history, fresh])
+        y = np.fft.irfft(np.fft.rfft(x) * source._taps_spectrum, n=frame)
+        buffer = _readonly(y[n_taps - 1:])
+        history = _readonly(x[frame - n_taps + 1:].copy())
+        offset = 0
+    if len(parts) == 1:
+        out = parts[0].copy()
+    else:
+        out = np.concatenate(parts) if parts else np.empty(0)
+    rng_state = state.rng_state if rng is None else _copy_state(rng)
+    return out, SourceState(index=state.index, rng_state=rng_state, history=history,
+                            buffer=buffer, offset=offset)
+
+
+def generate(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, SourceState]:
+    """The next ``n`` DAC samples [V] and the state after them.
+
+    Samples ``k = state.index .. state.index + n - 1`` at ``t_k = k / fs``; each is held until the
+    next. Any split of a run into blocks gives the same samples as one call.
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ConfigError(f"n = {n!r} is invalid: expected an integer number of samples >= 0")
+    n = int(n)
+    k = state.index + np.arange(n, dtype=np.int64)
+    lvl = source.level_vrms
+    if source.type in NOISE_TYPES:
+        v, new = _noise(source, state, n)
+        v = lvl * v
+        if source.type == "burst-random":
+            v = np.where(k % source.period_samples < source.burst_samples, v, 0.0)
+    elif source.type == "sine":
+        cycles = np.mod(k * (source.frequency_hz / source.fs_hz), 1.0)
+        v = math.sqrt(2.0) * lvl * np.sin(2 * np.pi * cycles)
+        new = state
+    else:  # periodic chirp
+        t = (k % source.period_samples) / source.fs_hz
+        f0, f1, p = source.fmin_hz, source.fmax_hz, source.period_s
+        cycles = np.mod(f0 * t + 0.5 * (f1 - f0) / p * t * t, 1.0)
+        v = math.sqrt(2.0) * lvl * np.sin(2 * np.pi * cycles)
+        new = state
+    new = SourceState(index=state.index + n, rng_state=new.rng_state, history=new.history,
+                      buffer=new.buffer, offset=new.offset)
+    return v, new

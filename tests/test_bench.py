@@ -1,0 +1,301 @@
+"""The whole bench (rig/bench.py): source -> coil -> stage -> pendulum -> sensors, in blocks."""
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from rig.bench import (BenchSimulation, advance, build_model, calibrations, expected_response,
+                       model_info, signal_to_noise, start)
+from rig.blocks import AnalogBlock
+from rig.errors import ConfigError, DivergenceError
+from rig.scene import load_scene
+
+QUIET = ["accelerometer.noise_mps2_rthz=0", "psd.noise_m_rthz=0"]
+CHIRP = ["source.type=periodic-chirp", "source.period_s=10", "source.fmax_hz=20"]
+FAST = ["pendulum.q1=5", "pendulum.q2=5"]  # transients gone in 150 s (to e^-40)
+
+
+def ishizaki(*overrides):
+    return load_scene("ishizaki2009", list(overrides))
+
+
+def one_period_response(sim, key=None, volts=None, settle_s=150.0, period_s=10.0):
+    sim.run(settle_s)
+    b = sim.run(period_s)
+    n = b.samples
+    f = np.fft.rfftfreq(n, 1 / b.fs_hz)
+    v = np.fft.rfft(b.truth["source_v"])
+    return b, f, v
+
+
+def test_paper_run_with_the_linear_model_takes_well_under_a_few_seconds():
+    sc = ishizaki()
+    BenchSimulation(sc, seed=0).next_block(10)  # compile / load the kernels and the FIR
+    sim = BenchSimulation(sc, seed=0)
+    cpu, wall = time.process_time(), time.perf_counter()
+    n = 0
+    for b in sim.blocks(10.0, 330.0 + 30 * 100.0):
+        n += b.samples
+    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    print(f"paper run ({n} samples at 1 kHz): {cpu:.2f} s CPU, {wall:.2f} s wall")
+    assert n == 3_330_000
+    assert cpu < 4.0  # ~1.4 s CPU on an idle core; the bound leaves room for a shared machine
+
+
+@pytest.mark.parametrize("model", ["linear", "nonlinear"])
+def test_blocks_reproduce_a_one_shot_run_bit_for_bit(model):
+    sc = ishizaki(f"acquisition.model={model}", "stage.reaction=false")
+    one = BenchSimulation(sc, seed=3).run(3.0)
+    sim = BenchSimulation(sc, seed=3)
+    parts = [sim.next_block(k) for k in (1, 999, 1700, 300)]
+    for ch in ("a", "x", "y"):
+        assert np.concatenate([p.volts[ch] for p in parts]).tobytes() == one.volts[ch].tobytes()
+    for key, val in one.truth.items():
+        joined = np.concatenate([p.truth[key] for p in parts])
+        assert joined.tobytes() == val.tobytes(), key
+    assert [p.t0_s for p in parts] == [0.0, 0.001, 1.0, 2.7]
+
+
+def test_same_seed_gives_the_same_bytes_and_another_seed_other_noise():
+    sc = ishizaki()
+    a = BenchSimulation(sc, seed=11).run(2.0)
+    b = BenchSimulation(sc, seed=11).run(2.0)
+    c = BenchSimulation(sc, seed=12).run(2.0)
+    for ch in "axy":
+        assert a.volts[ch].tobytes() == b.volts[ch].tobytes()
+        assert not np.array_equal(a.volts[ch], c.volts[ch])
+
+
+def test_noise_floor_matches_the_stated_densities_and_streams_are_independent():
+    sc = ishizaki("source.level_vrms=0")
+    b = BenchSimulation(sc, seed=5).run(100.0)
+    assert np.all(b.truth["stage_accel_mps2"] == 0) and np.all(b.truth["theta_rad"] == 0)
+    n = b.samples
+    tol = 5 / math.sqrt(2 * n)  # relative standard deviation of an rms from n samples, x 5
+    acc, lever = build_model(sc).accelerometer, build_model(sc).lever
+    assert np.std(b.volts["a"]) == pytest.approx(
+        acc.sensitivity_vpmps2 * acc.noise_mps2_rthz * math.sqrt(500.0), rel=tol)
+    for ch in "xy":
+        assert np.std(b.volts[ch]) == pytest.approx(
+            lever.gain_vpm * lever.noise_m_rthz * math.sqrt(500.0), rel=tol)
+    c = np.corrcoef([b.volts["a"], b.volts["x"], b.volts["y"]])
+    assert np.max(np.abs(c - np.eye(3))) < 5 / math.sqrt(n)
+
+
+def test_channel_volts_are_the_sensor_models_applied_to_the_truth():
+    sc = ishizaki(*QUIET)
+    sim = BenchSimulation(sc, seed=1)
+    sim.run(30.0)
+    b = sim.run(5.0)
+    m = sim.model
+    # accelerometer: sign S times the high-passed acceleration, where q' = x0'' - w_c q
+    np.testing.assert_array_equal(b.volts["a"], m.accelerometer.volts_per_mps2
+                                  * b.truth["accel_sensed_mps2"])
+    # PSD: sign G times the exact spot of the truth's mirror motion
+    r = m.lever.measure(b.truth["mirror_x_m"], b.truth["mirror_rot_rad"], 1000.0, None, None,
+                        mirror_z_m=b.truth["mirror_z_m"], noise=False)
+    np.testing.assert_array_equal(b.volts["x"], r.x_v)
+    np.testing.assert_array_equal(b.volts["y"], r.y_v)
+    # linear model: the mirror motion is the linearised kinematics of the angles
+    np.testing.assert_allclose(b.truth["mirror_x_m"], b.truth["theta_rad"] @ sc.mirror_weights(),
+                               rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(b.truth["mirror_rot_rad"], b.truth["theta_rad"][:, 1])
+    # and, through the linearised calibrations, within the optical lever's second-order terms
+    cal = calibrations(sc)
+    for ch, truth in (("x", "mirror_x_m"), ("y", "mirror_rot_rad")):
+        lin = cal[ch].volts_per_unit * b.truth[truth]
+        assert np.std(b.volts[ch] - lin) < 0.01 * np.std(lin)
+
+
+@pytest.mark.parametrize("reaction", ["true", "false"])
+def test_simulated_channels_match_the_exact_sampled_response(reaction):
+    sc = ishizaki(*FAST, *CHIRP, *QUIET, "source.level_vrms=0.001", f"stage.reaction={reaction}")
+    b, f, v = one_period_response(BenchSimulation(sc, seed=0))
+    sel = (f > 0.05) & (f <= 20)
+    r = expected_response(sc, f[sel], sampled=True)
+    np.testing.assert_allclose(np.fft.rfft(b.volts["a"])[sel] / v[sel], r.a, rtol=1e-9)
+    # x, y: exact optical-lever geometry; its second-order terms scale with the (tiny) level
+    for ch in "xy":
+        h = np.fft.rfft(b.volts[ch])[sel] / v[sel]
+        want = getattr(r, ch)
+        assert np.max(np.abs(h - want)) < 1e-4 * np.max(np.abs(want))
+
+
+def test_sampled_response_is_the_continuous_one_plus_the_folded_dac_images():
+    # y[k] = sum_m G(f + m fs) Z(f + m fs) V_d(f): the DAC hold Z = (1 - e^{-iwh}) / (iwh) makes
+    # images at m fs +- f that sampling at the DAC instants folds back (terms ~ 1/m^2)
+    sc = ishizaki()
+    model = build_model(sc)
+    f0 = np.array([0.3, 2.4794, 7.0])
+    sampled = expected_response(sc, f0, sampled=True).stage_accel
+
+    def poisson(big_m):
+        ms = np.arange(-big_m, big_m + 1)
+        out = []
+        for f in f0:
+            ff = f + ms * 1000.0
+            w = 2 * np.pi * ff
+            zoh = (1 - np.exp(-1j * w * 1e-3)) / (1j * w * 1e-3)
+            g = model.stage.frequency_response(np.abs(ff), sc.chain).accel
+            out.append(np.sum(np.where(ff >= 0, g, np.conj(g)) * zoh))
+        return np.array(out)
+
+    s1, s2 = poisson(1000), poisson(2000)
+    assert np.all(np.abs(sampled - s2) <= 2 * np.abs(s2 - s1))  # the tail beyond 2000 images
+    assert np.all(np.abs(s2 / sampled - 1) < 2e-5)
+    cont = expected_response(sc, f0).stage_accel
+    # the folded images are a DAC-rate artefact of sampling at 1 kHz (module docstring)
+    assert np.all(np.abs(sampled / cont - 1) < 0.05)
+
+
+def test_analyzer_readings_show_the_pendulum_and_the_accelerometer_corner():
+    sc = ishizaki()
+    g = sc.chain.g_mps2
+    r = expected_response(sc, [0.001, 0.1, 1.0])
+    l1 = sc.chain.length_m[0]
+    # the pendulum alone: H_t -> -l/g, Theta_2 -> -1/g (phase 180 deg) at low frequency
+    assert r.h_t_pendulum[0].real == pytest.approx(-l1 / g, rel=1e-4)
+    assert r.theta_2_pendulum[0].real == pytest.approx(-1 / g, rel=1e-4)
+    # the analyzer divides by the accelerometer's volts: its high-pass shows (+0.97 dB, -26.6 deg
+    # at 0.1 Hz for the 0.05 Hz corner)
+    hp = 1j * 0.1 / (1j * 0.1 + 0.05)
+    assert r.h_t[1] / r.h_t_pendulum[1] == pytest.approx(1 / hp, rel=1e-12)
+    assert r.theta_2[1] / r.theta_2_pendulum[1] == pytest.approx(1 / hp, rel=1e-12)
+    # and the pendulum part is rig.response's mirror response
+    from rig.response import mirror_response
+
+    mr = mirror_response(sc, [0.1, 1.0])
+    np.testing.assert_allclose(r.h_t_pendulum[1:], mr.x, rtol=1e-12)
+    np.testing.assert_allclose(r.theta_2_pendulum[1:], mr.y, rtol=1e-12)
+    # H_t does not care about the stage, nor about its reaction
+    r2 = expected_response(ishizaki("stage.reaction=false", "stage.moving_mass_kg=7"), [0.1, 1.0])
+    np.testing.assert_allclose(r2.h_t, r.h_t[1:], rtol=1e-12)
+
+
+def test_calibrations_carry_the_sensor_signs():
+    sc = ishizaki("accelerometer.sign=-1", "psd.sign_y=-1")
+    cal = calibrations(sc)
+    assert cal["a"].volts_per_unit == -1.0 and cal["a"].unit == "m/s^2"
+    assert cal["x"].volts_per_unit == pytest.approx(1000.0) and cal["x"].unit == "m"
+    assert cal["y"].volts_per_unit == pytest.approx(-1000 * 2 * 0.2 * math.cos(math.pi / 6))
+    plain = BenchSimulation(ishizaki(*QUIET), seed=2).run(5.0)
+    flipped = BenchSimulation(ishizaki(*QUIET, "accelerometer.sign=-1", "psd.sign_y=-1"),
+                              seed=2).run(5.0)
+    np.testing.assert_array_equal(flipped.volts["a"], -plain.volts["a"])
+    np.testing.assert_array_equal(flipped.volts["y"], -plain.volts["y"])
+    # the processing's job: undoing the calibration gives the same engineering units
+    r1, r2 = expected_response(ishizaki(), [1.0]), expected_response(sc, [1.0])
+    np.testing.assert_allclose(r2.h_t, r1.h_t, rtol=1e-14)
+    np.testing.assert_allclose(r2.theta_2, r1.theta_2, rtol=1e-14)
+
+
+def test_default_drive_keeps_the_pendulum_linear_and_the_spot_on_the_detector():
+    sc = ishizaki()
+    sim = BenchSimulation(sc, seed=7)
+    sim.run(330.0)  # settle as in the paper (4.8 time constants of the Q1 = 530 mode)
+    b = sim.run(300.0)
+    th = b.truth["theta_rad"]
+    assert np.max(np.abs(th)) < 0.05 and np.sqrt(np.mean(th[:, 0] ** 2)) < 0.01
+    half = sim.model.lever.half_size_m
+    assert not b.truth["psd_off_detector"].any()
+    assert np.max(np.abs(b.truth["spot_v_m"])) < 0.75 * half
+    assert np.max(np.abs(b.truth["spot_u_m"])) < 0.25 * half
+    assert not b.truth["a_overrange"].any()
+    x0 = b.truth["stage_disp_m"]
+    assert np.sqrt(np.mean(x0**2)) < 3e-3 and np.max(np.abs(x0)) < 0.012
+    lin = sim.model_info(probe_s=2.0)["linearity"]
+    assert lin["shift_over_half_bandwidth"] < 0.05
+
+
+def test_signals_stay_well_above_the_sensor_noise_over_most_of_the_band():
+    f = np.geomspace(0.1, 10.0, 401)
+    snr = signal_to_noise(ishizaki(), f)
+    assert np.min(snr["a"]) > 20  # 26 dB in the reaction's notch at 2.48 Hz, 45 dB elsewhere
+    assert np.min(snr["x"]) > 20  # 21 dB at 10 Hz
+    assert np.mean(snr["y"] > 20) > 0.75 and np.mean(snr["y"] > 10) > 0.95  # theta2's zero 4.68 Hz
+
+
+def test_nonlinear_model_agrees_with_the_exact_linear_bench_within_its_error_estimate():
+    # a weak drive makes the nonlinearity (~theta^2 ~ 1e-8 relative) negligible: what is left is
+    # the interpolation of the stage acceleration between sub-instants, which the estimate measures
+    over = ["stage.reaction=false", "source.level_vrms=0.01", *QUIET]
+    lin = BenchSimulation(ishizaki(*over), seed=4).run(10.0)
+    nl_scene = ishizaki(*over, "acquisition.model=nonlinear")
+    errs = {}
+    for m in (4, 8):
+        sim = BenchSimulation(nl_scene, seed=4, oversample=m)
+        nl = sim.run(10.0)
+        diff = np.max(np.abs(nl.truth["theta_rad"] - lin.truth["theta_rad"]))
+        info = sim.model_info(probe_s=10.0)
+        est = info["error_estimate"]["max_abs_theta_rad"]
+        assert 0.5 * est <= diff <= 1.5 * est
+        assert info["error_estimate"]["integrator_max_abs_theta_rad"] < 1e-3 * est
+        errs[m] = est
+        np.testing.assert_allclose(nl.truth["stage_accel_mps2"], lin.truth["stage_accel_mps2"],
+                                   rtol=1e-9, atol=1e-15)
+    assert errs[4] / errs[8] == pytest.approx(4.0, rel=0.15)  # O((h / oversample)^2)
+
+
+def test_nonlinear_model_with_the_stage_reaction_is_refused():
+    with pytest.raises(ConfigError, match=r"acquisition\.model = 'nonlinear' is not supported "
+                                          r"with stage\.reaction = true"):
+        BenchSimulation(ishizaki("acquisition.model=nonlinear"))
+
+
+def test_linear_model_info_reports_round_off_only():
+    info = model_info(ishizaki(), probe_s=5.0)
+    assert info["model"] == "linear" and "exact discretisation" in info["method"]
+    assert info["error_estimate"]["relative_to_max_theta"] < 1e-10
+    assert info["states"][:3] == ["coil_current_a", "stage_disp_m", "stage_vel_mps"]
+
+
+def test_blocks_have_the_documented_contents():
+    sim = BenchSimulation(ishizaki(), seed=0)
+    blocks = list(sim.blocks(0.5, 1.2))
+    assert [b.samples for b in blocks] == [500, 500, 200]
+    b = blocks[1]
+    assert isinstance(b, AnalogBlock) and b.t0_s == 0.5 and b.fs_hz == 1000.0
+    assert set(b.volts) == {"a", "x", "y"}
+    assert {"stage_accel_mps2", "theta_rad", "mirror_x_m", "mirror_rot_rad", "source_v",
+            "stage_disp_m", "accel_sensed_mps2", "a_overrange", "psd_off_detector"} <= set(b.truth)
+    assert b.truth["theta_rad"].shape == (500, 2)
+    assert b.truth["psd_off_detector"].dtype == bool
+    np.testing.assert_allclose(b.times_s(), 0.5 + np.arange(500) / 1000.0)
+    with pytest.raises(ConfigError, match=r"block_s = 0\.0005 s is invalid: expected a whole "
+                                          r"number \(>= 1\) of ADC samples"):
+        next(sim.blocks(0.0005))
+
+
+@pytest.mark.parametrize("override, match", [
+    ("acquisition.simulation_rate_hz=1050", r"acquisition\.simulation_rate_hz = 1050\.0 is "
+                                            r"invalid: expected a whole multiple \(>= 1\) of "
+                                            r"acquisition\.rate_hz = 100\.0 Hz"),
+    ("acquisition.simulation_rate_hz=-1", r"acquisition\.simulation_rate_hz = -1\.0 is invalid"),
+    ("acquisition.rate_hz=0", r"acquisition\.rate_hz = 0\.0 is invalid"),
+    ("psd.incidence_deg=90", r"psd\.incidence_deg = 90\.0 is invalid"),
+    ("psd.distance_m=0", r"psd\.distance_m = 0\.0 is invalid"),
+    ("stage.moving_mass_kg=-1", r"stage\.moving_mass_kg = -1\.0 is invalid"),
+    ("accelerometer.highpass_hz=-1", r"accelerometer\.highpass_hz = -1\.0 is invalid"),
+    ("source.fmax_hz=501", r"source\.fmax_hz = 501\.0 is invalid: expected 0 < fmax_hz <= 500"),
+    ("source.type=square", r"source\.type = 'square' is invalid: expected one of random"),
+])
+def test_bad_bench_settings_raise_config_error_naming_the_key(override, match):
+    with pytest.raises(ConfigError, match=match):
+        BenchSimulation(ishizaki(override))
+
+
+def test_a_non_finite_state_raises_divergence_error_with_time_and_state():
+    model = build_model(ishizaki())
+    st = start(model, 0)
+    _, st = advance(model, st, 100)
+    z = np.array(st.z)
+    z[3] = np.inf
+    import dataclasses
+
+    bad = dataclasses.replace(st, z=z)
+    with pytest.raises(DivergenceError, match=r"non-finite state in the block starting at "
+                                              r"t = 0\.1 s") as exc:
+        advance(model, bad, 10)
+    assert exc.value.time_s == pytest.approx(0.1)
