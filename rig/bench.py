@@ -2,14 +2,15 @@
 
 The state vector (named slices, :attr:`BenchModel.slices`)::
 
-    z = (i [A], x0 [m], v0 [m/s], theta (n) [rad], omega (n) [rad/s], q [m/s])
+    z = (i [A], x0 [m], v0 [m/s], theta (n) [rad], omega (n) [rad/s], q [m/s], r [V])
 
-``i`` the coil current, ``x0, v0`` the stage, ``theta, omega`` the pendulum and ``q`` the
-accelerometer's charge-amplifier high-pass state (absent for a flat-to-DC accelerometer). The input
-is the source voltage, a DAC sample held for one sample interval ``h = 1 / simulation_rate_hz``
-(SPEC section 8): that held staircase is, by definition, the true drive, and the stage
-acceleration ``x0''`` is whatever the continuous coil and stage make of it (continuous, since the
-coil current is).
+``i`` the coil current, ``x0, v0`` the stage, ``theta, omega`` the pendulum, ``q`` the
+accelerometer's charge-amplifier high-pass state (absent for a flat-to-DC accelerometer) and ``r``
+the states of the source's reconstruction filter (absent when it is off). The input is the source
+voltage, a DAC sample held for one sample interval ``h = 1 / simulation_rate_hz`` (SPEC section 8):
+that held staircase is, by definition, the true DAC output; the source's analog reconstruction
+filter smooths it (:mod:`rig.source`) and the stage acceleration ``x0''`` is whatever the
+continuous amplifier, coil and stage make of that.
 
 Models (``acquisition.model``)
 ------------------------------
@@ -52,14 +53,15 @@ levels and signal-to-noise ratios are listed in the docstrings of :mod:`rig.stag
 
 Sampling at the DAC instants folds the DAC's images
 ---------------------------------------------------
-The held source has images at ``m fs +- f``; the coil passes them (its corner is 318 Hz) and
-sampling the outputs at the DAC instants folds them back onto ``f``, coherent with the drive.
-:func:`expected_response` gives both the continuous chain (``sampled=False``: what a real bench
-with this DAC and an ideally anti-aliased analyzer reads) and the exact transfer function of the
-simulated samples (``sampled=True``). For the defaults they differ in ``a`` (hence in H_t =
-x/a and Theta_2 = y/a) by 1e-4 at 0.1 Hz, 1e-3 at 1 Hz, 1 % at 10 Hz and 4.8 % in the reaction's
-notch at 2.479 Hz (0.24 % without the reaction); x and y are hardly affected (the pendulum filters
-the images). The difference falls as 1 / fs^2 (2 kHz: 1.2 %, 10 kHz: 5e-4 in the notch).
+The held source has images at ``m fs +- f``; sampling the outputs at the DAC instants folds what
+passes of them back onto ``f``, coherent with the drive. The source's reconstruction filter
+(:mod:`rig.source`, 100 Hz 4th-order Butterworth by default) removes them: the exact transfer
+function of the simulated samples (:func:`expected_response` ``sampled=True``) then equals the
+continuous chain (``sampled=False``: what a real bench with an ideally anti-aliased analyzer reads)
+to better than 2e-5 over the band. With the filter off (``source.reconstruction_hz = 0``, the raw
+staircase into the amplifier, whose coil corner is 318 Hz) they differ in ``a`` (hence in H_t and
+Theta_2) by 1e-3 at 1 Hz, 1 % at 10 Hz and 4.8 % in the reaction's notch at 2.479 Hz, falling as
+1 / fs^2.
 
 Public API: :class:`BenchSimulation`, :class:`BenchModel`, :class:`BenchState`,
 :class:`BenchResponse`, :func:`build_model`, :func:`start`, :func:`advance`, :func:`calibrations`,
@@ -155,6 +157,8 @@ class BenchModel:
                  + [f"omega{j + 1}_rad_s" for j in range(n)])
         if self.accelerometer.n_states:
             names.append("accel_highpass_q_mps")
+        nr = self.n_states - len(names)
+        names += [f"reconstruction{k + 1}_v" for k in range(nr)]
         return names
 
 
@@ -176,17 +180,27 @@ def _acquisition_rates(acq: dict) -> tuple[float, int]:
     return float(fs), k
 
 
-def _bench_state_space(stage: Stage, chain: Chain, acc: Accelerometer, with_chain: bool):
-    """Continuous (a, b, accel_row, slices) of stage [+ pendulum] + accelerometer high-pass."""
+def _bench_state_space(stage: Stage, chain: Chain, acc: Accelerometer, with_chain: bool,
+                       source: Source):
+    """Continuous (a, b, accel_row, slices) of the source's reconstruction filter + stage
+    [+ pendulum] + accelerometer high-pass, input the DAC voltage."""
     ss = stage.state_space(chain if with_chain else None)
-    n = chain.n if with_chain else 0
+    recon = source.reconstruction_state_space()
     nz0 = ss.a.shape[0]
     nq = acc.n_states
-    nz = nz0 + nq
+    nr = 0 if recon is None else recon[0].shape[0]
+    nz = nz0 + nq + nr
     a = np.zeros((nz, nz))
     b = np.zeros((nz, 1))
     a[:nz0, :nz0] = ss.a
-    b[:nz0] = ss.b
+    if recon is None:
+        b[:nz0] = ss.b
+    else:  # the amplifier sees the filter's output c . r; the DAC feeds the filter
+        ra, rb, rc = recon
+        r = slice(nz0 + nq, nz)
+        a[r, r] = ra
+        b[r, 0] = rb
+        a[:nz0, r] = np.outer(ss.b[:, 0], rc)
     accel_row = np.zeros(nz)
     accel_row[:nz0] = ss.accel_row
     if nq:
@@ -195,10 +209,13 @@ def _bench_state_space(stage: Stage, chain: Chain, acc: Accelerometer, with_chai
     slices = {"coil_current_a": slice(0, 1), "stage_disp_m": slice(1, 2),
               "stage_vel_mps": slice(2, 3)}
     if with_chain:
+        n = chain.n
         slices["theta_rad"] = slice(3, 3 + n)
         slices["omega_rad_s"] = slice(3 + n, 3 + 2 * n)
     if nq:
         slices["accel_highpass_q_mps"] = slice(nz0, nz0 + 1)
+    if nr:
+        slices["reconstruction_v"] = slice(nz0 + nq, nz)
     return a, b, accel_row, slices
 
 
@@ -245,12 +262,13 @@ def build_model(scene: Scene, *, method: str = "rk4", oversample: int = 8, subst
             "ishizaki2009 defaults, disappear; x/a is unchanged) "
             "or acquisition.model = 'linear'")
     chain = scene.chain
-    a, b, accel_row, slices = _bench_state_space(stage, chain, acc, with_chain=True)
+    a, b, accel_row, slices = _bench_state_space(stage, chain, acc, with_chain=True,
+                                                 source=source)
     h = 1.0 / fs
     phi, g0, _ = discretise(a, b, h, "zoh")
     kw = {}
     if model == "nonlinear":
-        sa, sb, srow, _ = _bench_state_space(stage, chain, acc, with_chain=False)
+        sa, sb, srow, _ = _bench_state_space(stage, chain, acc, with_chain=False, source=source)
         sphi, sg0, _ = discretise(sa, sb, h / oversample, "zoh")
         kw = dict(stage_phi=np.ascontiguousarray(sphi), stage_gamma=np.ascontiguousarray(sg0[:, 0]),
                   stage_accel_row=srow)
@@ -432,8 +450,8 @@ def advance(model: BenchModel, state: BenchState, n: int) -> tuple[AnalogBlock, 
         omega = z_out[:, sl["omega_rad_s"]]
         accel = z_out @ model.accel_row
     else:
-        nq = model.accelerometer.n_states
-        stage_idx = np.r_[0:3, z.size - nq:z.size] if nq else np.r_[0:3]
+        n2 = 2 * chain.n  # the stage-only system is z without theta, omega (same order)
+        stage_idx = np.r_[0:3, 3 + n2:z.size]
         zs = z[stage_idx].copy()
         zs_out = np.empty((n, zs.size))
         m = model.oversample
@@ -683,9 +701,10 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
         with np.errstate(invalid="ignore", divide="ignore"):
             zoh = np.where(w > 0, (1 - np.exp(-1j * w * h)) / (1j * w * h), 1.0)
         st = model.stage.frequency_response(f, chain)
-        stage_accel = st.accel * zoh
-        stage_disp = st.disp * zoh
-        theta = st.theta * zoh[:, None]
+        drive = zoh * model.source.reconstruction_response(f)
+        stage_accel = st.accel * drive
+        stage_disp = st.disp * drive
+        theta = st.theta * drive[:, None]
         a = acc.frequency_response(f) * stage_accel
     mirror_x = theta @ scene.mirror_weights()
     mirror_rot = theta[:, scene.mirror.body]
@@ -861,7 +880,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
         lin_model = build_model(_as_linear(scene))
         theta_exact = _probe_theta(lin_model, n, seed)
         m = model.oversample
-        zs = np.zeros(3 + model.accelerometer.n_states)
+        zs = np.zeros(model.n_states - 2 * scene.chain.n)
         v, _ = generate(model.source, start(model, seed).source, n)
         a_fine = np.empty(n * m + 1)
         stage_fine_kernel(model.stage_phi, model.stage_gamma, model.stage_accel_row, v, m, zs,

@@ -103,6 +103,9 @@ SECTIONS: dict[str, dict[str, Key]] = {
         "frequency_hz": Key("float", 2.0, "frequency of the fixed sine [Hz], 0 < f < fs/2"),
         "period_s": Key("float", 100.0, "period of chirp and burst random [s], whole samples"),
         "burst_fraction": Key("float", 0.5, "on-fraction of each burst-random period, (0, 1]"),
+        "reconstruction_hz": Key("float", 100.0, "corner of the source output's smoothing filter "
+                                 "(Butterworth) [Hz]; 0: off, the raw DAC staircase"),
+        "reconstruction_order": Key("int", 4, "order of that filter, 1..8"),
     },
     "stage": {  # amplifier, voice-coil motor and X stage (rig/stage.py; defaults justified there)
         "amplifier_gain_vpv": Key("float", 1.0, "voltage gain of the power amplifier [V/V], > 0"),

@@ -166,6 +166,8 @@ class Trajectory:
     settings : the resolved settings (steps, tolerances, output and input intervals, hold).
     n_steps, n_rejected, n_fev : accepted steps, rejected steps, right-hand-side evaluations of
         the main run.
+    n_newton : Gauss steps whose stage equations needed Newton (fixed-point iteration did not
+        contract); 0 for other methods.
     wall_time_s : wall-clock time of the main run [s] (excluding the error estimate).
     error_estimate_rad, error_estimate_rad_s : (T, n) estimated absolute error of theta [rad] and
         omega [rad/s] accumulated since the start of this run, or ``None``.
@@ -183,6 +185,7 @@ class Trajectory:
     n_steps: int
     n_rejected: int
     n_fev: int
+    n_newton: int
     wall_time_s: float
     error_estimate_rad: np.ndarray | None
     error_estimate_rad_s: np.ndarray | None
@@ -292,7 +295,7 @@ def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1):
     y = native0
     h = h0
     rows = []
-    n_steps = n_rej = n_fev = 0
+    n_steps = n_rej = n_fev = n_newton = 0
     t = t0
     for k, sg in enumerate(segs):
         run = integrate(chain, y, sg.ax, sg.ay, hold=sg.hold, h_in=sg.h_in, n_intervals=sg.n_int,
@@ -303,8 +306,9 @@ def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1):
         n_steps += run.n_steps
         n_rej += run.n_rejected
         n_fev += run.n_fev
+        n_newton += run.n_newton
         t += sg.n_int * sg.h_in
-    return np.concatenate(rows), y, h, (n_steps, n_rej, n_fev)
+    return np.concatenate(rows), y, h, (n_steps, n_rej, n_fev, n_newton)
 
 
 def _times(segs, t0, duration) -> np.ndarray:
@@ -412,7 +416,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
 
     segs, grid = _plan(chain, duration, base, info.kind, dt_s, output_dt_s)
     tic = time.perf_counter()
-    y_out, native_end, h_next, (n_steps, n_rej, n_fev) = _execute(
+    y_out, native_end, h_next, (n_steps, n_rej, n_fev, n_newton) = _execute(
         chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f)
     wall = time.perf_counter() - tic
 
@@ -459,6 +463,6 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
                     atol=atol_f if info.kind == "adaptive" else None, **grid)
     return Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, energy_j=energy,
                       method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
-                      n_fev=n_fev, wall_time_s=wall, error_estimate_rad=err_th,
+                      n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
                       error_estimate_rad_s=err_om, error_method=error_method,
                       estimate_wall_time_s=est_wall, final_state=final)
