@@ -158,6 +158,70 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     click.echo(resonance_table(sc))
 
 
+# -- simulation ------------------------------------------------------------------------------
+
+def _floats(ctx, param, value):
+    """Parse "a,b,..." into floats (None stays None)."""
+    if value is None:
+        return None
+    try:
+        return [float(v) for v in value.split(",")]
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is not a comma-separated list of numbers") from None
+
+
+@main.command()
+@click.argument("scene_name", metavar="SCENE")
+@click.option("--duration", required=True, type=float, help="Simulated time [s].")
+@click.option("--theta0", callback=_floats, metavar="A,B,...",
+              help="Initial angles [rad], one per body (default: the scene's).")
+@click.option("--omega0", callback=_floats, metavar="A,B,...",
+              help="Initial angular velocities [rad/s] (default: the scene's).")
+@click.option("--method", default="dop853", show_default=True,
+              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "linear"]),
+              help="Integrator (rig.integrators.METHODS).")
+@click.option("--rtol", type=float, help="Relative tolerance of dop853 [default 1e-10].")
+@click.option("--dt", "dt_s", type=float, help="Step of the fixed-step methods [s].")
+@click.option("--output-dt", "output_dt_s", type=float,
+              help="Output interval [s] (default 1 s: a sample at every whole second).")
+@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Trajectory file: .csv, or .h5/.hdf5 for HDF5.")
+@click.option("--no-error-estimate", is_flag=True, help="Skip the error estimate (one more run).")
+@_set_option
+@_force_option
+@_library_errors
+def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt_s, out,
+             no_error_estimate, overrides, force):
+    """Simulate SCENE's pendulum on a fixed base from its initial state (free motion).
+
+    Writes t, theta_1..theta_n, omega_1..omega_n and the energy, with the method and its error
+    estimate (how it was obtained is recorded too).
+    """
+    from daq.files import check_writable
+    from daq.trajectory_io import trajectory_format, write_trajectory
+    from rig.scene import load_scene
+    from rig.simulate import simulate as run_simulation
+
+    if rtol is not None and dt_s is not None:
+        raise click.UsageError("give --rtol (adaptive dop853) or --dt (fixed step), not both")
+    trajectory_format(out)
+    check_writable(out, force=force)
+    sc = load_scene(scene_name, overrides)
+    kw = {} if rtol is None else {"rtol": rtol}
+    traj = run_simulation(
+        sc.chain, duration, theta0=sc.theta0_rad if theta0 is None else theta0,
+        omega0=sc.omega0_rad_s if omega0 is None else omega0, method=method, dt_s=dt_s,
+        output_dt_s=output_dt_s, estimate_error=not no_error_estimate, **kw)
+    write_trajectory(out, traj, sc, force=force)
+    e = traj.energy_j
+    click.echo(f"wrote {out}: {traj.t_s.size} samples over {duration:g} s, {sc.chain.n} bodies, "
+               f"method {traj.method} ({traj.n_steps} steps, {traj.wall_time_s:.3g} s)")
+    click.echo(f"energy: {e[0]:.9g} J at t = 0, max |E - E0| = {np.max(np.abs(e - e[0])):.3g} J")
+    if traj.error_estimate_rad is not None:
+        click.echo(f"estimated max angle error: {traj.max_error_rad:.3g} rad "
+                   f"({traj.error_method})")
+
+
 # -- acquisition -----------------------------------------------------------------------------
 
 class _ProgressBar:

@@ -97,3 +97,62 @@ def test_model_output_in_a_missing_directory_is_refused(runner, tmp_path):
     res = runner.invoke(main, ["model", "ishizaki2009", "--csv", str(tmp_path / "no" / "m.csv")])
     assert res.exit_code != 0
     assert "does not exist" in res.output
+
+
+def test_simulate_csv_has_the_documented_columns_a_sample_every_second_and_its_error(runner,
+                                                                                     tmp_path):
+    out = tmp_path / "t.csv"
+    res = runner.invoke(main, ["simulate", "double-rod", "--duration", "3", "--method", "rk4",
+                               "--dt", "0.001", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    lines = out.read_text().splitlines()
+    meta = {l[2:].split(": ", 1)[0]: l[2:].split(": ", 1)[1] for l in lines if l.startswith("# ")}
+    assert meta["method"] == "rk4"
+    assert float(meta["max_error_estimate_rad"]) > 0
+    assert "Richardson" in meta["error_method"]
+    rows = [l for l in lines if not l.startswith("#")]
+    assert rows[0] == "t,theta_1,theta_2,omega_1,omega_2,energy"
+    data = np.array([r.split(",") for r in rows[1:]], float)
+    np.testing.assert_array_equal(data[:, 0], [0.0, 1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(data[0, 1:3], [2.0, 2.5])  # the preset's initial angles
+    # undamped, fixed base: energy conserved within the estimate's order of magnitude
+    assert np.ptp(data[:, -1]) < 1e-6 * abs(data[0, -1])
+
+
+def test_simulate_hdf5_opens_with_xarray_and_records_the_method(runner, tmp_path):
+    xr = pytest.importorskip("xarray")
+    out = tmp_path / "t.h5"
+    res = runner.invoke(main, ["simulate", "ishizaki2009", "--duration", "2", "--theta0",
+                               "0.05,0", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    with xr.open_dataset(out, group="trajectory", engine="h5netcdf") as ds:
+        assert ds["theta"].dims == ("t", "body")
+        assert ds["theta"].attrs["units"] == "rad"
+        assert ds.attrs["method"] == "dop853"
+        assert float(ds["theta"][0, 0]) == 0.05
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--duration", "0"], "duration_s = 0.0 is invalid"),
+    (["--duration", "1", "--theta0", "0.1,x"], "is not a comma-separated list of numbers"),
+    (["--duration", "1", "--theta0", "0.1,0.2,0.3"], "theta0"),
+    (["--duration", "1", "--rtol", "1e-6", "--dt", "0.01"], "not both"),
+    (["--duration", "1", "--method", "euler"], "'euler' is not one of"),
+])
+def test_simulate_rejects_bad_input_and_writes_nothing(runner, tmp_path, args, message):
+    out = tmp_path / "t.csv"
+    res = runner.invoke(main, ["simulate", "double-rod", *args, "--out", str(out)])
+    assert res.exit_code != 0
+    assert message in res.output
+    assert not out.exists()
+
+
+def test_simulate_refuses_an_unknown_extension_and_an_existing_file(runner, tmp_path):
+    res = runner.invoke(main, ["simulate", "double-rod", "--duration", "1", "--out",
+                               str(tmp_path / "t.txt")])
+    assert res.exit_code != 0 and "unknown extension '.txt'" in res.output
+    out = tmp_path / "t.csv"
+    out.write_text("keep")
+    res = runner.invoke(main, ["simulate", "double-rod", "--duration", "1", "--out", str(out)])
+    assert res.exit_code != 0 and "exists; pass --force" in res.output
+    assert out.read_text() == "keep"
