@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
 """Set up the project's virtual environment and run its jobs, with nothing but Python 3.11 and pip.
 
-    python3 tasks.py experiment   # the paper's experiment end to end
+    python3 tasks.py experiment   # the paper's experiment end to end (outputs in out/)
     python3 tasks.py test         # the test suite
+
+Extra arguments go to the job's last command: ``python3 tasks.py test -k analysis``,
+``python3 tasks.py experiment --window uniform`` (to ``daq analyze``).
 
 The environment is ``.venv`` beside this file, created (and the package installed into it with its
 test extras) on first use and refreshed when ``pyproject.toml`` changes.
@@ -44,23 +47,45 @@ def ensure_venv() -> None:
     STAMP.write_text(want)
 
 
+DAQ = [PY, "-m", "daq.cli"]
+
+# The paper's experiment end to end (SPEC section 1): 30 records of 100 s of the emulated bench,
+# then the analyzer against the exact model, and the model's own Bode diagrams. Outputs in out/.
+EXPERIMENT = [
+    [*DAQ, "acquire", "--scene", "ishizaki2009", "--records", "30", "--duration", "100",
+     "--seed", "2009", "--out", "out/paper_run.h5", "--force"],
+    [*DAQ, "model", "ishizaki2009", "--csv", "out/model.csv", "--plot", "out/bode_model.png",
+     "--force"],
+    [*DAQ, "analyze", "out/paper_run.h5", "--csv", "out/frf.csv", "--plot", "out/bode.png",
+     "--report", "out/report.md", "--spectra", "out/spectra.h5", "--force"],
+]
+
+
 def main(argv: list[str]) -> int:
+    """Run a job: its commands in sequence, stopping at the first failure; extra args go to the
+    job's last command (``daq analyze`` for the experiment, pytest for the tests)."""
     jobs = {
-        "experiment": [PY, "-m", "daq.cli", "model", "ishizaki2009", "--csv", "out/model.csv",
-                       "--plot", "out/bode_model.png"],
-        "test": [PY, "-m", "pytest", "-q"],
-        "setup": None,
+        "experiment": EXPERIMENT,
+        "test": [[PY, "-m", "pytest", "-q"]],
+        "setup": [],
     }
     if len(argv) < 1 or argv[0] not in jobs:
         print(f"usage: python3 tasks.py {{{','.join(jobs)}}} [extra args]", file=sys.stderr)
         return 2
     ensure_venv()
-    cmd = jobs[argv[0]]
-    if cmd is None:
+    cmds = jobs[argv[0]]
+    if not cmds:
         return 0
     (ROOT / "out").mkdir(exist_ok=True)
     env = dict(os.environ, PYTHONHASHSEED="0")
-    return subprocess.run([str(c) for c in cmd] + argv[1:], cwd=ROOT, env=env).returncode
+    for i, cmd in enumerate(cmds):
+        cmd = [str(c) for c in cmd] + (argv[1:] if i == len(cmds) - 1 else [])
+        if len(cmds) > 1:
+            print("+", " ".join(c if c != str(PY) else "python" for c in cmd), flush=True)
+        rc = subprocess.run(cmd, cwd=ROOT, env=env).returncode
+        if rc:
+            return rc
+    return 0
 
 
 if __name__ == "__main__":

@@ -1,0 +1,153 @@
+"""The analyzer's spectra as a self-describing HDF5 file that xarray opens.
+
+:func:`write_spectra` writes an :class:`processing.analysis.Analysis` into its own file (never into
+the run file), one group (:data:`GROUP`, ``"spectra"``) laid out as netCDF-4 would be, so
+``xarray.open_dataset(path, group="spectra", engine="h5netcdf")`` returns labelled arrays::
+
+    /                        @file_format = "pendulum-daq spectra" @file_format_version
+                             @creator @source_run @scene @seed @status @records
+                             @records_planned
+    spectra/                 @title @<analyzer settings> (settings_<name>) @<spectral settings>
+                             (fs_hz, nperseg, noverlap, window, averaging, detrend,
+                             resolution_hz, enbw_hz, n_averages, n_effective) @model_source
+      frequency (frequency,) [Hz] dimension scale: the analyzer's lines, 0 .. span
+      G_aa, G_xx, G_yy       one-sided auto PSDs [(unit)^2/Hz] of a, x, y
+      G_ax_real, G_ax_imag   one-sided cross PSD <conj(A) X> [(m/s^2)(m)/Hz]; G_ay_* likewise
+      H_t_real, H_t_imag     measured H_t = G_ax / G_aa [m/(m/s^2)]
+      Theta_2_real, _imag    measured Theta_2 = G_ay / G_aa [rad/(m/s^2)]
+      coherence_x, coherence_y   gamma^2 of (a, x) and (a, y) [1]
+      H_t_relative_error, Theta_2_relative_error   Bendat-Piersol eps [1] (1 sigma of |H|/|H|
+                             and of the phase in rad)
+      model_H_t_*, model_Theta_2_*   exact whole-chain response at the lines (_real, _imag)
+      expected_H_t_*, expected_Theta_2_*   E[H1] at the lines (only if computed)
+
+Complex quantities are pairs of ``_real``/``_imag`` variables (netCDF has no complex type); NaN
+marks undefined lines (0 Hz after the detrend). The file is written under a temporary name and
+renamed when complete; an existing file is replaced only with ``force``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from daq.files import atomic_output
+
+__all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "write_spectra"]
+
+GROUP = "spectra"
+FORMAT = "pendulum-daq spectra"
+FORMAT_VERSION = "1.0"
+_STR = h5py.string_dtype()
+
+
+def _attr(value):
+    """A value netCDF readers understand: str, number or array (bools as 0/1, None as "")."""
+    if value is None:
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return int(value)
+    if isinstance(value, (list, tuple)):
+        if all(isinstance(v, str) for v in value):
+            return np.array(value, dtype=_STR)
+        return np.asarray(value, dtype=float)
+    if isinstance(value, dict):
+        return json.dumps(value)
+    return value
+
+
+def _variable(g, name: str, data, scale, *, units: str, long_name: str) -> None:
+    ds = g.create_dataset(name, data=np.asarray(data, dtype=float), track_times=False)
+    ds.dims[0].attach_scale(scale)
+    ds.attrs["units"] = units
+    ds.attrs["long_name"] = long_name
+
+
+def _complex(g, name: str, data, scale, *, units: str, long_name: str) -> None:
+    data = np.asarray(data, dtype=complex)
+    for part, arr in (("real", data.real), ("imag", data.imag)):
+        _variable(g, f"{name}_{part}", arr, scale, units=units,
+                  long_name=f"{part} part of {long_name}")
+
+
+def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) -> Path:
+    """Write the spectra, responses, coherences, model and E[H1] of ``analysis`` (module
+    docstring) into a new HDF5 file ``path``.
+
+    Parameters
+    ----------
+    analysis : processing.analysis.Analysis
+    path : output file (refused if it exists, unless ``force``).
+    force : replace an existing file (only once the new one is complete).
+    group : name of the group (default :data:`GROUP`).
+
+    Returns
+    -------
+    Path : ``path``.
+    """
+    from daq.acquisition import software_version
+
+    a = analysis
+    path = Path(path)
+    sp = a.spectral
+    f = a.freqs_hz
+    with atomic_output(path, force=force) as tmp:
+        with h5py.File(tmp, "w", track_order=True) as fh:
+            run = a.run
+            for k, v in {"file_format": FORMAT, "file_format_version": FORMAT_VERSION,
+                         "creator": f"pendulum-daq {software_version()}",
+                         "source_run": run.source, "scene": run.scene, "seed": np.int64(run.seed),
+                         "status": run.status, "records": np.int64(run.records),
+                         "records_planned": np.int64(run.records_planned)}.items():
+                fh.attrs[k] = _attr(v)
+            g = fh.create_group(group, track_order=True)
+            g.attrs["title"] = (f"{run.scene}, seed {run.seed}: averaged spectra and frequency "
+                                f"responses of {run.records} records ({sp.window} window, "
+                                f"{sp.nperseg} samples per FFT)")
+            for k, v in a.settings.describe().items():
+                g.attrs[f"settings_{k}"] = _attr(v)
+            for k, v in {"fs_hz": sp.fs, "nperseg": sp.nperseg, "noverlap": sp.noverlap,
+                         "window": sp.window, "averaging": sp.averaging,
+                         "detrend": sp.detrend, "resolution_hz": sp.resolution_hz,
+                         "enbw_hz": sp.window_info.enbw_hz, "n_averages": a.h_t.n_averages,
+                         "n_effective": a.h_t.n_effective, "estimator": a.h_t.estimator,
+                         "model_source": a.model.source,
+                         "model_note": "exact whole sampled chain (rig.bench.expected_response "
+                                       "sampled=True): accelerometer high-pass included"}.items():
+                g.attrs[k] = _attr(v)
+            if a.expected is not None:
+                g.attrs["expected_n_fft"] = np.int64(a.expected.n_fft)
+                g.attrs["expected_alias_bound"] = a.expected.alias_bound
+            fr = g.create_dataset("frequency", data=f, track_times=False)
+            fr.make_scale("frequency")
+            fr.attrs["units"] = "Hz"
+            fr.attrs["long_name"] = "frequency (the analyzer's lines)"
+            for c, name in (("a", "G_aa"), ("x", "G_xx"), ("y", "G_yy")):
+                s = a.spectra[c]
+                _variable(g, name, s.values, fr, units=s.value_units,
+                          long_name=f"one-sided auto spectral density of {c}")
+            for c, name in (("ax", "G_ax"), ("ay", "G_ay")):
+                s = a.spectra[c]
+                _complex(g, name, s.values, fr, units=s.value_units,
+                         long_name=f"one-sided cross spectral density <conj(A) {c[1].upper()}>")
+            for frf, name, c, what in ((a.h_t, "H_t", "x", "mirror translation"),
+                                       (a.theta_2, "Theta_2", "y", "mirror rotation")):
+                unit = f"{a.spectra[c].units[0]}/({a.spectra['a'].units[0]})"
+                _complex(g, name, frf.h, fr, units=unit,
+                         long_name=f"{name} = G_a{c} / G_aa, measured {what} per unit stage "
+                                   f"acceleration ({frf.estimator.upper()})")
+                _variable(g, f"coherence_{c}", frf.coherence, fr, units="1",
+                          long_name=f"magnitude-squared coherence of a and {c}")
+                _variable(g, f"{name}_relative_error", frf.relative_error, fr, units="1",
+                          long_name=f"Bendat-Piersol normalised random error of |{name}| (1 "
+                                    "sigma; also the phase's std in rad)")
+                _complex(g, f"model_{name}", getattr(a.model, name.lower()), fr, units=unit,
+                         long_name=f"exact {name} of the whole sampled chain")
+                if a.expected is not None:
+                    _complex(g, f"expected_{name}", getattr(a.expected, name.lower()), fr,
+                             units=unit, long_name=f"expected estimate E[H1] of {name} "
+                                                   "(leakage bias included)")
+    return path
