@@ -1,7 +1,8 @@
 """Steppers for the chain on a moving base, each with its order and error behaviour.
 
-Every method integrates ``M(th) th'' + N(th) th'^2 + C th' + diag(S)[(g + y0'') sin th + x0'' cos th]
-= 0`` (:mod:`rig.chain`) through a *held* base input: input interval ``k`` is ``[k h_in, (k+1) h_in)``
+Every method integrates
+``M(th) th'' + N(th) th'^2 + C th' + diag(S)[(g + y0'') sin th + x0'' cos th] = 0``
+(:mod:`rig.chain`) through a *held* base input: input interval ``k`` is ``[k h_in, (k+1) h_in)``
 and inside it the base accelerations are ``u(t_k + s) = u_k`` (``hold="zoh"``) or
 ``u_k + (u_{k+1} - u_k) s / h_in`` (``hold="linear"``). The input is smooth inside an interval and
 may jump at its ends, so every method steps *exactly onto* each sample instant: fixed-step methods
@@ -20,11 +21,12 @@ gauss4     4      implicit  2-stage Gauss-Legendre in (theta, p = M omega): symp
                             error O(h^4) and bounded (no drift) for undamped, unforced runs
 midpoint   2      implicit  1-stage Gauss (implicit midpoint) in (theta, p): symplectic, O(h^2)
 linear     exact  exact     exact discretisation of the *linearised* model for the held input;
-                            only round-off (the linearisation is a model error, ~ theta^3)
+                            only round-off (the linearisation is a model error, ~ theta^3;
+                            the vertical input y0'' drops out of it at first order)
 =========  =====  ========  ===================================================================
 
-All hot loops are ``numba.njit(cache=True)`` kernels that run a whole block (many input intervals)
-per call into caller-owned output arrays; the state goes in and the state comes out. Non-finite
+All hot loops are ``numba.njit(cache=True)`` kernels (releasing the GIL) that run a whole block
+(many input intervals) per call into caller-owned output arrays; the state goes in and the state comes out. Non-finite
 values are looked for once per output sample (not per step); :func:`integrate` turns a kernel's
 status into :class:`rig.errors.DivergenceError` with the time and the last finite state.
 
@@ -51,7 +53,7 @@ import numpy as np
 import scipy.linalg
 
 from rig.chain import Chain
-from rig.errors import DivergenceError
+from rig.errors import ConfigError, DivergenceError
 
 HOLDS = ("zoh", "linear")
 
@@ -84,7 +86,8 @@ METHODS: dict[str, MethodInfo] = {
     "dop853": MethodInfo("dop853", 8, "adaptive",
                          "Dormand-Prince 8(5,3) with Hairer/scipy step-size control (rtol, atol)"),
     "gauss4": MethodInfo("gauss4", 4, "implicit",
-                         "2-stage Gauss-Legendre in (theta, p), symplectic, stages solved to round-off",
+                         "2-stage Gauss-Legendre in (theta, p), symplectic, stages solved to "
+                         "round-off",
                          symplectic=True, native="theta,p"),
     "midpoint": MethodInfo("midpoint", 2, "implicit",
                            "implicit midpoint (1-stage Gauss) in (theta, p), symplectic",
@@ -417,20 +420,25 @@ def _all_finite(y):
 
 
 @numba.njit(cache=True)
-def _record(y, y_out, row, i_done, n_int, out_every):
-    """Store y in y_out[row] if interval count i_done is an output instant; returns (row, ok)."""
-    if i_done % out_every == 0 or i_done == n_int:
-        for c in range(y.shape[0]):
-            y_out[row, c] = y[c]
-        return row + 1, _all_finite(y)
-    return row, True
+def _store(y, y_out, row):
+    """y_out[row] = y; returns whether y is finite (the once-per-output divergence check)."""
+    ok = True
+    for c in range(y.shape[0]):
+        y_out[row, c] = y[c]
+        if not math.isfinite(y[c]):
+            ok = False
+    return ok
+
+
+# Output rows are kept with a countdown (``left``), not ``i % out_every``: an integer division
+# per input interval costs as much as the linear method's whole step.
 
 
 # ================================================================================================
 # rk4
 # ================================================================================================
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
     """Classic RK4, ``nsub`` equal steps per input interval, over ``n_int`` intervals.
 
@@ -452,7 +460,9 @@ def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_
     inv = 1.0 / h_in
     zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
     one = zero + 1
-    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    _store(y, y_out, zero)
+    row = one
+    left = out_every
     for i in range(n_int):
         a0 = ax[i]
         da = ax[i + la] - a0
@@ -472,9 +482,13 @@ def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_
                     _rhs_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
             for c in range(n2):
                 y[c] += h / 6.0 * (kk[0, c] + 2.0 * (kk[1, c] + kk[2, c]) + kk[3, c])
-        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
-        if not ok:
-            return NONFINITE, row, i + 1
+        left -= 1
+        if left == 0 or i + 1 == n_int:
+            left = out_every
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, i + 1
     return OK, row, n_int
 
 
@@ -535,16 +549,16 @@ def _rms_scaled(v, r, y, rtol, atol):
     return math.sqrt(acc / n2)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out,
                   rtol, atol, h_prop, min_step, adaptive, nsub):
     """Dormand-Prince 8(5,3) over ``n_int`` input intervals.
 
     Adaptive (``adaptive=True``): steps never cross a sample instant; the rest of an interval is
     split into equal steps no longer than the proposal ``h_prop`` (computed by Hairer's initial
-    step algorithm if it is not > 0); the proposal is carried over to the next interval.
-    Fixed (``adaptive=False``): ``nsub`` equal steps per interval, no error control (used to
-    measure the order of the tableau).
+    step algorithm if it is not > 0) nor than ``h_in / nsub``; the proposal is carried over to the
+    next interval. Fixed (``adaptive=False``): ``nsub`` equal steps per interval, no error control
+    (used to measure the order of the tableau).
 
     Returns (status, rows written, intervals done, local time reached in that interval,
     next proposed step, accepted steps, rejected steps, rhs evaluations).
@@ -556,12 +570,15 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
     y_new = np.empty(n2)
     work = np.empty((n, n + 2))
     inv = 1.0 / h_in
+    h_cap = h_in / nsub
     n_acc = 0
     n_rej = 0
     nfev = 0
     zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
     one = zero + 1
-    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    _store(y, y_out, zero)
+    row = one
+    left = out_every
     for i in range(n_int):
         a0 = ax[i]
         da = ax[i + la] - a0
@@ -600,12 +617,17 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
             rejected = False
             while True:
                 if adaptive:
+                    # as scipy: a proposal below 10 ulp of t is raised to it; only a rejected
+                    # step that must shrink below it is a failure
                     if h_prop < min_step:
-                        return STEP_TOO_SMALL, row, i, s_loc, h_prop, n_acc, n_rej, nfev
-                    if h_prop >= rem:
+                        if rejected:
+                            return STEP_TOO_SMALL, row, i, s_loc, h_prop, n_acc, n_rej, nfev
+                        h_prop = min_step
+                    h_try = min(h_prop, h_cap)
+                    if h_try >= rem:
                         m = 1
                     else:
-                        m = int(math.ceil(rem / h_prop))
+                        m = int(math.ceil(rem / h_try))
                 else:
                     m = nsub - int(round(s_loc * nsub * inv))
                 h = rem if m == 1 else rem / m
@@ -623,10 +645,13 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
                         factor = min(MAX_FACTOR, SAFETY * err ** DOP_ERROR_EXPONENT)
                     if rejected:
                         factor = min(1.0, factor)
-                    h_new = h * factor
-                    # a step shortened to land on a sample instant says nothing against the
-                    # longer proposal
-                    h_prop = max(h_new, h_prop) if h < h_prop else h_new
+                    # the error model err ~ h^8 makes h * factor independent of h, so a step
+                    # shortened to land on a sample instant still gives the proposal, unless
+                    # MAX_FACTOR capped it: then it says nothing against the longer one
+                    if h < h_prop and factor == MAX_FACTOR:
+                        h_prop = max(h * factor, h_prop)
+                    else:
+                        h_prop = h * factor
                     break
                 n_rej += 1
                 rejected = True
@@ -643,9 +668,13 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
                 s_loc += h
                 for c in range(n2):
                     kk[0, c] = kk[12, c]
-        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
-        if not ok:
-            return NONFINITE, row, i + 1, 0.0, h_prop, n_acc, n_rej, nfev
+        left -= 1
+        if left == 0 or i + 1 == n_int:
+            left = out_every
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, i + 1, 0.0, h_prop, n_acc, n_rej, nfev
     return OK, row, n_int, 0.0, h_prop, n_acc, n_rej, nfev
 
 
@@ -875,7 +904,7 @@ def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, z
     return OK, nfev, used_newton
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out,
                  ga, gb, gc):
     """Gauss-Legendre collocation (tableau ga, gb, gc) in y = (theta, p), nsub steps per interval.
@@ -901,7 +930,9 @@ def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, 
     n_newton = 0
     zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
     one = zero + 1
-    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    _store(y, y_out, zero)
+    row = one
+    left = out_every
     for i in range(n_int):
         a0 = ax[i]
         da = ax[i + la] - a0
@@ -916,9 +947,13 @@ def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, 
                 n_newton += 1
             if status != OK:
                 return status, row, i, s_loc, nfev, n_newton
-        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
-        if not ok:
-            return NONFINITE, row, i + 1, 0.0, nfev, n_newton
+        left -= 1
+        if left == 0 or i + 1 == n_int:
+            left = out_every
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, i + 1, 0.0, nfev, n_newton
     return OK, row, n_int, 0.0, nfev, n_newton
 
 
@@ -954,7 +989,7 @@ def discretise(a, b, h, hold="zoh"):
     return phi, g0, g1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
     """z <- Phi z + Gamma0 u_a + Gamma1 (u_b - u_a) per substep (single input x0'').
 
@@ -963,16 +998,18 @@ def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
     intervals done)."""
     n2 = y.shape[0]
     yt = np.empty(n2)
+    frac = 1.0 / nsub
     zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
     one = zero + 1
-    row, ok = _record(y, y_out, zero, zero, n_int, one)
+    _store(y, y_out, zero)
+    row = one
+    left = out_every
     for i in range(n_int):
         a0 = ax[i]
         da = ax[i + la] - a0
         for j in range(nsub):
-            ua = a0 + da * (j / nsub)
-            ub = a0 + da * ((j + 1) / nsub)
-            du = ub - ua
+            ua = a0 + da * (j * frac)
+            du = a0 + da * ((j + 1) * frac) - ua
             for r in range(n2):
                 acc = g0[r, 0] * ua + g1[r, 0] * du
                 for c in range(n2):
@@ -980,9 +1017,13 @@ def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
                 yt[r] = acc
             for r in range(n2):
                 y[r] = yt[r]
-        row, ok = _record(y, y_out, row, i + 1, n_int, out_every)
-        if not ok:
-            return NONFINITE, row, i + 1
+        left -= 1
+        if left == 0 or i + 1 == n_int:
+            left = out_every
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, i + 1
     return OK, row, n_int
 
 
@@ -1062,7 +1103,7 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
     out_every : output every this many intervals (and at the end).
     method : key of :data:`METHODS`.
     substeps : steps per interval for fixed-step methods (rk4, gauss4, midpoint, linear; also
-        dop853 with ``adaptive=False``).
+        dop853 with ``adaptive=False``); for adaptive dop853 the least number of steps per interval.
     rtol, atol : dop853 tolerances (relative, absolute per state component [rad, rad/s]).
     h0_s : dop853 proposed first step [s]; ``nan`` selects it (Hairer's algorithm).
     adaptive : dop853 only: ``False`` drives the tableau with fixed steps (order checks).
@@ -1073,17 +1114,22 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
     DivergenceError : a non-finite state at an output instant (reports the last finite output),
         a dop853 step below 10 ulp of the time, or Gauss stage equations that did not converge.
     """
+    if method not in METHODS:
+        raise ConfigError(f"method = {method!r} is invalid: expected one of {', '.join(METHODS)}")
+    if hold not in HOLDS:
+        raise ConfigError(f"hold = {hold!r} is invalid: expected one of {', '.join(HOLDS)}")
     hc, s, cm, g = chain.H, chain.S, chain.C, chain.g_mps2
     lin = hold == "linear"
     need = n_intervals + (1 if lin else 0)
     ax = np.ascontiguousarray(ax, dtype=float)
     if ax.shape[0] < need:
-        raise ValueError(f"ax has {ax.shape[0]} samples, {need} are needed")
+        raise ConfigError(f"ax has {ax.shape[0]} samples; {n_intervals} intervals with hold = "
+                          f"{hold!r} need {need}")
     use_ay = ay is not None
     ay = np.ascontiguousarray(ay, dtype=float) if use_ay else np.zeros(1)
     sa, la = int(use_ay), int(lin)
     if use_ay and ay.shape[0] < need:
-        raise ValueError(f"ay has {ay.shape[0]} samples, {need} are needed")
+        raise ConfigError(f"ay has {ay.shape[0]} samples; {need} are needed")
     rows = output_rows(n_intervals, out_every)
     y = np.array(native0, dtype=float)
     y_out = np.empty((rows.size, y.size))
@@ -1107,14 +1153,12 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
             hc, s, cm, g, ax, ay, sa, la, h_in, substeps, n_intervals, out_every, y, y_out,
             *tab)
         n_steps = i_done * substeps
-    elif method == "linear":
+    else:  # linear
         a, b = chain.state_space()
         phi, g0, g1 = discretise(a, b, h_in / substeps, hold)
         status, nrow, i_done = linear_kernel(phi, g0, g1, ax, la, substeps, n_intervals,
                                              out_every, y, y_out)
         n_steps, nfev = i_done * substeps, 0
-    else:
-        raise ValueError(f"method = {method!r} is unknown; expected one of {', '.join(METHODS)}")
 
     if status != OK:
         _raise_divergence(chain, method, status, y, y_out, rows, nrow, i_done, s_fail, h_in, t0_s,

@@ -1,4 +1,4 @@
-"""Simulate the chain on its base: held base input -> integrator -> trajectory with an error estimate.
+"""Simulate the chain on its base: held base input -> integrator -> trajectory + error estimate.
 
 The true base acceleration (SPEC section 8)
 -------------------------------------------
@@ -52,7 +52,18 @@ def _whole(name: str, value: float, unit_name: str, unit: float) -> int:
     k = int(round(r))
     if k < 1 or abs(r - k) > _REL * max(1.0, r):
         raise ConfigError(f"{name} = {value!r} s is invalid: expected a whole multiple (>= 1) of "
-                          f"{unit_name} = {unit!r} s")
+                          f"{unit_name} = {unit!r} s (the ratio is {r:.9g})")
+    return k
+
+
+def _divides(name: str, value: float, big_name: str, big: float) -> int:
+    """big / value as an integer >= 1, or ConfigError saying value must divide big."""
+    r = big / value
+    k = int(round(r))
+    if k < 1 or abs(r - k) > _REL * max(1.0, r):
+        raise ConfigError(f"{name} = {value!r} s is invalid: it must divide {big_name} = {big!r} s "
+                          f"a whole number of times (the ratio is {r:.9g}); integrator steps are "
+                          "aligned to the input sample instants")
     return k
 
 
@@ -83,7 +94,8 @@ class BaseInput:
         set_ = object.__setattr__
         set_(self, "dt_s", _finite_number("dt_s", self.dt_s))
         if self.hold not in HOLDS:
-            raise ConfigError(f"hold = {self.hold!r} is invalid: expected one of {', '.join(HOLDS)}")
+            raise ConfigError(f"hold = {self.hold!r} is invalid: expected one of "
+                              f"{', '.join(HOLDS)}")
         set_(self, "ax_mps2", self._samples("ax_mps2", self.ax_mps2))
         if self.ay_mps2 is not None:
             ay = self._samples("ay_mps2", self.ay_mps2)
@@ -171,6 +183,9 @@ class Trajectory:
     wall_time_s : wall-clock time of the main run [s] (excluding the error estimate).
     error_estimate_rad, error_estimate_rad_s : (T, n) estimated absolute error of theta [rad] and
         omega [rad/s] accumulated since the start of this run, or ``None``.
+    energy_error_estimate_j : (T,) the same estimate applied to the energy [J] (for a fixed,
+        undamped base the energy is conserved, so this is the expected |E(t) - E(0)|), or
+        ``None``.
     error_method : a sentence saying how the estimate was obtained.
     estimate_wall_time_s : wall-clock time spent on the estimate [s].
     final_state : :class:`SimState` at the end, to continue with.
@@ -189,6 +204,7 @@ class Trajectory:
     wall_time_s: float
     error_estimate_rad: np.ndarray | None
     error_estimate_rad_s: np.ndarray | None
+    energy_error_estimate_j: np.ndarray | None
     error_method: str
     estimate_wall_time_s: float
     final_state: SimState = field(repr=False)
@@ -241,7 +257,7 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
                               f"{base.duration_s!r} s ({base.n_intervals} intervals of {h_in} s, "
                               f"hold = {base.hold!r})")
         if dt_s is not None:
-            sub = _whole("base.dt_s (the input interval)", h_in, "dt_s", dt_s)
+            sub = _divides("dt_s", dt_s, "the input interval base.dt_s", h_in)
         elif kind in ("fixed", "implicit"):
             sub = _default_substeps(chain, h_in)
         else:
@@ -263,7 +279,7 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
                                       float(np.max(chain.natural_frequencies_hz())) - 1e-9)
         else:
             dt = dt_s
-        total = _whole("duration_s", duration, "dt_s", dt)
+        total = _divides("dt_s", dt, "duration_s", duration)
         if output_dt_s is not None:
             per_out = _whole("output_dt_s", output_dt_s, "dt_s", dt)
         else:
@@ -344,9 +360,10 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         (:data:`rig.integrators.METHODS`).
     rtol, atol : dop853 tolerances, rtol in (0, 1), atol > 0 [rad, rad/s per component].
     dt_s : step [s] of the fixed-step methods (rk4, gauss4, midpoint; linear substeps); must divide
-        the input interval. Default: the input interval, refined to >= 100 steps per period of the
-        fastest linear mode (rk4, gauss4, midpoint); the linear method steps once per interval.
-        Not accepted for dop853, which chooses its own steps.
+        the input interval (on a fixed base: the duration). Default for rk4, gauss4, midpoint: the
+        input interval split into equal steps of at most 1/(100 f_max), f_max the fastest linear
+        mode (on a fixed base: the longest such step dividing the duration); the linear method
+        steps once per interval. Not accepted for dop853, which chooses its own steps.
     output_dt_s : output interval [s], a whole multiple of the input interval (of ``dt_s`` for a
         fixed-step method on a fixed base). Default: the largest multiple of the input interval
         not over 1 s (every input sample if that is over 1 s); on a fixed base 1 s (and the end).
@@ -360,9 +377,11 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     -------
     Trajectory, with an error estimate of the angles and angular velocities accumulated over this
     run: fixed-step methods: Richardson against the same run at dt_s / 2,
-    ``err = |y_h - y_{h/2}| 2^p / (2^p - 1)``; dop853: ``|y - y_ref|`` against a run with rtol / 100
-    and atol / 100; linear: ``|y - y_ref|`` against a run at dt_s / 2 (round-off only; the
-    linearisation is a model error, not an integrator error, and is not included).
+    ``err = |y_h - y_{h/2}| 2^p / (2^p - 1)``; dop853: ``|y - y_ref|`` against a run with
+    rtol / 100, atol / 100 and at least two steps per input interval; linear: ``|y - y_ref|``
+    against a run at dt_s / 2 (round-off only; the linearisation is a model error, not an
+    integrator error, and is not included). The estimate costs one more run (at twice the steps
+    for the half-step ones); ``energy_error_estimate_j`` applies it to the energy.
 
     Raises
     ------
@@ -420,16 +439,21 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f)
     wall = time.perf_counter() - tic
 
-    err_th = err_om = None
+    err_th = err_om = err_e = None
     est_wall = 0.0
     if estimate_error:
         tic = time.perf_counter()
         if info.kind == "adaptive":
+            # 100 times tighter, and at least two steps per input interval: where the sample
+            # grid, not the tolerance, sets the step (one step per sample), a tighter tolerance
+            # alone would repeat the same steps and report zero
             r_ref, a_ref = max(rtol_f / 100.0, 1e-14), atol_f / 100.0
-            ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), r_ref, a_ref)
+            ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), r_ref, a_ref,
+                               sub_factor=2)
             scale = 1.0
             how = (f"|y - y_ref| against the same run with rtol = {r_ref:.3g}, atol = {a_ref:.3g} "
-                   "(100 times tighter), from the same start state")
+                   "(100 times tighter) and at least two steps per input interval, from the same "
+                   "start state")
         else:
             ref, *_ = _execute(chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f,
                                sub_factor=2)
@@ -446,6 +470,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
                        "range")
         diff = np.abs(y_out - ref) * scale
         err_th, err_om = _readonly(diff[:, :n].copy()), _readonly(diff[:, n:].copy())
+        e_main = chain.energy(y_out[:, :n], y_out[:, n:])
+        e_ref = chain.energy(ref[:, :n], ref[:, n:])
+        err_e = _readonly(np.abs(e_main - e_ref) * scale)
         est_wall = time.perf_counter() - tic
         error_method = how
     else:
@@ -464,5 +491,6 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     return Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, energy_j=energy,
                       method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
                       n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
-                      error_estimate_rad_s=err_om, error_method=error_method,
+                      error_estimate_rad_s=err_om, energy_error_estimate_j=err_e,
+                      error_method=error_method,
                       estimate_wall_time_s=est_wall, final_state=final)
