@@ -48,16 +48,8 @@ import scipy.signal
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
+from rig.validate import finite_at_least as _finite
 from rig.integrators import discretise
-
-
-def _finite(where: str, value, *, lo: float, strict: bool, unit: str) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
-    if not ok or value < lo or (strict and value == lo):
-        rel = ">" if strict else ">="
-        raise ConfigError(f"{where} = {value!r} is invalid: expected a finite number {rel} {lo:g}"
-                          f" {unit}")
-    return float(value)
 
 
 @dataclass(frozen=True, eq=False)
