@@ -85,7 +85,8 @@ class Bench(Protocol):
     ``expected_response(freqs_hz)`` gives exact complex responses (name -> (nf,) array): those
     named like a channel are the analog chain up to that channel's ADC input (the anti-alias
     filter is applied by the acquisition); ``units`` and ``long_names`` (optional dicts) say what
-    they are. ``model_info()`` says what was simulated (model, method, error estimate...).
+    they are. ``model_info()`` says what was simulated (model, method, error estimate...) and,
+    for the rig, why (``reason``, ``selection``: the model chosen for the scene's error budget).
     """
 
     fs_hz: float

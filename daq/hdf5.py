@@ -31,8 +31,10 @@ engine="h5netcdf")`` returns labelled arrays (also for ``entry/truth``, ``entry/
         theta_rad (record, time, body) float64 -- sampled, not filtered (see daq.records);
                             chunk = one record, not compressed (float64 noise barely shrinks)
       model/                NXcollection @model @method @error_estimate[.<key>] ... (the bench's
-                            model_info, nested keys joined by dots) @model_info_json (all of it
-                            but wall-clock timings, which would make identical runs differ)
+                            model_info, nested keys joined by dots; from the rig also @reason
+                            @requested_model @error_budget @budget_met @selection.chosen ...:
+                            which model ran and why) @model_info_json (all of it but
+                            wall-clock timings, which would make identical runs differ)
         frequency (frequency,) [Hz] scale: the record's FFT grid k / record_s, 0 .. rate/2
         <name>_real, <name>_imag (frequency,): exact complex responses @units @long_name; from
                             the rig: a, x, y [V/V] (channel volts per source volt, the whole

@@ -12,31 +12,85 @@ that held staircase is, by definition, the true DAC output; the source's analog 
 filter smooths it (:mod:`rig.source`) and the stage acceleration ``x0''`` is whatever the
 continuous amplifier, coil and stage make of that.
 
-Models (``acquisition.model``)
-------------------------------
+Models (``acquisition.model``, ``acquisition.error_budget``)
+------------------------------------------------------------
 ``linear``
     The coil, stage, linearised pendulum (with its reaction on the stage if ``stage.reaction``)
     and the accelerometer's high-pass form one linear system ``z' = A z + B V``
     (:meth:`rig.stage.Stage.state_space`). It is discretised exactly for the held input with
     :func:`rig.integrators.discretise` (``z_{k+1} = Phi z_k + Gamma V_k``, Van Loan's matrix
     exponential) and stepped by a compiled loop: exact at the DAC instants up to round-off, ~0.1 us
-    per sample for the Ishizaki pendulum. The sensors read the states at the instants.
+    per sample for the Ishizaki pendulum. The sensors read the states at the instants. Its error
+    is the linearisation (a model error, predicted by :func:`predict_linearisation_error`).
 ``nonlinear``
-    The stage (with the accelerometer state) is linear and, without the reaction, independent of
-    the pendulum: it is discretised exactly at ``h / oversample`` (the source is constant there
-    too) to give the exact stage acceleration at ``oversample`` instants per DAC interval. The
-    pendulum's nonlinear equations are integrated through :func:`rig.integrators.integrate`
-    (default ``rk4``, one step per sub-interval) with that acceleration linear between the
-    sub-instants (``hold="linear"``, exact for a continuous input up to O((h/oversample)^2)).
-    Error estimate (:meth:`BenchSimulation.model_info`): (1) the input interpolation, measured by
-    driving the *linearised* pendulum through the same interpolated input with the integrators'
-    exact ``linear`` method and comparing with the exact linear bench; (2) the integrator,
-    Richardson against the same run with twice the steps. Both on a probe run of the scene.
-    For ``ishizaki2009`` (reaction off, default drive, 20 s probe, oversample 8): interpolation
-    3.0e-7 rad, 3.8e-5 of the largest angle (1.2e-6 rad at oversample 4: O((h/m)^2)),
-    integrator 9e-14 rad, while the linearisation itself (nonlinear - linear) is 1.1e-6 rad.
-    Cost ~8 us per DAC sample (the paper's run ~30 s).
-    The pendulum's reaction on the stage is not supported with this model (ConfigError).
+    ``method="lawson4"`` (default): the whole bench, nonlinear pendulum *and* its reaction on
+    the stage (or without it), integrated as one system by :mod:`rig.coupled`: the linear bench
+    is propagated exactly (the same matrix exponentials) and only the nonlinear remainder
+    (relative size ~theta^2) is integrated by Lawson's RK4, ``substeps`` steps per DAC interval.
+    Error estimate: Richardson (x 16/15) against twice the steps on a probe run of the scene's
+    drive. For ``ishizaki2009`` with one step per DAC sample: 4e-12 relative RMS at the default
+    drive (round-off), 1e-10 at 1 V (theta1 ~ 0.06 rad); halving the step divides it by 25-50.
+    Cost ~3 us per DAC sample on a shared two-core machine (the paper's run ~10 s).
+    ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the stage is
+    discretised exactly at ``h / oversample`` and the pendulum's nonlinear equations are
+    integrated through :func:`rig.integrators.integrate` on that prescribed stage acceleration,
+    linear between the sub-instants (``hold="linear"``, O((h/oversample)^2)); its error estimate
+    adds the input interpolation (the linearised pendulum through the same interpolated input
+    against the exact linear bench) to the integrator's (Richardson). For ``ishizaki2009``
+    (reaction off, default drive, 20 s probe, oversample 8): interpolation 3.0e-7 rad, 3.8e-5 of
+    the largest angle, integrator 9e-14 rad. Cost ~8 us per DAC sample.
+``auto`` (default)
+    The cheapest model that meets ``acquisition.error_budget`` (the allowed relative RMS error of
+    the simulated angles over the records, max over the bodies; default 1e-2): :func:`select_model`
+    predicts the linear model's error (:func:`predict_linearisation_error`) and takes ``linear``
+    if even its upper estimate is inside the budget, ``nonlinear`` otherwise. The choice, the
+    prediction, the reason and how it was predicted are in :meth:`BenchSimulation.model_info`
+    (``selection``, ``reason``), which the run file stores; a forced model records the same
+    prediction and whether the budget is met (``budget_met``).
+
+Why the budget is 1 % by default: a lightly damped mode turns a tiny amplitude-dependent
+frequency shift into a large time-domain difference. For the paper's pendulum (Q1 = 530, tau =
+Q1 / (pi f1) = 68 s) the linear model's relative RMS angle error grows as the drive level squared
+and with the run length up to a few tau: at the default 0.1 V (theta1 ~ 6e-3 rad rms, a
+frequency shift ~theta^2/4 ~ 1e-5, 1 % of the half-bandwidth) it is ~0.5 % over the paper's
+records, ~2e-3 over 100 s from rest and ~3e-4 over 20 s. For the paper's run the choice flips at
+0.127 V (budget 1e-2) or 0.040 V (budget 1e-3); 0.3 V needs the nonlinear model for the paper's
+run but not for 10 s from rest (tests/test_model_selection.py).
+
+The predictor: first-order perturbation
+---------------------------------------
+``z_nl = z_lin + d + O(theta^2 d)`` with ``d' = A d + f(z_lin(t))``, ``f`` the nonlinear
+remainder of the accelerations (:mod:`rig.coupled`): the linearisation error to first order is
+the linear bench's response to the remainder evaluated along the *linear* trajectory (on the
+same drive it equals nonlinear - linear to 2 %, tests/test_bench.py). It is computed for the
+scene's own source type, level, initial state and run length on a surrogate drive: the scene's
+source regenerated at a reduced rate (>= 8 times the highest source or pendulum frequency, 100 Hz
+for ``ishizaki2009``; its own random stream, so the choice is a property of the scene, not of
+the run's seed), the coil + stage + pendulum (no reconstruction filter) discretised exactly with
+a first-order hold of the voltage and of ``f``. The relative RMS error of every angle over the
+recorded span is estimated from 8 values: for a run of >= 16 amplitude time constants ``tau =
+Q / (pi f)`` one realisation cut into 8 batches (pooled ratio; uncertainty from the batches'
+jackknife x 1.5, calibrated on 30 predictor streams, after which it matches their scatter within
+20 %; for a run longer than 24 tau a probe of 5 tau settling + 24 tau of records, stationary and
+conservative if the run settles less), for a shorter run 8 independent realisations of it (their
+mean and standard deviation). Spread of the actual run's value: that scaled to the run's length;
+decision on ``upper = estimate + t sqrt(spread^2 + uncertainty^2)`` (t = 2.36, Student's 97.5 %
+quantile for 7 degrees of freedom). The first order must hold all along: if the predicted error
+anywhere in the run (settling included) exceeds 0.1 of the largest angle (e.g. a pendulum
+released far from rest) the prediction is flagged ``first_order_valid = False`` and ``auto``
+takes the nonlinear model. Clear cases stop early (every realisation so far over 10 x the
+budget, or two under a tenth of it). Cost ~0.3-
+0.5 us per reduced sample on a shared machine (paper's run: 197,000 samples, ~0.15 s).
+
+Accuracy against the nonlinear bench on independent drives (measured error, mean +- std over
+seeds, vs prediction +- its stated single-run spread): 0.1 V, 100 s from rest: 2.0e-3 +- 0.9e-3
+(12 seeds) vs 2.3e-3 +- 1.2e-3; 0.03 V: 1.8e-4 +- 0.8e-4 vs 2.1e-4 +- 1.1e-4; 0.1 V, 20 s:
+2.8e-4 +- 2.0e-4 vs 2.2e-4 +- 1.3e-4; 0.05 V, 300 s + 1000 s: 1.2e-3 +- 0.3e-3 (4 seeds) vs
+1.4e-3 +- 0.3e-3; the paper's run (0.1 V, 300 s + 3000 s): 4.3e-3 +- 0.9e-3 (3 seeds, the
+largest 5.3e-3) and 6.6e-3 (a fourth) vs 4.5e-3 +- 0.5e-3 (upper 6.5e-3). The first-order term
+underestimates once the error itself is large (0.3 V, 300 s + 1000 s: 7.0e-2 measured vs 4.9e-2;
+1 V: 0.60 vs 0.54, and there the first order is flagged invalid), far above any sensible budget,
+where the decision is the same.
 
 Outputs: :class:`rig.blocks.AnalogBlock` s at the simulation rate with volts ``a, x, y`` and the
 truth beside them (:meth:`BenchSimulation.next_block`). Random streams: one
@@ -47,7 +101,8 @@ any split into blocks reproduces a one-shot run bit for bit.
 Numbers for the defaults (``ishizaki2009``, 0.1 V rms random source 0-12.5 Hz; see
 :func:`stationary_levels`, :func:`signal_to_noise`, tests/test_bench.py): the paper's run (330 s
 settle + 30 x 100 s, 3.33 million samples at 1 kHz) takes ~1.4 s of CPU with the linear model in
-10 s blocks (source FIR, sensors and noise included; 1-3 s wall on a shared two-core machine);
+10 s blocks (source FIR, sensors and noise included; 1-3 s wall on a shared two-core machine),
+plus ~0.15 s for the model choice;
 levels and signal-to-noise ratios are listed in the docstrings of :mod:`rig.stage`,
 :mod:`rig.accelerometer` and :mod:`rig.psd`.
 
@@ -65,7 +120,8 @@ Theta_2) by 1e-3 at 1 Hz, 1 % at 10 Hz and 4.8 % in the reaction's notch at 2.47
 
 Public API: :class:`BenchSimulation`, :class:`BenchModel`, :class:`BenchState`,
 :class:`BenchResponse`, :func:`build_model`, :func:`start`, :func:`advance`, :func:`calibrations`,
-:func:`expected_response`, :func:`stationary_levels`, :func:`signal_to_noise`, :func:`model_info`.
+:func:`expected_response`, :func:`stationary_levels`, :func:`signal_to_noise`, :func:`model_info`,
+:func:`select_model`, :func:`predict_linearisation_error`.
 """
 
 from __future__ import annotations
@@ -81,6 +137,7 @@ import numpy as np
 
 from rig.accelerometer import Accelerometer
 from rig.blocks import AnalogBlock, Calibration
+from rig import coupled as rcoupled
 from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
 from rig.integrators import METHODS, discretise, integrate, to_native
@@ -89,8 +146,15 @@ from rig.scene import Scene
 from rig.source import NOISE_TYPES, Source, SourceState, generate, start_source
 from rig.stage import Stage
 
-MODELS = ("linear", "nonlinear")
-NONLINEAR_METHODS = ("rk4", "gauss4", "dop853")
+MODELS = ("auto", "linear", "nonlinear")  # acquisition.model; "auto" resolves to one of the others
+NONLINEAR_METHODS = ("lawson4", "rk4", "gauss4", "dop853")
+PRESCRIBED_STAGE_METHODS = ("rk4", "gauss4", "dop853")  # rig.integrators on a given stage motion
+PREDICTOR_ENTROPY = 20090005  # the predictor's own random stream (the choice is the scene's)
+PREDICTOR_BATCHES = 8
+SPREAD_CALIBRATION = 1.5  # jackknife std of 8 batches -> measured run-to-run scatter (see how)
+FIRST_ORDER_LIMIT = 0.1  # largest |d theta| / largest |theta| for the first order to hold
+_T975 = {1: 12.71, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306,
+         9: 2.262, 10: 2.228, 11: 2.201, 12: 2.179, 13: 2.160, 14: 2.145, 15: 2.131}
 STREAMS = ("source", "accelerometer", "psd_x", "psd_y")
 _REL = 1e-9
 
@@ -107,13 +171,18 @@ class BenchModel:
     ----------
     scene, source, stage, accelerometer, lever : the parts.
     fs_hz : simulation (DAC) rate [Hz]; decimation : simulation_rate_hz / rate_hz.
-    model : "linear" or "nonlinear"; method, oversample, substeps, rtol, atol : the nonlinear
-        path's integrator settings (method name, sub-instants per DAC interval, steps per
-        sub-interval, dop853 tolerances).
+    model : "linear" or "nonlinear" (what runs; ``acquisition.model`` may say "auto");
+    method, oversample, substeps, rtol, atol : the nonlinear path's integrator settings (method
+        name, sub-instants per DAC interval (prescribed-stage methods), steps per DAC interval
+        (lawson4) or per sub-interval, dop853 tolerances).
+    selection : the model choice of ``acquisition.model = "auto"`` (:func:`select_model`), else
+        None (computed on demand by :meth:`BenchSimulation.model_info`).
     a, b : continuous bench ``z' = a z + b V``; phi, gamma : its exact ZOH step at 1 / fs.
     accel_row : x0'' = accel_row . z.  slices : named slices of z.
-    stage_phi, stage_gamma, stage_accel_row : nonlinear path only: the stage + accelerometer
-        (z_s = (i, x0, v0, q)) stepped exactly at 1 / (fs oversample).
+    stage_phi, stage_gamma, stage_accel_row : prescribed-stage nonlinear path only: the stage +
+        accelerometer (z_s = (i, x0, v0, q)) stepped exactly at 1 / (fs oversample).
+    coupled, lawson : lawson4 path only: the kernels' parameters (:class:`rig.coupled.
+        CoupledParams`) and (E_h, E_h/2, G_h, G_h/2) at h = 1 / (fs substeps).
     """
 
     scene: Scene
@@ -138,6 +207,9 @@ class BenchModel:
     stage_phi: np.ndarray | None = None
     stage_gamma: np.ndarray | None = None
     stage_accel_row: np.ndarray | None = None
+    coupled: rcoupled.CoupledParams | None = None
+    lawson: tuple | None = None
+    selection: dict | None = None
 
     @property
     def chain(self) -> Chain:
@@ -219,20 +291,23 @@ def _bench_state_space(stage: Stage, chain: Chain, acc: Accelerometer, with_chai
     return a, b, accel_row, slices
 
 
-def build_model(scene: Scene, *, method: str = "rk4", oversample: int = 8, substeps: int = 1,
-                rtol: float = 1e-10, atol: float = 1e-12) -> BenchModel:
+def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
+                substeps: int = 1, rtol: float = 1e-10, atol: float = 1e-12,
+                selection: dict | None = None) -> BenchModel:
     """Validate the scene's bench sections and build the :class:`BenchModel`.
 
-    ``method``, ``oversample``, ``substeps``, ``rtol``, ``atol`` matter for the nonlinear model
-    only (module docstring): ``oversample`` exact stage-acceleration instants per DAC interval
-    (the pendulum sees them linearly interpolated), ``substeps`` integrator steps per
-    sub-interval.
+    ``acquisition.model = "auto"`` runs :func:`select_model` (or takes ``selection``, its
+    result for this scene). ``method`` (default ``"lawson4"``), ``oversample``, ``substeps``,
+    ``rtol``, ``atol`` matter for the nonlinear model only (module docstring): ``substeps``
+    Lawson steps per DAC interval, or for the prescribed-stage methods ``oversample`` exact
+    stage-acceleration instants per DAC interval (the pendulum sees them linearly interpolated)
+    and ``substeps`` integrator steps per sub-interval.
 
     Raises
     ------
     ConfigError : a bad value in ``source``, ``stage``, ``accelerometer``, ``psd`` or
-        ``acquisition`` (naming the key, the value and what is valid), or the nonlinear model
-        with the stage reaction.
+        ``acquisition`` (naming the key, the value and what is valid), or a prescribed-stage
+        method with the stage reaction.
     """
     if not isinstance(scene, Scene):
         raise ConfigError(f"scene = {scene!r} is invalid: expected a rig.scene.Scene")
@@ -247,27 +322,39 @@ def build_model(scene: Scene, *, method: str = "rk4", oversample: int = 8, subst
     if model not in MODELS:
         raise ConfigError(f"acquisition.model = {model!r} is invalid: expected one of "
                           f"{', '.join(MODELS)}")
+    _error_budget(acq)
+    if method is None:
+        method = "lawson4"
     if method not in NONLINEAR_METHODS:
         raise ConfigError(f"method = {method!r} is invalid: expected one of "
                           f"{', '.join(NONLINEAR_METHODS)}")
     for name, v in (("oversample", oversample), ("substeps", substeps)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
             raise ConfigError(f"{name} = {v!r} is invalid: expected an integer >= 1")
-    if model == "nonlinear" and stage.reaction:
+    if model == "auto":
+        if selection is None:
+            selection = select_model(scene)
+        model = selection["chosen"]
+    else:
+        selection = None
+    if model == "nonlinear" and stage.reaction and method in PRESCRIBED_STAGE_METHODS:
         raise ConfigError(
-            "acquisition.model = 'nonlinear' is not supported with stage.reaction = true: the "
-            "nonlinear pendulum is integrated on a prescribed stage motion, so the pendulum "
-            "cannot load the stage. Set stage.reaction = false (the stage then ignores the "
-            "pendulum: its notches in a/V at the pendulum modes, -25 dB at 2.48 Hz for the "
-            "ishizaki2009 defaults, disappear; x/a is unchanged) "
-            "or acquisition.model = 'linear'")
+            f"method = {method!r} is not supported with stage.reaction = true: it integrates the "
+            "nonlinear pendulum on a prescribed stage motion, so the pendulum cannot load the "
+            "stage. Use method 'lawson4' (the coupled nonlinear bench) or set "
+            "stage.reaction = false")
     chain = scene.chain
     a, b, accel_row, slices = _bench_state_space(stage, chain, acc, with_chain=True,
                                                  source=source)
     h = 1.0 / fs
     phi, g0, _ = discretise(a, b, h, "zoh")
     kw = {}
-    if model == "nonlinear":
+    if model == "nonlinear" and method == "lawson4":
+        q_idx = slices["accel_highpass_q_mps"].start if acc.n_states else -1
+        kw = dict(coupled=rcoupled.coupled_params(chain, stage, a, q_idx=q_idx,
+                                                 wc=acc.corner_rad_s if acc.n_states else 0.0),
+                  lawson=rcoupled.lawson_matrices(a, b, h / substeps))
+    elif model == "nonlinear":
         sa, sb, srow, _ = _bench_state_space(stage, chain, acc, with_chain=False, source=source)
         sphi, sg0, _ = discretise(sa, sb, h / oversample, "zoh")
         kw = dict(stage_phi=np.ascontiguousarray(sphi), stage_gamma=np.ascontiguousarray(sg0[:, 0]),
@@ -277,7 +364,15 @@ def build_model(scene: Scene, *, method: str = "rk4", oversample: int = 8, subst
                       oversample=int(oversample), substeps=int(substeps), rtol=float(rtol),
                       atol=float(atol), a=a, b=b, phi=np.ascontiguousarray(phi),
                       gamma=np.ascontiguousarray(g0[:, 0]), accel_row=accel_row, slices=slices,
-                      **kw)
+                      selection=selection, **kw)
+
+
+def _error_budget(acq: dict) -> float:
+    e = acq["error_budget"]
+    if isinstance(e, bool) or not isinstance(e, (int, float)) or not (math.isfinite(e) and e > 0):
+        raise ConfigError(f"acquisition.error_budget = {e!r} is invalid: expected a relative RMS "
+                          "error > 0 (e.g. 1e-3)")
+    return float(e)
 
 
 # ================================================================================================
@@ -331,7 +426,7 @@ def start(model: BenchModel, seed=0) -> BenchState:
     rngs = {name: np.random.PCG64(child).state  # a fresh dict of ints, owned by the state
             for name, child in zip(STREAMS[1:], children[1:])}
     native = None
-    if model.model == "nonlinear":
+    if model.model == "nonlinear" and model.method != "lawson4":
         native = to_native(model.chain, model.method,
                            np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
     entropy = root.entropy if isinstance(root.entropy, int) else None
@@ -449,6 +544,15 @@ def advance(model: BenchModel, state: BenchState, n: int) -> tuple[AnalogBlock, 
         theta = z_out[:, sl["theta_rad"]]
         omega = z_out[:, sl["omega_rad_s"]]
         accel = z_out @ model.accel_row
+    elif model.method == "lawson4":
+        z_out = np.empty((n, z.size))
+        accel = np.empty(n)
+        e_h, e_2, g_h, g_2 = model.lawson
+        rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
+                               1.0 / (fs * model.substeps), model.substeps, v, z, z_out, accel)
+        _check_finite(model, state, z_out, z, t0, n)
+        theta = z_out[:, sl["theta_rad"]]
+        omega = z_out[:, sl["omega_rad_s"]]
     else:
         n2 = 2 * chain.n  # the stage-only system is z without theta, omega (same order)
         stage_idx = np.r_[0:3, 3 + n2:z.size]
@@ -532,12 +636,13 @@ class BenchSimulation:
     seed : int or SeedSequence for every random stream of the run.
     method, oversample, substeps, rtol, atol : nonlinear-model settings (:func:`build_model`).
 
+    With ``acquisition.model = "auto"`` the model is chosen at construction (:func:`select_model`).
     ``next_block(n)`` returns the next n samples, ``blocks(block_s, duration_s)`` yields blocks of
     ``block_s`` seconds; both continue where the previous call stopped. ``state`` is the current
     :class:`BenchState` (assignable, e.g. to rewind).
     """
 
-    def __init__(self, scene: Scene, seed=0, *, method: str = "rk4", oversample: int = 8,
+    def __init__(self, scene: Scene, seed=0, *, method: str | None = None, oversample: int = 8,
                  substeps: int = 1, rtol: float = 1e-10, atol: float = 1e-12):
         self.model = build_model(scene, method=method, oversample=oversample, substeps=substeps,
                                  rtol=rtol, atol=atol)
@@ -600,7 +705,19 @@ class BenchSimulation:
         return _calibrations(self.model)
 
     def model_info(self, *, probe_s: float = 20.0) -> dict:
-        """What runs and how accurate it is (:func:`model_info`; computed once, cached)."""
+        """What runs, why, and how accurate it is (computed once, cached; JSON-ready).
+
+        Keys: ``model`` ("linear" or "nonlinear": what runs), ``requested_model``
+        (``acquisition.model``), ``error_budget``, ``reason`` (a sentence: the choice and the
+        numbers behind it), ``budget_met`` (the estimated error of the model that runs is within
+        the budget), ``selection`` (:func:`select_model`, with the predictor's ``how``),
+        ``method`` (how it is integrated), ``error_estimate`` (``max_abs_theta_rad`` first,
+        ``relative_rms_theta``: the total relative RMS angle error, and its parts),
+        ``error_method``, ``linearity`` (rms angles and the frequency-shift rule of thumb),
+        ``states``, ``seed``, ``probe_s``, ``fs_hz``, ``hold``, ``reaction``,
+        ``estimate_wall_time_s``. The error of the nonlinear model's integrator and the linear
+        model's round-off are measured on a ``probe_s`` run of the scene's drive from rest.
+        """
         if self._info is None or self._info["probe_s"] != probe_s:
             self._info = _model_info(self.model, probe_s=probe_s, seed=self.seed)
         return self._info
@@ -805,28 +922,291 @@ def signal_to_noise(scene: Scene, freqs_hz) -> dict[str, np.ndarray]:
 
 
 # ================================================================================================
+# the linearisation error, the model choice
+# ================================================================================================
+
+def _predictor_rate(scene: Scene, fs: float) -> float:
+    """The predictor's reduced rate: the lowest fs / k >= 8 x (the highest source or pendulum
+    frequency) at which the scene's source is valid (whole-sample periods)."""
+    src = scene.settings["source"]
+    f_src = src["frequency_hz"] if src["type"] == "sine" else src["fmax_hz"]
+    f_modes = scene.chain.modes()[0]
+    f_top = max(float(f_src), float(np.max(f_modes)) if f_modes.size else 0.0)
+    k_max = max(1, int(fs // (8.0 * f_top))) if f_top > 0 else 1
+    for k in range(k_max, 0, -1):
+        try:
+            Source.from_settings({**src, "reconstruction_hz": 0.0}, fs / k)
+        except ConfigError:
+            continue
+        return fs / k
+    return fs
+
+
+def _amplitude_time_constant_s(chain: Chain) -> float:
+    """The longest modal amplitude time constant tau = Q / (pi f) [s] (inf if undamped)."""
+    f, q = chain.modes()
+    if f.size == 0:
+        return 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(np.isfinite(q), q / (np.pi * f), np.inf)
+    return float(np.max(tau))
+
+
+def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None) -> dict:
+    """Predicted error of the exact linear model against the nonlinear bench (module docstring,
+    "The predictor"): relative RMS of ``theta_lin - theta_nl`` over the recorded span per body.
+
+    Returns a dict (JSON-ready): ``relative_rms_theta`` (n,) the estimate (pooled over the
+    batches); ``spread_relative_rms_theta`` (n,) the standard deviation of a single run's value
+    about it (the run's own drive is another realisation); ``uncertainty_relative_rms_theta``
+    (n,) the standard deviation of the estimate itself; ``upper_relative_rms_theta`` (n,) =
+    estimate + t sqrt(spread^2 + uncertainty^2) (t the 97.5 % Student-t quantile for the
+    batches' degrees of freedom, 2.36 for 8 batches); ``max`` / ``upper`` (the largest over the
+    bodies); ``max_abs_theta_rad`` (largest |theta_lin - theta_nl| seen); ``theta_rms_rad`` (n,)
+    of the linear bench; ``rate_hz``, ``realisations``, ``batches``, ``tau_s``,
+    ``probe_settle_s``, ``probe_recorded_s`` (per realisation), ``simulated_s``, ``how``.
+
+    ``first_order_valid``: the largest |d_theta| anywhere in the run (settling included) stays
+    below ``FIRST_ORDER_LIMIT`` (0.1) of the largest |theta|; otherwise the prediction is only
+    an order of magnitude. ``decide_at``: a budget; stop after the realisations done so far
+    once every one of them is over 10 x ``decide_at`` (one suffices), under ``decide_at`` / 10
+    (two needed) or the first order fails: the decision is then not in doubt (e.g. a pendulum
+    released far from rest, or a tiny drive on an expensive chain); the statistics come from
+    those realisations (``stopped_early``: "under" or "over", else "").
+    """
+    st = scene.settings
+    acq = st["acquisition"]
+    fs, _ = _acquisition_rates(acq)
+    chain = scene.chain
+    n = chain.n
+    stage = Stage.from_settings(st["stage"])
+    fr = _predictor_rate(scene, fs)
+    src = Source.from_settings({**st["source"], "reconstruction_hz": 0.0}, fr)
+    ss = stage.state_space(chain)
+    a = ss.a
+    nz = a.shape[0]
+    hr = 1.0 / fr
+    phi, g0, g1 = discretise(a, ss.b, hr, "linear")
+    prm = rcoupled.coupled_params(chain, stage, a)
+    nf = prm.rows.size
+    bf = np.zeros((nz, nf))
+    bf[prm.rows, np.arange(nf)] = 1.0
+    _, gf0, gf1 = discretise(a, bf, hr, "linear")
+    settle, t_rec = float(acq["settle_s"]), float(acq["records"] * acq["record_s"])
+    tau = _amplitude_time_constant_s(chain)
+    nb_all = PREDICTOR_BATCHES
+    if math.isfinite(tau) and t_rec >= 2 * nb_all * tau:
+        # a long run: one realisation cut into 8 batches of >= 2 tau; longer than 24 tau, its
+        # records are stationary after 5 tau and a probe of 5 tau + 24 tau estimates them
+        # (conservatively: a shorter settle only lowers the error)
+        k_runs, batches = 1, nb_all
+        if t_rec > 3 * nb_all * tau:
+            settle_p, rec_p = 5 * tau, 3 * nb_all * tau
+        else:
+            settle_p, rec_p = settle, t_rec
+    else:  # a short run: 8 independent realisations of it
+        k_runs, batches = nb_all, 1
+        settle_p, rec_p = settle, t_rec
+    n_tot = max(1, int(round((settle_p + rec_p) * fr)))
+    k_rec = min(int(round(settle_p * fr)), n_tot - 1)
+    sums = np.zeros((k_runs, batches, 3, n))
+    z0 = np.zeros(nz)
+    z0[3:3 + n] = scene.theta0_rad
+    z0[3 + n:3 + 2 * n] = scene.omega0_rad_s
+    g0c, g1c = np.ascontiguousarray(g0[:, 0]), np.ascontiguousarray(g1[:, 0])
+    gf0, gf1 = np.ascontiguousarray(gf0), np.ascontiguousarray(gf1)
+    stopped_early = ""
+    peaks = np.zeros((k_runs, 2, n))
+    for r, child in enumerate(np.random.SeedSequence(PREDICTOR_ENTROPY).spawn(k_runs)):
+        v, _ = generate(src, start_source(src, child), n_tot + 1)
+        z, d = z0.copy(), np.zeros(nz)
+        rcoupled.first_order_kernel(*prm.args(), phi, g0c, g1c, gf0, gf1, v, z, d, k_rec,
+                                    batches, sums[r], peaks[r])
+        if not (np.all(np.isfinite(z)) and np.all(np.isfinite(d))):
+            raise DivergenceError("the linearisation-error predictor diverged (is the linear "
+                                  "bench unstable?)", 0.0, z)
+        if decide_at is not None and k_runs > 1 and r + 1 < k_runs:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e_r = np.nan_to_num(np.sqrt(sums[:r + 1, 0, 1, :] / sums[:r + 1, 0, 0, :]))
+            e_r = e_r.max(axis=1)  # (runs so far,): the worst body of each
+            invalid = np.max(peaks[:r + 1, 1]) > FIRST_ORDER_LIMIT * np.max(peaks[:r + 1, 0])
+            under = r >= 1 and np.all(e_r < decide_at / 10)
+            if invalid or np.all(e_r > 10 * decide_at) or under:
+                stopped_early = "under" if under else "over"
+                k_runs = r + 1
+                sums, peaks = sums[:k_runs], peaks[:k_runs]
+                break
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = float(np.nan_to_num(np.max(peaks[:, 1, :]) / np.max(peaks[:, 0, :])))
+    first_order_valid = ratio <= FIRST_ORDER_LIMIT
+    t2 = sums[:, :, 0, :].reshape(-1, n)
+    d2 = sums[:, :, 1, :].reshape(-1, n)
+    nb = t2.shape[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if k_runs == 1:  # pooled ratio; delete-one-batch jackknife for its uncertainty
+            pooled = np.where(t2.sum(0) > 0, np.sqrt(d2.sum(0) / t2.sum(0)), 0.0)
+            loo_t = t2.sum(0) - t2
+            e_loo = np.where(loo_t > 0, np.sqrt((d2.sum(0) - d2) / loo_t), 0.0)
+            unc = SPREAD_CALIBRATION * np.sqrt(
+                (nb - 1) / nb * np.sum((e_loo - e_loo.mean(0)) ** 2, axis=0))
+            spread = unc * math.sqrt(rec_p / t_rec)  # the variance shrinks as 1 / length
+        else:  # the runs' own values: their mean, their scatter
+            e_k = np.where(t2 > 0, np.sqrt(d2 / t2), 0.0)
+            pooled = e_k.mean(0)
+            spread = e_k.std(0, ddof=1) if nb > 1 else pooled.copy()
+            unc = spread / math.sqrt(nb)
+    t975 = _T975.get(nb - 1, 2.0)  # Student-t: the spread is itself estimated from nb values
+    upper = pooled + t975 * np.sqrt(spread**2 + unc**2)
+    n_rec = n_tot + 1 - k_rec
+    theta_rms = np.sqrt(t2.sum(0) / (k_runs * n_rec))
+    how = (f"first-order perturbation: the linear bench (coil, stage, pendulum"
+           f"{' with its reaction' if stage.reaction else ''}) and its first-order linearisation "
+           "error d' = A d + f(z_lin) (f: nonlinear minus linear accelerations along the linear "
+           f"trajectory), both discretised exactly at {fr:g} Hz (first-order hold) and driven by "
+           f"the scene's source regenerated at that rate (own random stream); {k_runs} run(s) of "
+           f"{settle_p:g} s settle + {rec_p:g} s recorded from the scene's initial state (the "
+           f"run: {settle:g} s + {t_rec:g} s; longest amplitude time constant tau = {tau:.3g} s), "
+           f"each recorded span in {batches} batch(es); one run: estimate = pooled RMS ratio, "
+           "its uncertainty = the delete-one-batch jackknife standard deviation times "
+           f"{SPREAD_CALIBRATION:g} (the jackknife of 8 batches underestimates the scatter by "
+           "20-35 %, measured over 30 predictor streams), spread of the actual run = that times "
+           "sqrt(probe records / run records); several runs: estimate = their mean, spread = "
+           "their standard deviation, uncertainty = spread / sqrt(runs); "
+           "upper = estimate + t sqrt(spread^2 + "
+           f"uncertainty^2), t = {t975:.3g} the two-sided 95 % Student-t quantile for "
+           f"{nb - 1} degrees of freedom. Exact to first order: the neglected term is O(e^2) "
+           "relative")
+    return {
+        "relative_rms_theta": pooled.tolist(),
+        "spread_relative_rms_theta": spread.tolist(),
+        "uncertainty_relative_rms_theta": unc.tolist(),
+        "upper_relative_rms_theta": upper.tolist(),
+        "max": float(np.max(pooled)),
+        "upper": float(np.max(upper)),
+        "max_abs_theta_rad": float(np.max(sums[:, :, 2, :])),
+        "theta_rms_rad": theta_rms.tolist(),
+        "rate_hz": fr,
+        "realisations": k_runs,
+        "batches": batches,
+        "tau_s": tau,
+        "probe_settle_s": settle_p,
+        "probe_recorded_s": rec_p,
+        "simulated_s": k_runs * n_tot / fr,
+        "stopped_early": stopped_early,
+        "first_order_valid": first_order_valid,
+        "peak_error_over_peak_theta": ratio,
+        "how": how + (f"; stopped after {k_runs} run(s), the decision at {decide_at:g} being "
+                      "clear" if stopped_early else ""),
+    }
+
+
+def select_model(scene: Scene) -> dict:
+    """The model for ``acquisition.model`` and ``acquisition.error_budget``, and why.
+
+    ``auto``: ``linear`` if the upper predicted linearisation error
+    (:func:`predict_linearisation_error`) is within the budget, else ``nonlinear``; a forced
+    model is kept and the same prediction says whether the linear model meets the budget.
+    Returns a dict (JSON-ready): ``requested``, ``chosen``, ``error_budget``,
+    ``linear_meets_budget``, ``predicted_linear_error`` (the max over bodies), its ``upper``,
+    ``reason`` (a sentence), ``prediction`` (the predictor's dict, with ``how``).
+    """
+    acq = scene.settings["acquisition"]
+    requested = acq["model"]
+    if requested not in MODELS:
+        raise ConfigError(f"acquisition.model = {requested!r} is invalid: expected one of "
+                          f"{', '.join(MODELS)}")
+    budget = _error_budget(acq)
+    tic = time.perf_counter()
+    pred = predict_linearisation_error(scene, decide_at=budget)
+    e, up = pred["max"], pred["upper"]
+    # (a prediction stopped early as clearly under the budget is under it, whatever the
+    # Student-t factor of two runs makes of their scatter)
+    ok = (up <= budget or pred["stopped_early"] == "under") and pred["first_order_valid"]
+    th = ", ".join(f"{x:.2g}" for x in pred["theta_rms_rad"])
+    told = (f"the predicted linearisation error (relative RMS of the angles over the records) "
+            f"is {e:.2g} (upper {up:.2g}) at {th} rad rms")
+    if not pred["first_order_valid"]:
+        told += (f", and that is only an order of magnitude: the first-order error reaches "
+                 f"{pred['peak_error_over_peak_theta']:.2g} of the largest angle during the run")
+    if requested == "auto":
+        chosen = "linear" if ok else "nonlinear"
+        if ok:
+            reason = (f"auto: {told}, within the error budget {budget:g}: the exact linear model "
+                      "(round-off only) is the cheapest that meets it")
+        else:
+            reason = (f"auto: {told}, over the error budget {budget:g}: the linear model is not "
+                      "enough, the nonlinear model runs")
+    else:
+        chosen = requested
+        if requested == "linear":
+            reason = (f"forced by acquisition.model = 'linear'; {told}, "
+                      + (f"within the error budget {budget:g}" if ok else
+                         f"OVER the error budget {budget:g} ('auto' would run the nonlinear "
+                         "model)"))
+        else:
+            reason = (f"forced by acquisition.model = 'nonlinear'; {told}, "
+                      + (f"so the linear model would have met the budget {budget:g} ('auto' "
+                         "would run it)" if ok else f"over the budget {budget:g}"))
+    return {"requested": requested, "chosen": chosen, "error_budget": budget,
+            "linear_meets_budget": bool(ok), "predicted_linear_error": e,
+            "predicted_linear_error_upper": up, "reason": reason, "prediction": pred,
+            "predict_wall_time_s": time.perf_counter() - tic}
+
+
+# ================================================================================================
 # model information and error estimates
 # ================================================================================================
 
-def model_info(scene: Scene, *, seed=0, probe_s: float = 20.0, method: str = "rk4",
+def model_info(scene: Scene, *, seed=0, probe_s: float = 20.0, method: str | None = None,
                oversample: int = 8, substeps: int = 1) -> dict:
-    """Which model runs, how, and its error estimate (measured on a ``probe_s`` run of the
+    """Which model runs, why, how, and its error estimate (measured on a ``probe_s`` run of the
     scene's own drive from rest); see :meth:`BenchSimulation.model_info`."""
     return _model_info(build_model(scene, method=method, oversample=oversample,
                                    substeps=substeps), probe_s=probe_s, seed=seed)
 
 
 def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
+    """Angles of an n-sample run from rest through the full bench (sensors included)."""
     blk, _ = advance(model, start(model, seed), n)
     return blk.truth["theta_rad"]
 
 
+def _kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    """Angles at the DAC instants of the linear or lawson4 kernel alone (no sensors)."""
+    z = z0.copy()
+    z_out = np.empty((v.size, z.size))
+    if model.model == "linear":
+        linear_bench_kernel(model.phi, model.gamma, v, z, z_out)
+    else:
+        e_h, e_2, g_h, g_2 = model.lawson
+        rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
+                                1.0 / (model.fs_hz * model.substeps), model.substeps, v, z, z_out,
+                                np.empty(v.size))
+    return z_out[:, model.slices["theta_rad"]]
+
+
+def _rel_rms(diff: np.ndarray, ref: np.ndarray) -> float:
+    """max over bodies of rms(diff_j) / rms(ref_j) (0 where nothing moves)."""
+    num = np.sqrt(np.mean(diff**2, axis=0))
+    den = np.sqrt(np.mean(ref**2, axis=0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(den > 0, num / den, 0.0)
+    return float(np.max(r))
+
+
 def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
     scene = model.scene
+    acq = scene.settings["acquisition"]
     fs = model.fs_hz
     n = max(1, int(round(probe_s * fs)))
+    tic = time.perf_counter()
+    sel = model.selection if model.selection is not None else select_model(scene)
+    budget = sel["error_budget"]
     info = {
         "model": model.model,
+        "requested_model": acq["model"],
+        "error_budget": budget,
+        "reason": sel["reason"],
         "fs_hz": fs,
         "hold": "zoh: the source DAC value is held for 1/fs; the stage acceleration it makes is "
                 "continuous",
@@ -834,40 +1214,74 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
         "states": model.state_names(),
         "seed": model_seed(model, seed),
         "probe_s": probe_s,
+        "selection": sel,
     }
-    lev = stationary_levels(scene)
+    pred = sel["prediction"]
     _, q = scene.chain.modes()
-    qmax = float(np.max(q))
-    th3 = 3 * max(lev["theta_rad"])
+    qmax = float(np.max(q)) if q.size else math.inf
+    th3 = 3 * max(pred["theta_rms_rad"])
     shift = th3**2 / 16  # relative frequency shift of a pendulum at amplitude th3
     info["linearity"] = {
-        "stationary_theta_rms_rad": lev["theta_rad"],
+        "theta_rms_rad": pred["theta_rms_rad"],
         "frequency_shift_at_3_sigma": shift,
         "half_bandwidth": 1 / (2 * qmax),
         "shift_over_half_bandwidth": shift * 2 * qmax,
-        "how": "analytic stationary rms angles of the linear bench under the scene's source; a "
-               "pendulum's frequency falls by ~A^2/16 at amplitude A (here 3 rms of the larger "
-               "angle), compared with the highest-Q mode's half-power half-bandwidth 1/(2Q)",
+        "predicted_linear_error": pred["max"],
+        "how": "rms angles of the linear bench under the scene's source (the predictor's runs); "
+               "a pendulum's frequency falls by ~A^2/16 at amplitude A (here 3 rms of the larger "
+               "angle), compared with the highest-Q mode's half-power half-bandwidth 1/(2Q). The "
+               "decision uses the predicted error ('selection'), not this rule of thumb",
     }
-    tic = time.perf_counter()
+    root, children = _spawn(seed)
+    v, _ = generate(model.source, start_source(model.source, children[0]), n)
+    z0 = np.array(start(model, root).z)
     if model.model == "linear":
         info["method"] = ("exact discretisation (zero-order hold, matrix exponential) of the "
                           "coupled linear bench: coil, stage, linearised pendulum"
                           + (" with its reaction" if model.stage.reaction else "")
                           + ", accelerometer high-pass; compiled loop, one step per DAC sample")
-        theta = _probe_theta(model, n, seed)
-        # same system, two exact half steps per DAC sample
-        half = _half_step_model(model)
-        theta2 = _probe_theta(half, n, seed)
-        err = float(np.max(np.abs(theta - theta2)))
+        theta = _kernel_theta(model, v, z0)
+        theta2 = _kernel_theta(_half_step_model(model), v, z0)
+        e_disc = float(np.max(np.abs(theta - theta2)))
+        rel_disc = _rel_rms(theta - theta2, theta)
+        e_lin = pred["max"]
         info["error_estimate"] = {
-            "max_abs_theta_rad": err,
-            "relative_to_max_theta": err / max(float(np.max(np.abs(theta))), 1e-300),
+            "max_abs_theta_rad": pred["max_abs_theta_rad"] + e_disc,
+            "relative_rms_theta": e_lin + rel_disc,
+            "linearisation_relative_rms_theta": e_lin,
+            "linearisation_upper_relative_rms_theta": pred["upper"],
+            "discretisation_max_abs_theta_rad": e_disc,
+            "discretisation_relative_rms_theta": rel_disc,
         }
         info["error_method"] = (
-            f"|theta_h - theta_h/2| over a {probe_s:g} s probe of the scene's drive from rest, "
-            "against the same exact discretisation with two half steps per DAC sample: round-off "
-            "only (the linearisation is a model error, see 'linearity')")
+            "linearisation (the model error, against the nonlinear bench): predicted, see "
+            "selection.prediction.how; discretisation: |theta_h - theta_h/2| over a "
+            f"{probe_s:g} s probe of the scene's drive from rest against the same exact "
+            "discretisation with two half steps per DAC sample (round-off only)")
+    elif model.method == "lawson4":
+        loads = " that it loads (reaction)" if model.stage.reaction else ""
+        info["method"] = (f"nonlinear pendulum on the stage{loads}, the whole bench as one "
+                          "system (rig.coupled): the linear bench propagated exactly (matrix "
+                          "exponential, zero-order hold), the nonlinear remainder by Lawson's "
+                          f"RK4, {model.substeps} step(s) per DAC sample")
+        theta = _kernel_theta(model, v, z0)
+        fine = build_model(scene, method="lawson4", substeps=2 * model.substeps,
+                           selection=model.selection)
+        theta_f = _kernel_theta(fine, v, z0)
+        factor = 16.0 / 15.0
+        diff = (theta - theta_f) * factor
+        lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
+        info["error_estimate"] = {
+            "max_abs_theta_rad": float(np.max(np.abs(diff))),
+            "relative_rms_theta": _rel_rms(diff, theta),
+            "integrator_max_abs_theta_rad": float(np.max(np.abs(diff))),
+            "probe_nonlinear_minus_linear_relative_rms_theta": _rel_rms(theta - lin, theta),
+        }
+        info["error_method"] = (
+            f"Richardson on a {probe_s:g} s probe of the scene's drive from rest: |theta - "
+            "theta(2x steps)| 16/15 (order 4; the error is that of the small nonlinear "
+            "remainder: the linear part is exact). 'probe_nonlinear_minus_linear' is the model "
+            "difference on the probe (the run's is predicted in 'selection')")
     else:
         mi = METHODS[model.method]
         info["method"] = (f"nonlinear pendulum via rig.integrators {model.method} "
@@ -881,18 +1295,18 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
         theta_exact = _probe_theta(lin_model, n, seed)
         m = model.oversample
         zs = np.zeros(model.n_states - 2 * scene.chain.n)
-        v, _ = generate(model.source, start(model, seed).source, n)
         a_fine = np.empty(n * m + 1)
         stage_fine_kernel(model.stage_phi, model.stage_gamma, model.stage_accel_row, v, m, zs,
                           np.empty((n, zs.size)), a_fine)
         y0 = np.concatenate([scene.theta0_rad, scene.omega0_rad_s])
         lin = integrate(scene.chain, y0, a_fine, None, hold="linear", h_in=1 / (fs * m),
                         n_intervals=n * m, out_every=m, method="linear")
-        e_input = float(np.max(np.abs(lin.y_out[:n, :scene.chain.n] - theta_exact)))
+        d_input = lin.y_out[:n, :scene.chain.n] - theta_exact
+        e_input = float(np.max(np.abs(d_input)))
         # (2) integrator: Richardson against twice the steps
         fine = build_model(scene, method=model.method, oversample=model.oversample,
                            substeps=2 * model.substeps, rtol=model.rtol / 100,
-                           atol=model.atol / 100)
+                           atol=model.atol / 100, selection=model.selection)
         theta_f = _probe_theta(fine, n, seed)
         if mi.order is not None and mi.kind != "adaptive":
             factor = 2.0**mi.order / (2.0**mi.order - 1.0)
@@ -906,6 +1320,8 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
             "integrator_max_abs_theta_rad": e_int,
             "max_abs_theta_rad": e_input + e_int,
             "relative_to_max_theta": (e_input + e_int) / scale,
+            "relative_rms_theta": _rel_rms(d_input, theta) + _rel_rms((theta - theta_f) * factor,
+                                                                       theta),
             "nonlinear_minus_linear_max_abs_theta_rad": float(np.max(np.abs(theta - theta_exact))),
         }
         info["error_method"] = (
@@ -915,6 +1331,11 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
             "exact linear bench; (2) integrator: " + how_int + "; the sum is the estimate. "
             "'nonlinear_minus_linear' is the model difference (the linearisation's error) on "
             "the probe")
+    info["budget_met"] = bool(info["error_estimate"]["relative_rms_theta"] <= budget)
+    if not info["budget_met"]:
+        info["reason"] += (f". The estimated error of the model that runs, "
+                           f"{info['error_estimate']['relative_rms_theta']:.2g}, is OVER the "
+                           f"budget {budget:g}")
     info["estimate_wall_time_s"] = time.perf_counter() - tic
     return info
 
@@ -938,4 +1359,5 @@ def _half_step_model(model: BenchModel) -> BenchModel:
 
 __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
-           "model_info", "MODELS", "NONLINEAR_METHODS", "STREAMS"]
+           "model_info", "select_model", "predict_linearisation_error", "MODELS",
+           "NONLINEAR_METHODS", "STREAMS"]

@@ -119,7 +119,7 @@ SECTIONS: dict[str, dict[str, Key]] = {
                              "(suspension ~0.1 Hz)"),
         "damping_nspm": Key("float", 1.0, "viscous damping of the guide [N s/m], >= 0"),
         "reaction": Key("bool", True, "the pendulum's reaction force loads the stage (linear "
-                        "model only)"),
+                        "and nonlinear models, rig/coupled.py)"),
     },
     "accelerometer": {  # piezoelectric + charge amplifier (rig/accelerometer.py)
         "sensitivity_vpmps2": Key("float", 1.0, "sensitivity [V per m/s^2] incl. the charge "
@@ -163,7 +163,14 @@ SECTIONS: dict[str, dict[str, Key]] = {
         "range_a_v": Key("float", 1.0, "ADC full scale of channel a, +-[V]"),
         "range_x_v": Key("float", 10.0, "ADC full scale of channel x, +-[V]"),
         "range_y_v": Key("float", 10.0, "ADC full scale of channel y, +-[V]"),
-        "model": Key("str", "linear", "pendulum model simulated", ("linear", "nonlinear")),
+        "model": Key("str", "auto", "pendulum model simulated: 'auto' picks the cheapest that "
+                     "meets error_budget (exact linear where the predicted linearisation error "
+                     "is inside it, else nonlinear); 'linear' or 'nonlinear' force one "
+                     "(rig/bench.py)", ("auto", "linear", "nonlinear")),
+        "error_budget": Key("float", 1e-2, "allowed relative RMS error of the simulated angles "
+                            "over the records (max over the bodies), > 0; decides model = "
+                            "'auto' and is checked for a forced model (the paper's default "
+                            "drive: the linear model is predicted 0.5 % off, rig/bench.py)"),
         "truth": Key("bool", True, "store the ground truth beside the channels"),
     },
 }

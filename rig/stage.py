@@ -36,8 +36,10 @@ acceleration has a deep, narrow notch at each fixed-base pendulum mode (for the 
 2.479 Hz), followed by a coupled resonance (+21 dB at 2.523 Hz); the angles per unit *stage
 acceleration* are unchanged, so H_t = x/a is not (that is why the analyzer divides by the
 measured a). With ``reaction = false`` the stage ignores the
-pendulum altogether (neither its mass nor its swinging loads the stage). The nonlinear pendulum
-model is only available without the reaction (:mod:`rig.bench` raises a ConfigError otherwise).
+pendulum altogether (neither its mass nor its swinging loads the stage). Nonlinear, the reaction
+is ``F_p = m x0'' + sum_j S_j (cos th_j th_j'' - sin th_j th_j'^2)``, the rate of the momentum
+above; :mod:`rig.coupled` integrates stage and nonlinear pendulum together with it (the chain's
+force is affine in ``x0''``, so the stage equation is solved for ``x0''`` at every evaluation).
 
 Defaults and their justification (``ishizaki2009`` pendulum, default source 0.1 V rms, 0-12.5 Hz)
 -----------------------------------------------------------------------------------------------

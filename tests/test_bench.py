@@ -11,6 +11,7 @@ from rig.bench import (BenchSimulation, advance, build_model, calibrations, expe
 from rig.blocks import AnalogBlock
 from rig.errors import ConfigError, DivergenceError
 from rig.scene import load_scene
+from rig.stage import Stage
 
 QUIET = ["accelerometer.noise_mps2_rthz=0", "psd.noise_m_rthz=0"]
 CHIRP = ["source.type=periodic-chirp", "source.period_s=10", "source.fmax_hz=20"]
@@ -44,11 +45,13 @@ def test_paper_run_with_the_linear_model_takes_well_under_a_few_seconds():
     assert cpu < 4.0  # ~1.4 s CPU on an idle core; the bound leaves room for a shared machine
 
 
-@pytest.mark.parametrize("model", ["linear", "nonlinear"])
-def test_blocks_reproduce_a_one_shot_run_bit_for_bit(model):
-    sc = ishizaki(f"acquisition.model={model}", "stage.reaction=false")
-    one = BenchSimulation(sc, seed=3).run(3.0)
-    sim = BenchSimulation(sc, seed=3)
+@pytest.mark.parametrize("model, reaction, method", [
+    ("linear", "false", None), ("nonlinear", "false", "rk4"), ("nonlinear", "true", "lawson4"),
+    ("nonlinear", "false", "lawson4")])
+def test_blocks_reproduce_a_one_shot_run_bit_for_bit(model, reaction, method):
+    sc = ishizaki(f"acquisition.model={model}", f"stage.reaction={reaction}")
+    one = BenchSimulation(sc, seed=3, method=method).run(3.0)
+    sim = BenchSimulation(sc, seed=3, method=method)
     parts = [sim.next_block(k) for k in (1, 999, 1700, 300)]
     for ch in ("a", "x", "y"):
         assert np.concatenate([p.volts[ch] for p in parts]).tobytes() == one.volts[ch].tobytes()
@@ -234,15 +237,17 @@ def test_signals_stay_well_above_the_sensor_noise_over_most_of_the_band():
 
 
 def test_nonlinear_model_agrees_with_the_exact_linear_bench_within_its_error_estimate():
-    # a weak drive makes the nonlinearity (~theta^2 ~ 1e-8 relative) negligible: what is left is
-    # the interpolation of the stage acceleration between sub-instants, which the estimate measures
-    # (the raw DAC staircase, no reconstruction filter: the acceleration has kinks to interpolate)
+    # the prescribed-stage path (rig.integrators rk4 on the exact stage acceleration, linear
+    # between sub-instants). A weak drive makes the nonlinearity (~theta^2 ~ 1e-8 relative)
+    # negligible: what is left is the interpolation of the stage acceleration between
+    # sub-instants, which the estimate measures (the raw DAC staircase, no reconstruction filter:
+    # the acceleration has kinks to interpolate)
     over = ["stage.reaction=false", "source.level_vrms=0.01", "source.reconstruction_hz=0", *QUIET]
-    lin = BenchSimulation(ishizaki(*over), seed=4).run(10.0)
+    lin = BenchSimulation(ishizaki(*over, "acquisition.model=linear"), seed=4).run(10.0)
     nl_scene = ishizaki(*over, "acquisition.model=nonlinear")
     errs = {}
     for m in (4, 8):
-        sim = BenchSimulation(nl_scene, seed=4, oversample=m)
+        sim = BenchSimulation(nl_scene, seed=4, method="rk4", oversample=m)
         nl = sim.run(10.0)
         diff = np.max(np.abs(nl.truth["theta_rad"] - lin.truth["theta_rad"]))
         info = sim.model_info(probe_s=10.0)
@@ -255,17 +260,103 @@ def test_nonlinear_model_agrees_with_the_exact_linear_bench_within_its_error_est
     assert errs[4] / errs[8] == pytest.approx(4.0, rel=0.15)  # O((h / oversample)^2)
 
 
-def test_nonlinear_model_with_the_stage_reaction_is_refused():
-    with pytest.raises(ConfigError, match=r"acquisition\.model = 'nonlinear' is not supported "
-                                          r"with stage\.reaction = true"):
-        BenchSimulation(ishizaki("acquisition.model=nonlinear"))
+def test_prescribed_stage_methods_are_refused_with_the_stage_reaction():
+    with pytest.raises(ConfigError, match=r"method = 'rk4' is not supported with "
+                                          r"stage\.reaction = true: .* Use method 'lawson4'"):
+        BenchSimulation(ishizaki("acquisition.model=nonlinear"), method="rk4")
+    with pytest.raises(ConfigError, match=r"method = 'euler' is invalid: expected one of lawson4"):
+        BenchSimulation(ishizaki("acquisition.model=nonlinear"), method="euler")
 
 
-def test_linear_model_info_reports_round_off_only():
-    info = model_info(ishizaki(), probe_s=5.0)
+def test_linear_model_info_reports_round_off_and_the_predicted_linearisation_error():
+    info = model_info(ishizaki("acquisition.model=linear"), probe_s=5.0)
     assert info["model"] == "linear" and "exact discretisation" in info["method"]
-    assert info["error_estimate"]["relative_to_max_theta"] < 1e-10
+    est = info["error_estimate"]
+    assert list(est)[0] == "max_abs_theta_rad"  # what `daq acquire` prints first
+    assert est["discretisation_relative_rms_theta"] < 1e-10  # round-off
+    # the model error dominates: the Q = 530 mode turns a 1e-5 frequency shift into ~0.5 %
+    lin = est["linearisation_relative_rms_theta"]
+    assert lin == info["selection"]["predicted_linear_error"] and 2e-3 < lin < 1e-2
+    assert est["relative_rms_theta"] == pytest.approx(lin, rel=1e-6)
     assert info["states"][:3] == ["coil_current_a", "stage_disp_m", "stage_vel_mps"]
+    assert info["budget_met"] and info["selection"]["linear_meets_budget"]
+
+
+# -- the coupled nonlinear bench (rig.coupled, method lawson4) ---------------------------------
+
+def test_coupled_nonlinear_bench_at_small_amplitude_is_the_exact_linear_bench():
+    # 1 mV drive: theta ~ 6e-5 rad, the nonlinearity ~ Q theta^2 ~ 1e-6 relative; the Lawson
+    # scheme propagates the linear part exactly, so nothing else separates the two
+    over = [*QUIET, "source.level_vrms=0.001"]
+    lin = BenchSimulation(ishizaki(*over, "acquisition.model=linear"), seed=6).run(20.0)
+    nl = BenchSimulation(ishizaki(*over, "acquisition.model=nonlinear"), seed=6).run(20.0)
+    for key in ("theta_rad", "stage_accel_mps2", "stage_disp_m", "coil_current_a"):
+        a, b = lin.truth[key], nl.truth[key]
+        assert np.sqrt(np.mean((a - b) ** 2)) < 1e-6 * np.sqrt(np.mean(a**2)), key
+    for ch in "axy":
+        assert np.max(np.abs(lin.volts[ch] - nl.volts[ch])) < 1e-5 * np.max(np.abs(lin.volts[ch]))
+
+
+def test_coupled_bench_difference_from_linear_is_the_first_order_perturbation():
+    # the same drive through both models: (nonlinear - linear) is, to O(e^2), the linear bench's
+    # response to the nonlinear remainder along the linear trajectory (rig.coupled.
+    # first_order_kernel on the full bench at the DAC rate, zero-order hold of V)
+    from rig.coupled import first_order_kernel
+    from rig.source import generate, start_source
+
+    over = [*QUIET, "source.level_vrms=0.1", "acquisition.model=nonlinear"]
+    sim = BenchSimulation(ishizaki(*over), seed=8)
+    nl = sim.run(60.0)
+    lin = BenchSimulation(ishizaki(*over[:-1], "acquisition.model=linear"), seed=8).run(60.0)
+    d = lin.truth["theta_rad"] - nl.truth["theta_rad"]
+    measured = np.sqrt(np.mean(d**2, 0) / np.mean(nl.truth["theta_rad"] ** 2, 0))
+    m = sim.model
+    p = m.coupled
+    phi, gam = m.phi, m.gamma
+    bf = np.zeros((m.n_states, p.rows.size))
+    bf[p.rows, np.arange(p.rows.size)] = 1.0
+    from rig.integrators import discretise
+
+    _, gf0, gf1 = discretise(m.a, bf, 1e-3, "linear")
+    v, _ = generate(m.source, start_source(m.source, np.random.SeedSequence(8).spawn(4)[0]),
+                    60_000)
+    np.testing.assert_array_equal(v, nl.truth["source_v"])
+    sums, peaks = np.zeros((1, 3, 2)), np.zeros((2, 2))
+    first_order_kernel(*p.args(), phi, gam, np.zeros_like(gam), gf0, gf1, v,
+                       np.zeros(m.n_states), np.zeros(m.n_states), 0, 1, sums, peaks)
+    predicted = np.sqrt(sums[0, 1] / sums[0, 0])
+    assert np.max(peaks[1]) < 0.1 * np.max(peaks[0])  # the first order holds all along
+    assert 1e-4 < measured[0] < 1e-2  # a measurable nonlinearity
+    np.testing.assert_allclose(measured, predicted, rtol=0.02)
+
+
+def test_free_stage_conserves_momentum_and_energy_within_the_estimate():
+    # no spring, no guide damping, a (practically) disconnected coil, no drive, undamped chain:
+    # the stage recoils as the double rod swings; horizontal momentum and total energy are
+    # conserved by the equations, so their drift is the integrator's (Richardson at 2x steps)
+    from rig.coupled import energy, horizontal_momentum
+
+    over = ["source.level_vrms=0", "stage.stiffness_npm=0", "stage.damping_nspm=0",
+            "stage.force_constant_npa=1e-9", "initial.theta0_rad=[1.0, -0.5]",
+            "acquisition.model=nonlinear", "acquisition.settle_s=0", *QUIET]
+    sc = load_scene("double-rod", over)
+    runs = {}
+    for sub in (1, 2):
+        b = BenchSimulation(sc, seed=0, substeps=sub).run(10.0)
+        t = b.truth
+        runs[sub] = (horizontal_momentum(sc.chain, Stage.from_settings(sc.settings["stage"]),
+                                         t["theta_rad"], t["omega_rad_s"], t["stage_vel_mps"]),
+                     energy(sc.chain, Stage.from_settings(sc.settings["stage"]), t["theta_rad"],
+                            t["omega_rad_s"], t["stage_disp_m"], t["stage_vel_mps"]),
+                     t["stage_vel_mps"])
+    p1, e1, v1 = runs[1]
+    p2, e2, _ = runs[2]
+    assert np.max(np.abs(v1)) > 0.3  # the stage really recoils (m = 2 kg on M = 2 kg)
+    for q1, q2 in ((p1, p2), (e1, e2)):
+        drift = np.max(np.abs(q1 - q1[0]))
+        estimate = np.max(np.abs(q1 - q2)) * 16 / 15
+        assert drift <= 1.5 * estimate + 1e-12 * np.max(np.abs(q1)), (drift, estimate)
+    assert np.max(np.abs(e1 - e1[0])) < 1e-7 * abs(e1[0])
 
 
 def test_blocks_have_the_documented_contents():

@@ -187,3 +187,66 @@ def test_bad_stage_value_in_a_scene_is_reported_when_the_bench_is_built():
     sc = ishizaki("stage.moving_mass_kg=-3")
     with pytest.raises(ConfigError, match=r"stage\.moving_mass_kg = -3\.0 is invalid"):
         BenchSimulation(sc)
+
+
+# -- the nonlinear reaction (rig.coupled) --------------------------------------------------------
+
+def random_chain(rng, n, mode):
+    from rig.chain import Chain
+
+    m = rng.uniform(0.5, 2.0, n)
+    l = rng.uniform(0.3, 1.5, n)
+    c = l * rng.uniform(0.1, 0.9, n)
+    j = m * l**2 * rng.uniform(0.01, 0.2, n)
+    return Chain(m, l, c, j, rng.uniform(0.0, 0.5, n), damping_mode=mode)
+
+
+@pytest.mark.parametrize("reaction", [True, False])
+@pytest.mark.parametrize("mode", ["absolute", "relative"])
+@pytest.mark.parametrize("n", [1, 2, 3, 12])
+def test_nonlinear_stage_acceleration_solves_the_stage_equation_with_the_chains_force(
+        n, mode, reaction):
+    """At any state the coupled kernels' x0'' satisfies M x0'' = Kf i - k x0 - c v0 + F_chain,
+    F_chain = rig.chain.Chain.base_force at that x0'' (zero without the reaction), and theta''
+    are the chain's accelerations on that base; n = 2 (dense) and the O(n) recursion agree."""
+    from rig.coupled import accelerations, coupled_params
+
+    rng = np.random.default_rng(10 * n + reaction)
+    for _ in range(4):
+        ch = random_chain(rng, n, mode)
+        st = Stage(reaction=reaction, stiffness_npm=0.5, damping_nspm=0.3)
+        p = coupled_params(ch, st, st.state_space(ch).a)
+        z = np.concatenate([rng.normal(size=3), rng.uniform(-2, 2, n), rng.uniform(-3, 3, n)])
+        th, om = z[3:3 + n], z[3 + n:]
+        ax, alpha = accelerations(p, z)
+        fext = st.force_constant_npa * z[0] - st.stiffness_npm * z[1] - st.damping_nspm * z[2]
+        f_chain = ch.base_force(th, om, ax) if reaction else 0.0
+        scale = abs(fext) + abs(ch.base_force(th, om, ax)) + 1.0
+        assert abs(st.moving_mass_kg * ax - fext - f_chain) < 1e-13 * scale
+        np.testing.assert_allclose(alpha, ch.accelerations(th, om, ax), rtol=1e-11, atol=1e-12)
+        if n == 2:
+            ax_r, alpha_r = accelerations(p, z, recursive=True)
+            assert ax_r == pytest.approx(ax, rel=1e-13, abs=1e-14)
+            np.testing.assert_allclose(alpha_r, alpha, rtol=1e-12, atol=1e-13)
+
+
+@pytest.mark.parametrize("reaction", [True, False])
+@pytest.mark.parametrize("n", [2, 5])
+def test_nonlinear_remainder_vanishes_quadratically_so_it_linearises_to_the_state_space(
+        n, reaction):
+    """f(z) = (nonlinear - linear) derivative in the rows of v0, omega: O(|z|^3), so relative to
+    the linear derivative it falls by 100 when the state shrinks by 10 (the coupled mass matrix
+    [[M + m, S^T], [S, H]] of Stage.state_space is the exact linearisation)."""
+    from rig.coupled import coupled_params, remainder
+
+    rng = np.random.default_rng(n)
+    ch = random_chain(rng, n, "relative")
+    st = Stage(reaction=reaction)
+    a = st.state_space(ch).a
+    p = coupled_params(ch, st, a)
+    z = np.concatenate([rng.normal(size=3) * 1e-2, rng.uniform(-1, 1, 2 * n)])
+    rel = []
+    for eps in (1e-2, 1e-3):
+        ze = z * eps
+        rel.append(np.max(np.abs(remainder(p, ze))) / np.max(np.abs((a @ ze)[p.rows])))
+    assert rel[0] < 1e-2 and rel[1] / rel[0] == pytest.approx(1e-2, rel=0.05)
