@@ -46,13 +46,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
-import scipy.signal
 
 from processing.spectra import (
     SegmentFFTs,
     SettingsError,
     SpectralSettings,
+    _autocorrelation,
     _readonly,
     _require_cross,
     _wrap_deg,
@@ -263,8 +262,7 @@ def expected_h1(impulse_response, settings: SpectralSettings) -> np.ndarray:
     h = np.asarray(impulse_response, dtype=float)
     if h.ndim != 1 or h.size == 0:
         raise SettingsError(f"impulse_response has shape {h.shape}: expected (n_taps,)")
-    w = settings.window_array
     n = settings.nperseg
-    r = scipy.signal.correlate(w, w, mode="full")[n - 1:] / np.dot(w, w)
+    r = _autocorrelation(settings.window_array)
     m = min(n, h.size)
-    return scipy.fft.rfft(h[:m] * r[:m], n=n)[: settings.freqs_hz.size]
+    return np.fft.rfft(h[:m] * r[:m], n=n)[: settings.freqs_hz.size]

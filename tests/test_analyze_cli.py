@@ -13,7 +13,9 @@ What each test proves:
 * nothing is overwritten without ``--force`` (checked before any work: no output at all
   appears), and ``--force`` replaces;
 * bad inputs fail with exit status 1 or 2 and a message naming the value and what is valid;
-* an interrupted run is analysed with its finished records, and says so.
+* an interrupted run is analysed with its finished records, and says so;
+* importing the analyzer imports neither scipy nor matplotlib, and ``daq analyze`` without
+  ``--plot`` never imports matplotlib (a fresh interpreter, so nothing else loaded them).
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from __future__ import annotations
 import csv
 import hashlib
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -200,3 +204,19 @@ def test_an_interrupted_run_is_analysed_with_its_finished_records(runner, tmp_pa
            "planned" in res.output
     assert "H1: 3 averages" in res.output
     assert csv_path.read_text().startswith(",".join(CSV_COLUMNS))
+
+
+def test_the_analyzer_imports_scipy_and_matplotlib_only_when_needed(run_file):
+    code = (
+        "import sys\n"
+        "import processing, processing.analysis, processing.compare, processing.modal\n"
+        "import processing.report, processing.frf, processing.spectra\n"
+        "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'matplotlib'})\n"
+        "from click.testing import CliRunner\n"
+        "from daq.cli import main\n"
+        f"res = CliRunner().invoke(main, ['analyze', {str(run_file)!r}])\n"
+        "assert res.exit_code == 0, res.output\n"
+        "print(heavy, 'matplotlib' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["[]", "False"]

@@ -157,6 +157,12 @@ def test_fraction_helpers():
     p30 = expected_fraction_within(2.0, 30)
     assert p30 == pytest.approx(1 - 2 * scipy.stats.t.sf(2 * math.sqrt(29 / 30), 58), rel=1e-12)
     assert 0.94 < p30 < 0.95
+    # The Student-t law is computed without scipy (its incomplete beta function, ~1e-15):
+    for k, nd in ((0.5, 2.1), (1.0, 6.0), (2.0, 6.0), (3.0, 4.5), (2.0, 28.4), (4.0, 100.0),
+                  (2.0, 1000.0)):
+        x = k * math.sqrt((nd - 1) / nd)
+        ref = 1 - 2 * scipy.stats.t.sf(x, 2 * (nd - 1))
+        assert expected_fraction_within(k, nd) == pytest.approx(ref, rel=1e-12, abs=1e-13)
     np.testing.assert_allclose(line_correlation(SETTINGS), [1, 4 / 9, 1 / 36], rtol=1e-9)
     np.testing.assert_allclose(line_correlation(SpectralSettings(fs=1, nperseg=64,
                                                                  window="uniform")), [1])

@@ -112,6 +112,23 @@ def test_sine_rms_exact_on_a_line(window):
     np.testing.assert_allclose(dens.values * s.window_info.enbw_hz, sp.values, rtol=1e-14)
 
 
+@pytest.mark.parametrize("window", ["hann", "flattop"])
+@pytest.mark.parametrize("n", [2, 7, 1024, 10_000])
+def test_windows_are_scipys_periodic_windows(window, n):
+    """The windows are computed without scipy, sample for sample as scipy.signal computes them."""
+    got = SpectralSettings(fs=FS, nperseg=n, window=window).window_array
+    np.testing.assert_array_equal(got, scipy.signal.get_window(window, n, fftbins=True))
+
+
+def test_window_autocorrelation_by_fft_equals_the_direct_sum():
+    from processing.spectra import _autocorrelation
+
+    for window in WINDOWS:
+        w = SpectralSettings(fs=FS, nperseg=1000, window=window).window_array
+        direct = np.correlate(w, w, mode="full")[999:] / np.dot(w, w)
+        np.testing.assert_allclose(_autocorrelation(w), direct, rtol=0, atol=1e-13)
+
+
 def test_window_constants():
     assert SpectralSettings(fs=FS, nperseg=1024, window="hann").window_info.enbw_bins == \
         pytest.approx(1.5)
