@@ -53,7 +53,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal
 
 from rig.errors import ConfigError
 
@@ -154,6 +153,8 @@ class AntiAliasFilter:
         if kind == "none":
             order, sos = 0, np.array([[1.0, 0, 0, 1.0, 0, 0]])
         else:
+            from scipy import signal  # imported when used: scipy.signal costs ~1 s to import
+
             order, wn = signal.ellipord(fp, fst, ripple_db, attenuation_db, fs=fs_hz)
             sos = signal.ellip(order, ripple_db, attenuation_db, wn, btype="low", output="sos",
                                fs=fs_hz)
@@ -182,6 +183,8 @@ class AntiAliasFilter:
         """Group delay -d(phase)/d(omega) at ``freqs_hz`` [s] (per section, summed)."""
         f = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
         tau = np.zeros(f.shape)
+        from scipy import signal
+
         for sec in self.sos:
             _, gd = signal.group_delay((sec[:3], sec[3:]), w=f, fs=self.fs_hz)
             tau += gd
@@ -224,6 +227,8 @@ class AntiAliasFilter:
         if self.kind == "none":
             y, zi = x, state.zi
         else:
+            from scipy import signal
+
             y, zi = signal.sosfilt(self.sos.copy(), x, axis=-1, zi=state.zi)
         return (np.ascontiguousarray(y[..., sl]),
                 FilterState(zi=zi, phase=(state.phase - n) % self.decimation))

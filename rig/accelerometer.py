@@ -44,7 +44,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
@@ -187,6 +186,8 @@ class Accelerometer:
                 prev = np.concatenate([[state.last_accel_mps2], a[:-1]])
                 drive = g0 * prev + g1 * (a - prev)
                 zi = np.array([phi * state.q])
+            import scipy.signal  # imported when used: scipy.signal costs ~1 s to import
+
             q, _ = scipy.signal.lfilter([1.0], [1.0, -phi], drive, zi=zi)
         new = AccelerometerState(q=float(q[-1]), last_accel_mps2=float(a[-1]))
         volts, over = self.output(self.sensed(a, q), fs_hz, rng, noise=noise)

@@ -68,7 +68,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-import scipy.signal
 
 from rig.errors import ConfigError
 
@@ -193,6 +192,8 @@ class Source:
             return None
         # the unit-corner prototype (O(1) coefficients) with time scaled by the corner:
         # H(s / wc) has the realisation (wc a, wc b, c)
+        import scipy.signal  # imported when used: scipy.signal costs ~1 s to import
+
         wc = 2 * np.pi * self.reconstruction_hz
         z, p, k = scipy.signal.buttap(self.reconstruction_order)
         a, b, c, d = scipy.signal.zpk2ss(z, p, k)
@@ -204,6 +205,8 @@ class Source:
         f = np.atleast_1d(np.asarray(freqs_hz, float))
         if self.reconstruction_hz == 0:
             return np.ones(f.shape, complex)
+        import scipy.signal
+
         z, p, k = scipy.signal.butter(self.reconstruction_order,
                                       2 * np.pi * self.reconstruction_hz, analog=True,
                                       output="zpk")
