@@ -261,8 +261,11 @@ def _model_lines(info: dict) -> list[str]:
     est = info.get("error_estimate", "-")
     if isinstance(est, dict):
         est = ", ".join(f"{k} {_fmt(v)}" for k, v in est.items())
-    return [f"model: {info.get('model', '-')}", f"  method: {info.get('method', '-')}",
-            f"  error estimate: {_fmt(est)}"]
+    lines = [f"model: {info.get('model', '-')}", f"  method: {info.get('method', '-')}",
+             f"  error estimate: {_fmt(est)}"]
+    if info.get("reason"):
+        lines.append(f"  why this model: {info['reason']}")
+    return lines
 
 
 @main.command()
