@@ -478,3 +478,6 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
 
 if __name__ == "__main__":
     sys.exit(main())
+
+from daq.bench_cmd import bench
+main.add_command(bench)

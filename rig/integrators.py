@@ -23,16 +23,30 @@ midpoint   2      implicit  1-stage Gauss (implicit midpoint) in (theta, p): sym
 linear     exact  exact     exact discretisation of the *linearised* model for the held input;
                             only round-off (the linearisation is a model error, ~ theta^3;
                             the vertical input y0'' drops out of it at first order)
+etd3       3      exponen-  the linearised chain and the held input exactly (as ``linear``), the
+                  tial      nonlinear remainder N by 2-node Gauss exponential quadrature with
+                            extrapolated stages: error O(h^3 |N| |dN/dz| + h^4 |A|^2 |N|), i.e.
+                            proportional to the nonlinearity; 2 evaluations of N per step. For
+                            weakly nonlinear runs (the paper's pendulum: 1e-9 relative at the
+                            1 kHz input rate, rk4 there: 1e-7); no better than an explicit
+                            3rd-order method when the motion is far from linear
 =========  =====  ========  ===================================================================
 
 All hot loops are ``numba.njit(cache=True)`` kernels (releasing the GIL) that run a whole block
-(many input intervals) per call into caller-owned output arrays; the state goes in and the state comes out. Non-finite
-values are looked for once per output sample (not per step); :func:`integrate` turns a kernel's
-status into :class:`rig.errors.DivergenceError` with the time and the last finite state.
+(many input intervals) per call into caller-owned output arrays; the state goes in and the state
+comes out. Non-finite values are looked for once per output sample (not per step);
+:func:`integrate` turns a kernel's status into :class:`rig.errors.DivergenceError` with the time
+and the last finite state.
 
 The kernels have their own right-hand sides (see :func:`rhs`; scalar code for n = 2, O(n)
-transcendental calls for any n); tests hold them to :func:`rig.chain.accel_kernel`. They do not call
-into ``rig.chain``'s kernels, so numba's per-file cache cannot go stale when ``chain.py`` changes.
+transcendental calls for any n: a dense mass-matrix solve, O(n^3), or the articulated-body
+recursion, O(n), chosen by :func:`rhs_algorithm`); tests hold them to
+:func:`rig.chain.accel_kernel`. They do not call into ``rig.chain``'s kernels, so numba's per-file
+cache cannot go stale when ``chain.py`` changes. Sines and cosines of angles up to
+:data:`SINCOS_POLY_MAX` come from inlined polynomials (within 2 ulp of libm), which lets several of
+them overlap in the pipeline; the n = 2 etd3 kernel and the recursion are compiled with
+``fastmath={"contract"}`` (fused multiply-adds only: no reassociation, same results for any block
+split).
 
 References
 ----------
@@ -40,11 +54,15 @@ E. Hairer, S. P. Norsett, G. Wanner, *Solving Ordinary Differential Equations I:
 Problems*, 2nd ed., Springer 1993, sections II.4 (step size control, initial step) and II.5 (the
 Dormand-Prince 8(5,3) pair, code DOP853). E. Hairer, C. Lubich, G. Wanner, *Geometric Numerical
 Integration*, 2nd ed., Springer 2006, sections II.1.3, VI.4, VIII.6 (Gauss methods, fixed-point
-iteration of the stage equations).
+iteration of the stage equations). M. Hochbruck, A. Ostermann, Exponential integrators, *Acta
+Numerica* 19 (2010) 209-286 (exponential quadrature and Runge-Kutta methods; the etd3 stages are a
+predicted rather than iterated exponential collocation on the Gauss nodes). R. Featherstone,
+*Rigid Body Dynamics Algorithms*, Springer 2008, ch. 7 (articulated-body algorithm).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -66,11 +84,14 @@ class MethodInfo:
     ----------
     name : registry key.
     order : global order of accuracy p (error ~ h^p); ``None`` for the exact linear method.
-    kind : ``"fixed"``, ``"adaptive"``, ``"implicit"`` (fixed step, implicit stages) or ``"exact"``.
+    kind : ``"fixed"``, ``"adaptive"``, ``"implicit"`` (fixed step, implicit stages), ``"exact"``
+        or ``"exponential"`` (fixed step, the linearised chain exact).
     description : one line.
     symplectic : whether the map is symplectic for undamped, unforced chains (bounded energy error).
-    native : the state vector the kernel carries, ``"theta,omega"`` or ``"theta,p"`` with
-        ``p = M(theta) omega`` [kg m^2/s].
+    native : the state vector the kernel carries, ``"theta,omega"``, ``"theta,p"`` with
+        ``p = M(theta) omega`` [kg m^2/s], or ``"theta,omega,history"`` (etd3: theta, omega, then
+        a valid flag, the step the history belongs to [s] and the nonlinear remainder's three
+        parts at the previous step's two stages, 6n numbers).
     """
 
     name: str
@@ -94,6 +115,11 @@ METHODS: dict[str, MethodInfo] = {
                            symplectic=True, native="theta,p"),
     "linear": MethodInfo("linear", None, "exact",
                          "exact discretisation (matrix exponential) of the linearised model"),
+    "etd3": MethodInfo("etd3", 3, "exponential",
+                       "exponential integrator: the linearised chain and its held input exactly, "
+                       "the nonlinear remainder by 2-node Gauss exponential quadrature with "
+                       "extrapolated stages (2 evaluations per step)",
+                       native="theta,omega,history"),
 }
 
 # Kernel status codes
@@ -362,21 +388,188 @@ def _canon_n(hc, s, cm, g, y, ax, ay, f, r, w):
             f[r, n + k] += t
 
 
+# Taylor polynomials of sin and cos: on |x| <= SINCOS_POLY_MAX the truncated series (through x^15
+# and x^16) are within 2 ulp of math.sin/math.cos (the next terms are below 6e-18);
+# tests/test_exponential.py checks this on a dense grid.
+SINCOS_POLY_MAX = 0.8
+
+
+@numba.njit(cache=True, inline="always")
+def _sincos_poly(x):
+    """(sin x, cos x) by their Taylor polynomials, for |x| <= SINCOS_POLY_MAX only (Estrin's
+    scheme: the dependency chain is 5 multiplications deep instead of Horner's 9)."""
+    x2 = x * x
+    x4 = x2 * x2
+    x8 = x4 * x4
+    # sin x / x = sum_k a_k x2^k, k = 0..7
+    s01 = 1.0 + x2 * (-1.0 / 6.0)
+    s23 = 1.0 / 120.0 + x2 * (-1.0 / 5040.0)
+    s45 = 1.0 / 362880.0 + x2 * (-1.0 / 39916800.0)
+    s67 = 1.0 / 6227020800.0 + x2 * (-1.0 / 1307674368000.0)
+    sn = x * ((s01 + x4 * s23) + x8 * (s45 + x4 * s67))
+    # cos x = sum_k b_k x2^k, k = 0..8
+    c01 = 1.0 + x2 * (-0.5)
+    c23 = 1.0 / 24.0 + x2 * (-1.0 / 720.0)
+    c45 = 1.0 / 40320.0 + x2 * (-1.0 / 3628800.0)
+    c67 = 1.0 / 479001600.0 + x2 * (-1.0 / 87178291200.0)
+    c8 = 1.0 / 20922789888000.0
+    cs = (c01 + x4 * c23) + x8 * ((c45 + x4 * c67) + x8 * c8)
+    return sn, cs
+
+
+@numba.njit(cache=True, inline="always")
+def _sincos(x):
+    """(sin x, cos x): the polynomial for |x| <= SINCOS_POLY_MAX, libm otherwise."""
+    if abs(x) <= SINCOS_POLY_MAX:
+        return _sincos_poly(x)
+    return math.sin(x), math.cos(x)
+
+
+@numba.njit(cache=True, fastmath={"contract"})
+def _rhs_rec(bod, g, y, ax, ay, f, r, w):
+    """f[r] = (omega, th'') for y = (theta, omega), any n, in O(n) operations.
+
+    The articulated-body recursion of :func:`rig.chain.accel_recursive_kernel` (the same
+    equations, eliminated from the tip up; see its docstring), with each body's sin and cos
+    computed once (kept in w[j, 4:6]). ``bod`` (6, n) holds the rows mass, length, com, inertia,
+    damping and (row 5, any column) 1.0 for relative damping; ``w`` is scratch of shape (n, >= 6).
+    """
+    n = bod.shape[1]
+    relative = bod[5, 0] != 0.0
+    gx = -ax
+    gy = -(g + ay)
+    c11 = 0.0
+    c12 = 0.0
+    c22 = 0.0
+    cb1 = 0.0
+    cb2 = 0.0
+    for j in range(n - 1, -1, -1):
+        om = y[n + j]
+        st, ct = _sincos(y[j])
+        w[j, 4] = st
+        w[j, 5] = ct
+        m = bod[0, j]
+        l = bod[1, j]
+        c = bod[2, j]
+        w2 = om * om
+        if relative:
+            tau = -bod[4, j] * (om - (y[n + j - 1] if j > 0 else 0.0))
+            if j + 1 < n:
+                tau += bod[4, j + 1] * (y[n + j + 1] - om)
+        else:
+            tau = -bod[4, j] * om
+        # A' n and A' e of the child's articulated inertia A' (symmetric); e = (st, -ct),
+        # n = (ct, st)
+        an_x = c11 * ct + c12 * st
+        an_y = c12 * ct + c22 * st
+        ae_x = c11 * st - c12 * ct
+        ae_y = c12 * st - c22 * ct
+        bo_x = -l * w2 * ae_x + cb1
+        bo_y = -l * w2 * ae_y + cb2
+        bi_x = -m * c * w2 * st + bo_x - m * gx
+        bi_y = m * c * w2 * ct + bo_y - m * gy
+        ux = m * c * ct + l * an_x
+        uy = m * c * st + l * an_y
+        d = bod[3, j] + m * c * c + l * l * (ct * an_x + st * an_y)
+        beta = c * (ct * bi_x + st * bi_y) + (l - c) * (ct * bo_x + st * bo_y) - tau
+        w[j, 0] = ux
+        w[j, 1] = uy
+        w[j, 3] = beta
+        dinv = 1.0 / d
+        w[j, 2] = dinv
+        c11 = m + c11 - ux * ux * dinv
+        c12 = c12 - ux * uy * dinv
+        c22 = m + c22 - uy * uy * dinv
+        cb1 = bi_x - ux * beta * dinv
+        cb2 = bi_y - uy * beta * dinv
+    apx = 0.0
+    apy = 0.0
+    for j in range(n):
+        alpha = -(w[j, 0] * apx + w[j, 1] * apy + w[j, 3]) * w[j, 2]
+        om = y[n + j]
+        f[r, j] = om
+        f[r, n + j] = alpha
+        l = bod[1, j]
+        w2 = om * om
+        st = w[j, 4]
+        ct = w[j, 5]
+        apx += l * (ct * alpha - st * w2)
+        apy += l * (st * alpha + ct * w2)
+
+
+# Right-hand-side algorithms (``alg`` argument of the kernels): the scalar n = 2 code, the dense
+# mass-matrix solve (O(n^3), Cholesky) and the articulated-body recursion (O(n)).
+ALG_TWO, ALG_DENSE, ALG_RECURSIVE = 0, 1, 2
+#: Bodies from which rk4 and dop853 use the O(n) recursion instead of the dense solve. Measured
+#: (``python benchmarks/run.py --only rhs``, BENCHMARKS.md): the recursion is faster for every
+#: n >= 2 (1.5x at n = 2, 3x at n = 10, 60x at n = 100), but the n = 2 scalar code beats both.
+RECURSIVE_FROM_N = 3
+
+
+@numba.njit(cache=True)
+def _rhs(hc, s, cm, g, bod, alg, y, ax, ay, f, r, w):
+    """f[r] = (omega, th'') by the algorithm ``alg`` (ALG_TWO, ALG_DENSE or ALG_RECURSIVE); ``w``
+    is scratch of shape (n, max(n + 2, 6)). (Outside the hot loops: there the kernels branch
+    themselves, which measured 3 times faster for n = 2 than calling through this function.)"""
+    if alg == 0:
+        _rhs2(hc, s, cm, g, y, ax, ay, f, r)
+    elif alg == 2:
+        _rhs_rec(bod, g, y, ax, ay, f, r, w)
+    else:
+        _rhs_n(hc, s, cm, g, y, ax, ay, f, r, w)
+
+
+def bodies_array(chain: Chain) -> np.ndarray:
+    """The (6, n) body table the recursive right-hand side reads: mass, length, com, inertia,
+    damping, relative flag (row 5, 1.0 or 0.0)."""
+    out = np.empty((6, chain.n))
+    out[0], out[1], out[2], out[3], out[4] = (chain.mass_kg, chain.length_m, chain.com_m,
+                                              chain.inertia_kgm2, chain.damping_nms)
+    out[5] = 1.0 if chain.damping_mode == "relative" else 0.0
+    return out
+
+
+def rhs_algorithm(chain: Chain, algorithm: str = "auto") -> int:
+    """The right-hand-side algorithm code for ``algorithm`` = ``"auto"`` (n = 2 scalar code; the
+    dense solve below :data:`RECURSIVE_FROM_N` bodies, the O(n) recursion from there),
+    ``"dense"`` or ``"recursive"``."""
+    if algorithm == "auto":
+        if chain.n == 2:
+            return ALG_TWO
+        return ALG_RECURSIVE if chain.n >= RECURSIVE_FROM_N else ALG_DENSE
+    if algorithm == "dense":
+        return ALG_DENSE
+    if algorithm == "recursive":
+        return ALG_RECURSIVE
+    raise ConfigError(f"algorithm = {algorithm!r} is invalid: expected 'auto', 'dense' or "
+                      "'recursive'")
+
+
 def rhs(chain: Chain, y, ax: float = 0.0, ay: float = 0.0, *, canonical: bool = False,
-        generic: bool = False) -> np.ndarray:
+        generic: bool = False, algorithm: str = "auto") -> np.ndarray:
     """The kernels' right-hand side at one state (for tests and inspection), shape (2n,).
 
     ``y = (theta, omega)`` gives ``(omega, th'')``; with ``canonical=True``, ``y = (theta, p)``
-    gives ``(theta', p')``. ``generic=True`` forces the any-n code path for n = 2.
+    gives ``(theta', p')``. ``generic=True`` forces the any-n code path for n = 2 (the dense solve
+    unless ``algorithm="recursive"``); ``algorithm`` as in :func:`rhs_algorithm` (not for the
+    canonical form, which is always dense).
     """
     y = np.ascontiguousarray(y, dtype=float)
     f = np.empty((1, y.size))
-    w = np.empty((chain.n, chain.n + 2))
+    n = chain.n
+    w = np.empty((n, max(n + 2, 6)))
     args = (chain.H, chain.S, chain.C, chain.g_mps2, y, float(ax), float(ay), f, 0)
-    if chain.n == 2 and not generic:
-        (_canon2 if canonical else _rhs2)(*args)
-    else:
-        (_canon_n if canonical else _rhs_n)(*args, w)
+    if canonical:
+        if n == 2 and not generic:
+            _canon2(*args)
+        else:
+            _canon_n(*args, w)
+        return f[0]
+    alg = rhs_algorithm(chain, algorithm)
+    if generic and alg == ALG_TWO:
+        alg = ALG_DENSE
+    _rhs(chain.H, chain.S, chain.C, chain.g_mps2, bodies_array(chain), alg, y, float(ax),
+         float(ay), f, 0, w)
     return f[0]
 
 
@@ -439,7 +632,7 @@ def _store(y, y_out, row):
 # ================================================================================================
 
 @numba.njit(cache=True, nogil=True)
-def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
+def rk4_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
     """Classic RK4, ``nsub`` equal steps per input interval, over ``n_int`` intervals.
 
     Input (all kernels): interval i holds ``ax[i] + (ax[i + la] - ax[i]) s / h_in`` (la = 1 for
@@ -448,14 +641,14 @@ def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_
 
     ``y`` (2n,) is the state at the start and is overwritten with the state at the end. Rows of
     ``y_out`` receive the state at interval counts 0, out_every, 2 out_every, ..., n_int.
+    ``bod``, ``alg``: the right-hand side's body table and algorithm (:func:`_rhs`).
     Returns (status, rows written, intervals done).
     """
     n2 = y.shape[0]
     n = n2 // 2
-    two = n == 2
     kk = np.zeros((4, n2))
     yt = np.empty(n2)
-    work = np.empty((n, n + 2))
+    work = np.empty((n, max(n + 2, 6)))
     h = h_in / nsub
     inv = 1.0 / h_in
     zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
@@ -476,10 +669,12 @@ def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_
                 for c in range(n2):
                     yt[c] = y[c] + (a * h) * kk[st - 1 if st > 0 else 0, c]
                 fr = (s0 + a * h) * inv
-                if two:
+                if alg == 0:
                     _rhs2(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st)
-                else:
+                elif alg == 1:
                     _rhs_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
+                else:
+                    _rhs_rec(bod, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
             for c in range(n2):
                 y[c] += h / 6.0 * (kk[0, c] + 2.0 * (kk[1, c] + kk[2, c]) + kk[3, c])
         left -= 1
@@ -492,12 +687,111 @@ def rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_
     return OK, row, n_int
 
 
+@numba.njit(cache=True, inline="always")
+def _sincos2(a, b):
+    """sin and cos of two angles, (sa, ca, sb, cb): the polynomial when both |angles| <=
+    SINCOS_POLY_MAX (one branch), libm otherwise."""
+    if max(abs(a), abs(b)) <= SINCOS_POLY_MAX:
+        sa, ca = _sincos_poly(a)
+        sb, cb = _sincos_poly(b)
+        return sa, ca, sb, cb
+    return math.sin(a), math.cos(a), math.sin(b), math.cos(b)
+
+
+@numba.njit(cache=True, inline="always")
+def _acc2(hc, s, cm, g, th0, th1, w0, w1, ax, ay):
+    """th'' of the n = 2 chain as two numbers (the arithmetic of :func:`_rhs2`)."""
+    s0, c0, s1, c1 = _sincos2(th0, th1)
+    ga = g + ay
+    h01 = hc[0, 1]
+    m01 = h01 * (c0 * c1 + s0 * s1)
+    hs = h01 * (s0 * c1 - c0 * s1)
+    f0 = -s[0] * (ga * s0 + ax * c0) - cm[0, 0] * w0 - cm[0, 1] * w1 - hs * w1 * w1
+    f1 = -s[1] * (ga * s1 + ax * c1) - cm[1, 0] * w0 - cm[1, 1] * w1 + hs * w0 * w0
+    h00 = hc[0, 0]
+    h11 = hc[1, 1]
+    idet = 1.0 / (h00 * h11 - m01 * m01)
+    return (h11 * f0 - m01 * f1) * idet, (h00 * f1 - m01 * f0) * idet
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"contract"})
+def rk4_kernel2(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
+    """:func:`rk4_kernel` for n = 2 in scalar code (the state in registers, the sines and
+    cosines from the inlined polynomial, fused multiply-adds). Same arguments (without the body
+    table) and returns."""
+    z0 = y[0]
+    z1 = y[1]
+    z2 = y[2]
+    z3 = y[3]
+    h = h_in / nsub
+    hh = 0.5 * h
+    h6 = h / 6.0
+    inv = 1.0 / h_in
+    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    one = zero + 1
+    _store(y, y_out, zero)
+    row = one
+    left = out_every
+    for i in range(n_int):
+        a0 = ax[i]
+        da = ax[i + la] - a0
+        b0 = ay[i * sa]
+        db = ay[(i + la) * sa] - b0
+        for j in range(nsub):
+            s0 = j * h
+            f0 = s0 * inv
+            f1 = (s0 + hh) * inv
+            f2 = (s0 + h) * inv
+            u0 = a0 + da * f0
+            u1 = a0 + da * f1
+            u2 = a0 + da * f2
+            v0 = b0 + db * f0
+            v1 = b0 + db * f1
+            v2 = b0 + db * f2
+            p0, p1 = _acc2(hc, s, cm, g, z0, z1, z2, z3, u0, v0)
+            t0 = z0 + hh * z2
+            t1 = z1 + hh * z3
+            r0 = z2 + hh * p0
+            r1 = z3 + hh * p1
+            q0, q1 = _acc2(hc, s, cm, g, t0, t1, r0, r1, u1, v1)
+            t0 = z0 + hh * r0
+            t1 = z1 + hh * r1
+            x0 = z2 + hh * q0
+            x1 = z3 + hh * q1
+            e0, e1 = _acc2(hc, s, cm, g, t0, t1, x0, x1, u1, v1)
+            t0 = z0 + h * x0
+            t1 = z1 + h * x1
+            c0 = z2 + h * e0
+            c1 = z3 + h * e1
+            d0, d1 = _acc2(hc, s, cm, g, t0, t1, c0, c1, u2, v2)
+            z0 = z0 + h6 * (z2 + 2.0 * (r0 + x0) + c0)
+            z1 = z1 + h6 * (z3 + 2.0 * (r1 + x1) + c1)
+            z2 = z2 + h6 * (p0 + 2.0 * (q0 + e0) + d0)
+            z3 = z3 + h6 * (p1 + 2.0 * (q1 + e1) + d1)
+        left -= 1
+        if left == 0 or i + 1 == n_int:
+            left = out_every
+            y[0] = z0
+            y[1] = z1
+            y[2] = z2
+            y[3] = z3
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, i + 1
+    y[0] = z0
+    y[1] = z1
+    y[2] = z2
+    y[3] = z3
+    return OK, row, n_int
+
+
 # ================================================================================================
 # dop853
 # ================================================================================================
 
 @numba.njit(cache=True)
-def _dop_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, kk, yt, work, st0):
+def _dop_step(hc, s, cm, g, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, yt, work, st0):
     """One DOP853 step of size h from local time s_loc.
 
     Evaluates kk[0] = f(s_loc, y) if st0 = 0 (else kk[0] must hold it), the stages kk[1..11],
@@ -510,10 +804,12 @@ def _dop_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, kk, yt, work, st0)
                 acc += DOP_A[st, j] * kk[j, c]
             yt[c] = y[c] + h * acc
         fr = (s_loc + DOP_C[st] * h) * inv
-        if hc.shape[0] == 2:
+        if alg == 0:
             _rhs2(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st)
-        else:
+        elif alg == 1:
             _rhs_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
+        else:
+            _rhs_rec(bod, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
 
 
 @numba.njit(cache=True)
@@ -550,7 +846,7 @@ def _rms_scaled(v, r, y, rtol, atol):
 
 
 @numba.njit(cache=True, nogil=True)
-def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out,
+def dop853_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, n_int, out_every, y, y_out,
                   rtol, atol, h_prop, min_step, adaptive, nsub):
     """Dormand-Prince 8(5,3) over ``n_int`` input intervals.
 
@@ -568,7 +864,7 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
     kk = np.zeros((13, n2))
     yt = np.empty(n2)
     y_new = np.empty(n2)
-    work = np.empty((n, n + 2))
+    work = np.empty((n, max(n + 2, 6)))
     inv = 1.0 / h_in
     h_cap = h_in / nsub
     n_acc = 0
@@ -588,7 +884,7 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
         fresh = True
         s_loc = 0.0
         if adaptive and not h_prop > 0.0:
-            _rhs_n(hc, s, cm, g, y, a0, b0, kk, zero, work)
+            _rhs(hc, s, cm, g, bod, alg, y, a0, b0, kk, zero, work)
             nfev += 1
             # Hairer's initial step (scipy select_initial_step, error estimator order 7)
             d0 = 0.0
@@ -601,7 +897,7 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
             for c in range(n2):
                 yt[c] = y[c] + h0 * kk[0, c]
             fr = h0 * inv
-            _rhs_n(hc, s, cm, g, yt, a0 + da * fr, b0 + db * fr, kk, one, work)
+            _rhs(hc, s, cm, g, bod, alg, yt, a0 + da * fr, b0 + db * fr, kk, one, work)
             nfev += 1
             for c in range(n2):
                 kk[1, c] -= kk[0, c]
@@ -631,7 +927,7 @@ def dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_int, out_every, y, y_out
                 else:
                     m = nsub - int(round(s_loc * nsub * inv))
                 h = rem if m == 1 else rem / m
-                _dop_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, kk, y_new, work,
+                _dop_step(hc, s, cm, g, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, y_new, work,
                           0 if fresh else 1)
                 nfev += 13 if fresh else 12
                 fresh = False
@@ -1028,6 +1324,500 @@ def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
 
 
 # ================================================================================================
+# etd3: exponential integrator (the linearised chain exactly, the nonlinear remainder by quadrature)
+# ================================================================================================
+#
+# Split the vector field at the hanging equilibrium: z' = A z + B u(t) + E N(z, u(t)), z = (theta,
+# omega), with (A, B) the linearised chain (:meth:`rig.chain.Chain.state_space`), E = [0; I] and
+# N the remainder of the angular accelerations, affine in the base input:
+#     N = N0(z) + ax N1(theta) + ay N2(theta)
+#     N0 = M^-1 (-N(th) w^2 - C w - g S sin th) + H^-1 (K th + C w)
+#     N1 = M^-1 (-S cos th) - H^-1 (-S),     N2 = M^-1 (-S sin th).
+# Over a step [0, h] inside one input interval (the input is constant or linear there: the solution
+# is smooth) variation of constants gives exactly
+#     z(h) = e^{Ah} z(0) + [Gamma0 u_a + Gamma1 (u_b - u_a)] + int_0^h e^{A(h-s)} E N(s) ds.
+# The first two terms are the exact held-input step of the linear model (:func:`discretise`); the
+# integral is replaced by the exponential quadrature on the two Gauss-Legendre nodes c_1,2 =
+# 1/2 -+ sqrt(3)/6, sum_i W_i N(Z_i, u(c_i h)) with W_i = int_0^h e^{A(h-s)} E l_i(s/h) ds (l_i the
+# Lagrange basis on the nodes; exact for N linear in s and, by the nodes' symmetry, error
+# O(h^5 |A|^2 |N''|) per step). The stage values Z_i = z(c_i h) are predicted, not iterated: the
+# exact linear step to c_i h plus K0(c_i h) N^, with N^ the remainder extrapolated linearly from the
+# previous step's two stages to the middle of [0, c_i h] (its three affine parts apart, each
+# combined with the input there, so the input's jumps at sample instants do not enter the
+# extrapolation). The stage error, O(|N| h^3), enters the step through dN/dz: the global error is
+# O(h^3 |N| |dN/dz|) + O(h^4 |A|^2 |N|), which is small where the motion is close to linear
+# (|N| << |A z|) and no better than an explicit third-order method where it is not. Two remainder
+# evaluations per step, one after the other in neither case (the two stages are independent).
+# The first step after a (re)start predicts with N(z0) (exponential Euler) at one more evaluation;
+# the previous stages are part of the method's native state, so blocks continue bit for bit.
+
+ETD3_NODES = (0.5 - _R3 / 6.0, 0.5 + _R3 / 6.0)
+
+
+def _phi_integrals(a: np.ndarray, n: int, h: float, kmax: int):
+    """e^{Ah} and K_k = int_0^h e^{A(h-s)} E (s/h)^k ds for k = 0..kmax (E = [0; I], (2n, n)).
+
+    One matrix exponential of the augmented system x' = A x + E y_0, y_k' = y_{k+1} (in t / h):
+    block (0, k) of ``expm`` is int_0^h e^{A(h-s)} E (s/h)^k / k! ds.
+    """
+    n2 = a.shape[0]
+    size = n2 + (kmax + 1) * n
+    big = np.zeros((size, size))
+    big[:n2, :n2] = a * h
+    big[n:n2, n2:n2 + n] = np.eye(n) * h
+    for k in range(kmax):
+        r0 = n2 + k * n
+        big[r0:r0 + n, r0 + n:r0 + 2 * n] = np.eye(n)
+    e = scipy.linalg.expm(big)
+    ks = [math.factorial(k) * e[:n2, n2 + k * n:n2 + (k + 1) * n] for k in range(kmax + 1)]
+    return e[:n2, :n2].copy(), ks
+
+
+@dataclass(frozen=True, eq=False)
+class Etd3Coefficients:
+    """Everything :func:`etd3_kernel` needs for one chain, step and hold (all arrays C-contiguous).
+
+    Attributes
+    ----------
+    phi, g0, g1 : the exact held-input step of the linearised chain over h (:func:`discretise`;
+        g1 is zero for zoh), (2n, 2n), (2n,), (2n,).
+    phic, g0c, g1c : the same over c_i h for the two nodes, (2, 2n, 2n), (2, 2n), (2, 2n).
+    pc : K0(c_i h) = int_0^{c_i h} e^{A(c_i h - s)} E ds, (2, 2n, n).
+    wq : quadrature weights W_i, (2, 2n, n).
+    xp : predictor weights, (2, 2): the value at c_i / 2 of the line through the previous step's
+        stages (at c_1 - 1 and c_2 - 1, in units of h).
+    p, q, bw : H^-1 K, H^-1 C (n, n) and H^-1 (-S) (n,), to split off the linear part.
+    """
+
+    phi: np.ndarray
+    g0: np.ndarray
+    g1: np.ndarray
+    phic: np.ndarray
+    g0c: np.ndarray
+    g1c: np.ndarray
+    pc: np.ndarray
+    wq: np.ndarray
+    xp: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    bw: np.ndarray
+
+
+@functools.lru_cache(maxsize=64)
+def etd3_coefficients(chain: Chain, h: float, hold: str) -> Etd3Coefficients:
+    """The matrices of :func:`etd3_kernel` for ``chain``, step ``h`` [s] and ``hold`` (cached)."""
+    a, b = chain.state_space()
+    n = chain.n
+    c = ETD3_NODES
+    phi, ks = _phi_integrals(a, n, h, 1)
+    _, g0, g1 = discretise(a, b, h, hold)
+    # l_0(x) = (x - c_2)/(c_1 - c_2), l_1(x) = (x - c_1)/(c_2 - c_1)
+    wq = np.array([(-c[1] * ks[0] + ks[1]) / (c[0] - c[1]),
+                   (-c[0] * ks[0] + ks[1]) / (c[1] - c[0])])
+    phic, g0c, g1c, pc = [], [], [], []
+    for ci in c:
+        ph, kc = _phi_integrals(a, n, ci * h, 0)
+        _, gc0, gc1 = discretise(a, b, ci * h, hold)
+        phic.append(ph)
+        g0c.append(gc0[:, 0])
+        g1c.append(gc1[:, 0])
+        pc.append(kc[0])
+    nodes = (c[0] - 1.0, c[1] - 1.0)
+    xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
+                    (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
+    hinv = np.linalg.inv(chain.H)
+    arr = np.ascontiguousarray
+    return Etd3Coefficients(
+        phi=arr(phi), g0=arr(g0[:, 0]), g1=arr(g1[:, 0]), phic=arr(np.array(phic)),
+        g0c=arr(np.array(g0c)), g1c=arr(np.array(g1c)), pc=arr(np.array(pc)), wq=arr(wq),
+        xp=arr(xp), p=arr(hinv @ chain.K), q=arr(hinv @ chain.C), bw=arr(b[n:, 0]))
+
+
+@numba.njit(cache=True, inline="always")
+def _sincos4(a, b, c, d):
+    """sin and cos of four angles: (sa, ca, sb, cb, sc, cc, sd, cd). One branch for all four: the
+    polynomial when every |angle| <= SINCOS_POLY_MAX (straight-line code whose four evaluations
+    overlap in the pipeline), libm otherwise (a branch per angle, or libm calls queued one
+    after the other, measured 1.3 to 2.6 times slower per etd3 step)."""
+    if max(max(abs(a), abs(b)), max(abs(c), abs(d))) <= SINCOS_POLY_MAX:
+        sa, ca = _sincos_poly(a)
+        sb, cb = _sincos_poly(b)
+        sc, cc = _sincos_poly(c)
+        sd, cd = _sincos_poly(d)
+        return sa, ca, sb, cb, sc, cc, sd, cd
+    return (math.sin(a), math.cos(a), math.sin(b), math.cos(b), math.sin(c), math.cos(c),
+            math.sin(d), math.cos(d))
+
+
+@numba.njit(cache=True, inline="always")
+def _nsplit2(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
+    """(N0, N1, N2) of the n = 2 chain at (theta, omega), as six numbers (N0_0, N0_1, N1_0, ...);
+    s0, c0, s1, c1 are sin and cos of th0 and th1."""
+    h01 = hc[0, 1]
+    m01 = h01 * (c0 * c1 + s0 * s1)
+    hs = h01 * (s0 * c1 - c0 * s1)
+    h00 = hc[0, 0]
+    h11 = hc[1, 1]
+    idet = 1.0 / (h00 * h11 - m01 * m01)
+    f0 = -s[0] * g * s0 - cm[0, 0] * w0 - cm[0, 1] * w1 - hs * w1 * w1
+    f1 = -s[1] * g * s1 - cm[1, 0] * w0 - cm[1, 1] * w1 + hs * w0 * w0
+    lin0 = p[0, 0] * th0 + p[0, 1] * th1 + q[0, 0] * w0 + q[0, 1] * w1
+    lin1 = p[1, 0] * th0 + p[1, 1] * th1 + q[1, 0] * w0 + q[1, 1] * w1
+    n00 = (h11 * f0 - m01 * f1) * idet + lin0
+    n01 = (h00 * f1 - m01 * f0) * idet + lin1
+    e0 = -s[0] * c0
+    e1 = -s[1] * c1
+    n10 = (h11 * e0 - m01 * e1) * idet - bw[0]
+    n11 = (h00 * e1 - m01 * e0) * idet - bw[1]
+    e0 = -s[0] * s0
+    e1 = -s[1] * s1
+    n20 = (h11 * e0 - m01 * e1) * idet
+    n21 = (h00 * e1 - m01 * e0) * idet
+    return n00, n01, n10, n11, n20, n21
+
+
+@numba.njit(cache=True)
+def _nsplit_n(hc, s, cm, g, p, q, bw, z, rz, out, ro, w):
+    """out[ro, 0:3n] = (N0, N1, N2) at the state z[rz] = (theta, omega), any n (dense Cholesky
+    of M(theta), three solves); ``w`` is scratch of shape (n, n + 5)."""
+    n = hc.shape[0]
+    for j in range(n):
+        sj = math.sin(z[rz, j])
+        cj = math.cos(z[rz, j])
+        w[j, n] = sj
+        w[j, n + 1] = cj
+        w[j, j] = hc[j, j]
+        fj = -s[j] * g * sj
+        for k in range(n):
+            fj -= cm[j, k] * z[rz, n + k]
+        w[j, n + 2] = fj
+        w[j, n + 3] = -s[j] * cj
+        w[j, n + 4] = -s[j] * sj
+    for j in range(n):
+        sj = w[j, n]
+        cj = w[j, n + 1]
+        wj2 = z[rz, n + j] * z[rz, n + j]
+        for k in range(j + 1, n):
+            sk = w[k, n]
+            ck = w[k, n + 1]
+            w[k, j] = hc[j, k] * (cj * ck + sj * sk)
+            hsd = hc[j, k] * (sj * ck - cj * sk)
+            w[j, n + 2] -= hsd * z[rz, n + k] * z[rz, n + k]
+            w[k, n + 2] += hsd * wj2
+    # Cholesky of M in the lower triangle of w[:, :n]
+    for j in range(n):
+        acc = w[j, j]
+        for k in range(j):
+            acc -= w[j, k] * w[j, k]
+        d = math.sqrt(acc)
+        w[j, j] = d
+        for i in range(j + 1, n):
+            acc = w[i, j]
+            for k in range(j):
+                acc -= w[i, k] * w[j, k]
+            w[i, j] = acc / d
+    for col in range(3):
+        cc = n + 2 + col
+        for i in range(n):
+            acc = w[i, cc]
+            for k in range(i):
+                acc -= w[i, k] * w[k, cc]
+            w[i, cc] = acc / w[i, i]
+        for i in range(n - 1, -1, -1):
+            acc = w[i, cc]
+            for k in range(i + 1, n):
+                acc -= w[k, i] * w[k, cc]
+            w[i, cc] = acc / w[i, i]
+    for j in range(n):
+        lin = 0.0
+        for k in range(n):
+            lin += p[j, k] * z[rz, k] + q[j, k] * z[rz, n + k]
+        out[ro, j] = w[j, n + 2] + lin
+        out[ro, n + j] = w[j, n + 3] - bw[j]
+        out[ro, 2 * n + j] = w[j, n + 4]
+
+
+def nonlinear_remainder(chain: Chain, y, *, generic: bool = False) -> np.ndarray:
+    """The etd3 kernels' remainder parts at one state (for tests and inspection), shape (3, n).
+
+    Rows N0, N1, N2 with ``th'' = (A z + B ax)_omega + N0 + ax N1 + ay N2`` for y = z = (theta,
+    omega) (:class:`Etd3Coefficients`, section comment above). ``generic=True`` uses the any-n
+    code for n = 2.
+    """
+    y = np.ascontiguousarray(y, dtype=float)
+    n = chain.n
+    co = etd3_coefficients(chain, 1.0, "zoh")
+    args = (chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw)
+    if n == 2 and not generic:
+        s0, c0, s1, c1 = _sincos_pair(y[0], y[1])
+        return np.array(_nsplit2(*args, y[0], y[1], y[2], y[3], s0, c0, s1, c1)).reshape(3, 2)
+    out = np.empty((1, 3 * n))
+    _nsplit_n(*args, y[None, :], 0, out, 0, np.empty((n, n + 5)))
+    return out.reshape(3, n)
+
+
+@numba.njit(cache=True)
+def _sincos_pair(a, b):
+    sa, ca, sb, cb, _, _, _, _ = _sincos4(a, b, 0.0, 0.0)
+    return sa, ca, sb, cb
+
+
+@numba.njit(cache=True, nogil=True)
+def etd3_kernel(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp, ax, ay, sa, la,
+                h_in, nsub, n_int, out_every, y, y_out, hist, have):
+    """etd3 (see the section comment above), ``nsub`` steps per input interval, any n.
+
+    ``hist`` (2, 3n) holds (N0, N1, N2) at the previous step's two stages and is updated in place;
+    ``have`` says whether it is valid (else the first step predicts with N(y), which costs one
+    more evaluation). ``y`` (2n,) is overwritten with the end state. Returns (status, rows
+    written, intervals done, remainder evaluations).
+    """
+    n2 = y.shape[0]
+    n = n2 // 2
+    zs = np.empty((3, n2))
+    fh = np.empty(n)
+    ff = np.empty((2, n))
+    yt = np.empty(n2)
+    w = np.empty((n, n + 5))
+    uc = np.empty(2)
+    vc = np.empty(2)
+    h = h_in / nsub
+    inv = 1.0 / h_in
+    c0 = ETD3_NODES[0]
+    c1 = ETD3_NODES[1]
+    nev = 0
+    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    one = zero + 1
+    two = one + 1
+    if not have:
+        for c in range(n2):
+            zs[two, c] = y[c]
+        _nsplit_n(hc, s, cm, g, p, q, bw, zs, two, hist, zero, w)
+        for c in range(3 * n):
+            hist[one, c] = hist[zero, c]
+        nev += 1
+    _store(y, y_out, zero)
+    row = one
+    left = out_every
+    for i in range(n_int):
+        a0 = ax[i]
+        da = ax[i + la] - a0
+        b0 = ay[i * sa]
+        db = ay[(i + la) * sa] - b0
+        for jj in range(nsub):
+            s0 = jj * h
+            ua = a0 + da * (s0 * inv)
+            ub = a0 + da * ((s0 + h) * inv)
+            for st in range(2):
+                ci = c0 if st == 0 else c1
+                tm = (s0 + 0.5 * ci * h) * inv
+                um = a0 + da * tm
+                vm = b0 + db * tm
+                tc = (s0 + ci * h) * inv
+                uc[st] = a0 + da * tc
+                vc[st] = b0 + db * tc
+                x0 = xp[st, 0]
+                x1 = xp[st, 1]
+                for c in range(n):
+                    fh[c] = (x0 * (hist[0, c] + um * hist[0, n + c] + vm * hist[0, 2 * n + c])
+                             + x1 * (hist[1, c] + um * hist[1, n + c] + vm * hist[1, 2 * n + c]))
+                du = uc[st] - ua
+                for r in range(n2):
+                    acc = g0c[st, r] * ua + g1c[st, r] * du
+                    for c in range(n2):
+                        acc += phic[st, r, c] * y[c]
+                    for c in range(n):
+                        acc += pc[st, r, c] * fh[c]
+                    zs[st, r] = acc
+            for st in range(2):
+                _nsplit_n(hc, s, cm, g, p, q, bw, zs, st, hist, st, w)
+                for c in range(n):
+                    ff[st, c] = (hist[st, c] + uc[st] * hist[st, n + c]
+                                 + vc[st] * hist[st, 2 * n + c])
+            nev += 2
+            du = ub - ua
+            for r in range(n2):
+                acc = g0[r] * ua + g1[r] * du
+                for c in range(n2):
+                    acc += phi[r, c] * y[c]
+                for c in range(n):
+                    acc += wq[0, r, c] * ff[0, c] + wq[1, r, c] * ff[1, c]
+                yt[r] = acc
+            for r in range(n2):
+                y[r] = yt[r]
+        left -= 1
+        if left == 0 or i + 1 == n_int:
+            left = out_every
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, i + 1, nev
+    return OK, row, n_int, nev
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"contract"})
+def etd3_kernel2(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp, ax, ay, sa, la,
+                 h_in, nsub, n_int, out_every, y, y_out, hist, have):
+    """:func:`etd3_kernel` for n = 2 in scalar code (the same arithmetic up to the order of the
+    sums; the state and history stay in registers). Same arguments and returns."""
+    z0 = y[0]
+    z1 = y[1]
+    z2 = y[2]
+    z3 = y[3]
+    h = h_in / nsub
+    inv = 1.0 / h_in
+    c0 = ETD3_NODES[0]
+    c1 = ETD3_NODES[1]
+    nev = 0
+    if not have:
+        sa0, ca0, sa1, ca1, _, _, _, _ = _sincos4(z0, z1, 0.0, 0.0)
+        a00, a01, a10, a11, a20, a21 = _nsplit2(hc, s, cm, g, p, q, bw, z0, z1, z2, z3, sa0, ca0,
+                                                sa1, ca1)
+        b00, b01, b10, b11, b20, b21 = a00, a01, a10, a11, a20, a21
+        nev += 1
+    else:
+        a00, a01, a10, a11, a20, a21 = hist[0, 0], hist[0, 1], hist[0, 2], hist[0, 3], \
+            hist[0, 4], hist[0, 5]
+        b00, b01, b10, b11, b20, b21 = hist[1, 0], hist[1, 1], hist[1, 2], hist[1, 3], \
+            hist[1, 4], hist[1, 5]
+    x00 = xp[0, 0]
+    x01 = xp[0, 1]
+    x10 = xp[1, 0]
+    x11 = xp[1, 1]
+    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    one = zero + 1
+    _store(y, y_out, zero)
+    row = one
+    left = out_every
+    for i in range(n_int):
+        ia = ax[i]
+        da = ax[i + la] - ia
+        ib = ay[i * sa]
+        db = ay[(i + la) * sa] - ib
+        for jj in range(nsub):
+            s0 = jj * h
+            ua = ia + da * (s0 * inv)
+            ub = ia + da * ((s0 + h) * inv)
+            # stage 0: predicted remainder at c0 h / 2, then the exact linear step to c0 h
+            tm = (s0 + 0.5 * c0 * h) * inv
+            um = ia + da * tm
+            vm = ib + db * tm
+            fa0 = x00 * (a00 + um * a10 + vm * a20) + x01 * (b00 + um * b10 + vm * b20)
+            fa1 = x00 * (a01 + um * a11 + vm * a21) + x01 * (b01 + um * b11 + vm * b21)
+            tc = (s0 + c0 * h) * inv
+            uc0 = ia + da * tc
+            vc0 = ib + db * tc
+            du = uc0 - ua
+            p0 = (((phic[0, 0, 0] * z0 + phic[0, 0, 1] * z1)
+                   + (phic[0, 0, 2] * z2 + phic[0, 0, 3] * z3))
+                  + ((g0c[0, 0] * ua + g1c[0, 0] * du)
+                     + (pc[0, 0, 0] * fa0 + pc[0, 0, 1] * fa1)))
+            p1 = (((phic[0, 1, 0] * z0 + phic[0, 1, 1] * z1)
+                   + (phic[0, 1, 2] * z2 + phic[0, 1, 3] * z3))
+                  + ((g0c[0, 1] * ua + g1c[0, 1] * du)
+                     + (pc[0, 1, 0] * fa0 + pc[0, 1, 1] * fa1)))
+            p2 = (((phic[0, 2, 0] * z0 + phic[0, 2, 1] * z1)
+                   + (phic[0, 2, 2] * z2 + phic[0, 2, 3] * z3))
+                  + ((g0c[0, 2] * ua + g1c[0, 2] * du)
+                     + (pc[0, 2, 0] * fa0 + pc[0, 2, 1] * fa1)))
+            p3 = (((phic[0, 3, 0] * z0 + phic[0, 3, 1] * z1)
+                   + (phic[0, 3, 2] * z2 + phic[0, 3, 3] * z3))
+                  + ((g0c[0, 3] * ua + g1c[0, 3] * du)
+                     + (pc[0, 3, 0] * fa0 + pc[0, 3, 1] * fa1)))
+            # stage 1
+            tm = (s0 + 0.5 * c1 * h) * inv
+            um = ia + da * tm
+            vm = ib + db * tm
+            fb0 = x10 * (a00 + um * a10 + vm * a20) + x11 * (b00 + um * b10 + vm * b20)
+            fb1 = x10 * (a01 + um * a11 + vm * a21) + x11 * (b01 + um * b11 + vm * b21)
+            tc = (s0 + c1 * h) * inv
+            uc1 = ia + da * tc
+            vc1 = ib + db * tc
+            du = uc1 - ua
+            q0 = (((phic[1, 0, 0] * z0 + phic[1, 0, 1] * z1)
+                   + (phic[1, 0, 2] * z2 + phic[1, 0, 3] * z3))
+                  + ((g0c[1, 0] * ua + g1c[1, 0] * du)
+                     + (pc[1, 0, 0] * fb0 + pc[1, 0, 1] * fb1)))
+            q1 = (((phic[1, 1, 0] * z0 + phic[1, 1, 1] * z1)
+                   + (phic[1, 1, 2] * z2 + phic[1, 1, 3] * z3))
+                  + ((g0c[1, 1] * ua + g1c[1, 1] * du)
+                     + (pc[1, 1, 0] * fb0 + pc[1, 1, 1] * fb1)))
+            q2 = (((phic[1, 2, 0] * z0 + phic[1, 2, 1] * z1)
+                   + (phic[1, 2, 2] * z2 + phic[1, 2, 3] * z3))
+                  + ((g0c[1, 2] * ua + g1c[1, 2] * du)
+                     + (pc[1, 2, 0] * fb0 + pc[1, 2, 1] * fb1)))
+            q3 = (((phic[1, 3, 0] * z0 + phic[1, 3, 1] * z1)
+                   + (phic[1, 3, 2] * z2 + phic[1, 3, 3] * z3))
+                  + ((g0c[1, 3] * ua + g1c[1, 3] * du)
+                     + (pc[1, 3, 0] * fb0 + pc[1, 3, 1] * fb1)))
+            sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
+            a00, a01, a10, a11, a20, a21 = _nsplit2(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0,
+                                                    cp0, sp1, cp1)
+            b00, b01, b10, b11, b20, b21 = _nsplit2(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0,
+                                                    cq0, sq1, cq1)
+            nev += 2
+            f00 = a00 + uc0 * a10 + vc0 * a20
+            f01 = a01 + uc0 * a11 + vc0 * a21
+            f10 = b00 + uc1 * b10 + vc1 * b20
+            f11 = b01 + uc1 * b11 + vc1 * b21
+            du = ub - ua
+            n0 = ((((phi[0, 0] * z0 + phi[0, 1] * z1) + (phi[0, 2] * z2 + phi[0, 3] * z3))
+                   + (g0[0] * ua + g1[0] * du))
+                  + ((wq[0, 0, 0] * f00 + wq[0, 0, 1] * f01)
+                     + (wq[1, 0, 0] * f10 + wq[1, 0, 1] * f11)))
+            n1 = ((((phi[1, 0] * z0 + phi[1, 1] * z1) + (phi[1, 2] * z2 + phi[1, 3] * z3))
+                   + (g0[1] * ua + g1[1] * du))
+                  + ((wq[0, 1, 0] * f00 + wq[0, 1, 1] * f01)
+                     + (wq[1, 1, 0] * f10 + wq[1, 1, 1] * f11)))
+            n2 = ((((phi[2, 0] * z0 + phi[2, 1] * z1) + (phi[2, 2] * z2 + phi[2, 3] * z3))
+                   + (g0[2] * ua + g1[2] * du))
+                  + ((wq[0, 2, 0] * f00 + wq[0, 2, 1] * f01)
+                     + (wq[1, 2, 0] * f10 + wq[1, 2, 1] * f11)))
+            n3 = ((((phi[3, 0] * z0 + phi[3, 1] * z1) + (phi[3, 2] * z2 + phi[3, 3] * z3))
+                   + (g0[3] * ua + g1[3] * du))
+                  + ((wq[0, 3, 0] * f00 + wq[0, 3, 1] * f01)
+                     + (wq[1, 3, 0] * f10 + wq[1, 3, 1] * f11)))
+            z0 = n0
+            z1 = n1
+            z2 = n2
+            z3 = n3
+        left -= 1
+        if left == 0 or i + 1 == n_int:
+            left = out_every
+            y[0] = z0
+            y[1] = z1
+            y[2] = z2
+            y[3] = z3
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                _etd3_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21)
+                return NONFINITE, row, i + 1, nev
+    y[0] = z0
+    y[1] = z1
+    y[2] = z2
+    y[3] = z3
+    _etd3_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21)
+    return OK, row, n_int, nev
+
+
+@numba.njit(cache=True)
+def _etd3_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21):
+    hist[0, 0] = a00
+    hist[0, 1] = a01
+    hist[0, 2] = a10
+    hist[0, 3] = a11
+    hist[0, 4] = a20
+    hist[0, 5] = a21
+    hist[1, 0] = b00
+    hist[1, 1] = b01
+    hist[1, 2] = b10
+    hist[1, 3] = b11
+    hist[1, 4] = b20
+    hist[1, 5] = b21
+
+
+# ================================================================================================
 # Python entry point
 # ================================================================================================
 
@@ -1064,10 +1854,13 @@ def output_rows(n_intervals: int, out_every: int) -> np.ndarray:
 
 
 def to_native(chain: Chain, method: str, y) -> np.ndarray:
-    """(theta, omega) -> the method's native state (adds p = M omega for the Gauss methods)."""
+    """(theta, omega) -> the method's native state (p = M omega for the Gauss methods; an empty
+    history for etd3)."""
     y = np.array(y, dtype=float)
     if METHODS[method].native == "theta,omega":
         return y
+    if METHODS[method].native == "theta,omega,history":
+        return np.concatenate([y[:2 * chain.n], np.zeros(2 + 6 * chain.n)])
     n = chain.n
     p = np.empty((1, n))
     omega_to_momentum(chain.H, y[None, :n], y[None, n:], p)
@@ -1075,10 +1868,10 @@ def to_native(chain: Chain, method: str, y) -> np.ndarray:
 
 
 def from_native(chain: Chain, method: str, rows) -> np.ndarray:
-    """Native states (T, 2n) -> (theta, omega) (T, 2n)."""
+    """Native states (T, >= 2n) -> (theta, omega) (T, 2n)."""
     rows = np.asarray(rows, float)
-    if METHODS[method].native == "theta,omega":
-        return rows
+    if METHODS[method].native != "theta,p":
+        return rows[:, :2 * chain.n]
     n = chain.n
     out = rows.copy()
     momentum_to_omega(chain.H, np.ascontiguousarray(rows[:, :n]), np.ascontiguousarray(rows[:, n:]),
@@ -1089,7 +1882,7 @@ def from_native(chain: Chain, method: str, rows) -> np.ndarray:
 def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_intervals: int,
               out_every: int, method: str, substeps: int = 1, rtol: float = 1e-10,
               atol: float = 1e-12, h0_s: float = float("nan"), adaptive: bool = True,
-              t0_s: float = 0.0) -> Run:
+              t0_s: float = 0.0, algorithm: str = "auto") -> Run:
     """Run one method over ``n_intervals`` held-input intervals of ``h_in`` seconds.
 
     Parameters
@@ -1102,12 +1895,16 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
     h_in : input sample interval [s].
     out_every : output every this many intervals (and at the end).
     method : key of :data:`METHODS`.
-    substeps : steps per interval for fixed-step methods (rk4, gauss4, midpoint, linear; also
-        dop853 with ``adaptive=False``); for adaptive dop853 the least number of steps per interval.
+    substeps : steps per interval for fixed-step methods (rk4, gauss4, midpoint, linear, etd3;
+        also dop853 with ``adaptive=False``); for adaptive dop853 the least number of steps per
+        interval.
     rtol, atol : dop853 tolerances (relative, absolute per state component [rad, rad/s]).
     h0_s : dop853 proposed first step [s]; ``nan`` selects it (Hairer's algorithm).
     adaptive : dop853 only: ``False`` drives the tableau with fixed steps (order checks).
     t0_s : absolute time of the start [s], only used to report where a divergence happened.
+    algorithm : right-hand side of rk4 and dop853 (:func:`rhs_algorithm`): ``"auto"`` (the
+        n = 2 scalar code, the dense solve for n < :data:`RECURSIVE_FROM_N`, the O(n) recursion
+        from there), ``"dense"`` or ``"recursive"``.
 
     Raises
     ------
@@ -1132,18 +1929,25 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
         raise ConfigError(f"ay has {ay.shape[0]} samples; {need} are needed")
     rows = output_rows(n_intervals, out_every)
     y = np.array(native0, dtype=float)
-    y_out = np.empty((rows.size, y.size))
+    y_out = np.empty((rows.size, y.size if method != "etd3" else 2 * chain.n))
     h_next, n_rej, n_newton = float("nan"), 0, 0
     s_fail = 0.0
+    alg = rhs_algorithm(chain, algorithm)
+    bod = bodies_array(chain)
     if method == "rk4":
-        status, nrow, i_done = rk4_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, substeps,
-                                          n_intervals, out_every, y, y_out)
+        if alg == ALG_TWO:
+            status, nrow, i_done = rk4_kernel2(hc, s, cm, g, ax, ay, sa, la, h_in, substeps,
+                                               n_intervals, out_every, y, y_out)
+        else:
+            status, nrow, i_done = rk4_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in,
+                                              substeps, n_intervals, out_every, y, y_out)
         n_steps, nfev = i_done * substeps, 4 * i_done * substeps
     elif method == "dop853":
         min_step = 10.0 * np.spacing(max(abs(t0_s) + n_intervals * h_in, h_in))
         (status, nrow, i_done, s_fail, h_next, n_steps, n_rej,
-         nfev) = dop853_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, n_intervals, out_every, y,
-                               y_out, rtol, atol, h0_s, min_step, adaptive, substeps)
+         nfev) = dop853_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, n_intervals,
+                               out_every, y, y_out, rtol, atol, h0_s, min_step, adaptive,
+                               substeps)
         if not adaptive:
             h_next = float("nan")
     elif method in ("gauss4", "midpoint"):
@@ -1152,6 +1956,22 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
         status, nrow, i_done, s_fail, nfev, n_newton = gauss_kernel(
             hc, s, cm, g, ax, ay, sa, la, h_in, substeps, n_intervals, out_every, y, y_out,
             *tab)
+        n_steps = i_done * substeps
+    elif method == "etd3":
+        n = chain.n
+        h = h_in / substeps
+        co = etd3_coefficients(chain, float(h), hold)
+        z = np.ascontiguousarray(y[:2 * n])
+        meta = y[2 * n:2 * n + 2] if y.size == 8 * n + 2 else np.zeros(2)
+        hist = (np.ascontiguousarray(y[2 * n + 2:].reshape(2, 3 * n)) if y.size == 8 * n + 2
+                else np.zeros((2, 3 * n)))
+        have = bool(meta[0] == 1.0 and abs(meta[1] - h) <= 1e-12 * h)
+        kernel = etd3_kernel2 if n == 2 else etd3_kernel
+        status, nrow, i_done, nfev = kernel(
+            hc, s, cm, g, co.p, co.q, co.bw, co.phi, co.g0, co.g1, co.phic, co.g0c, co.g1c,
+            co.pc, co.wq, co.xp, ax, ay, sa, la, h_in, substeps, n_intervals, out_every, z,
+            y_out, hist, have)
+        y = np.concatenate([z, [1.0, h], hist.reshape(-1)])
         n_steps = i_done * substeps
     else:  # linear
         a, b = chain.state_space()

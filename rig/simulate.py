@@ -25,7 +25,7 @@ import numpy as np
 
 from rig.chain import Chain
 from rig.errors import ConfigError
-from rig.integrators import HOLDS, METHODS, integrate, output_rows, to_native
+from rig.integrators import HOLDS, METHODS, integrate, output_rows, rhs_algorithm, to_native
 
 STEPS_PER_PERIOD = 100  # default fixed-step resolution: steps per period of the fastest linear mode
 _REL = 1e-9  # tolerance for "a whole number of" checks on times
@@ -258,7 +258,7 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
                               f"hold = {base.hold!r})")
         if dt_s is not None:
             sub = _divides("dt_s", dt_s, "the input interval base.dt_s", h_in)
-        elif kind in ("fixed", "implicit"):
+        elif kind in ("fixed", "implicit", "exponential"):
             sub = _default_substeps(chain, h_in)
         else:
             sub = 1
@@ -273,7 +273,7 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
                     dt_s=(h_in / sub if kind != "adaptive" else None), substeps_per_input=sub)
         return segs, info
 
-    if kind in ("fixed", "implicit") or (kind == "exact" and dt_s is not None):
+    if kind in ("fixed", "implicit", "exponential") or (kind == "exact" and dt_s is not None):
         if dt_s is None:
             dt = duration / math.ceil(duration * STEPS_PER_PERIOD *
                                       float(np.max(chain.natural_frequencies_hz())) - 1e-9)
@@ -306,7 +306,7 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
                       substeps_per_input=None)
 
 
-def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1):
+def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, algorithm="auto"):
     """Run the segments in turn; returns (y_out (T, 2n), native_end, h_next, counts)."""
     y = native0
     h = h0
@@ -316,7 +316,7 @@ def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1):
     for k, sg in enumerate(segs):
         run = integrate(chain, y, sg.ax, sg.ay, hold=sg.hold, h_in=sg.h_in, n_intervals=sg.n_int,
                         out_every=sg.out_every, method=method, substeps=sg.substeps * sub_factor,
-                        rtol=rtol, atol=atol, h0_s=h, t0_s=t)
+                        rtol=rtol, atol=atol, h0_s=h, t0_s=t, algorithm=algorithm)
         rows.append(run.y_out if k == 0 else run.y_out[1:])
         y, h = run.native_end, run.h_next_s
         n_steps += run.n_steps
@@ -345,7 +345,8 @@ def _times(segs, t0, duration) -> np.ndarray:
 def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
              base: BaseInput | None = None, method: str = "dop853", rtol: float = 1e-10,
              atol: float = 1e-12, dt_s: float | None = None, output_dt_s: float | None = None,
-             estimate_error: bool = True, start: SimState | None = None) -> Trajectory:
+             estimate_error: bool = True, start: SimState | None = None,
+             algorithm: str = "auto") -> Trajectory:
     """Integrate the chain for ``duration_s`` seconds on a fixed or held-input moving base.
 
     Parameters
@@ -356,11 +357,13 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     theta0, omega0 : initial angles [rad] and angular velocities [rad/s] (n each, or one number
         for every body; ``omega0`` defaults to 0). Give these or ``start``.
     base : held base acceleration (:class:`BaseInput`); ``None`` is a fixed base.
-    method : ``"dop853"`` (default), ``"rk4"``, ``"gauss4"``, ``"midpoint"`` or ``"linear"``
-        (:data:`rig.integrators.METHODS`).
+    method : ``"dop853"`` (default), ``"rk4"``, ``"gauss4"``, ``"midpoint"``, ``"linear"`` or
+        ``"etd3"`` (:data:`rig.integrators.METHODS`; etd3 for weakly nonlinear runs, e.g. the
+        paper's pendulum on a random base: the linearised chain exactly, only the nonlinear
+        remainder integrated).
     rtol, atol : dop853 tolerances, rtol in (0, 1), atol > 0 [rad, rad/s per component].
-    dt_s : step [s] of the fixed-step methods (rk4, gauss4, midpoint; linear substeps); must divide
-        the input interval (on a fixed base: the duration). Default for rk4, gauss4, midpoint: the
+    dt_s : step [s] of the fixed-step methods (rk4, gauss4, midpoint, etd3; linear substeps); must
+        divide the input interval (on a fixed base: the duration). Default for those: the
         input interval split into equal steps of at most 1/(100 f_max), f_max the fastest linear
         mode (on a fixed base: the longest such step dividing the duration); the linear method
         steps once per interval. Not accepted for dop853, which chooses its own steps.
@@ -372,6 +375,10 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     start : continue from a previous run's :attr:`Trajectory.final_state` instead of
         ``theta0``/``omega0`` (same method: bit for bit as one longer run; the next block's input
         starts at this state's time).
+    algorithm : right-hand side of rk4 and dop853: ``"auto"`` (default: scalar code for n = 2,
+        the O(n) articulated-body recursion from :data:`rig.integrators.RECURSIVE_FROM_N` bodies),
+        ``"dense"`` (mass-matrix Cholesky solve, O(n^3)) or ``"recursive"``; the same equations
+        (tests: equal to round-off).
 
     Returns
     -------
@@ -435,8 +442,10 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
 
     segs, grid = _plan(chain, duration, base, info.kind, dt_s, output_dt_s)
     tic = time.perf_counter()
+    alg_name = algorithm
+    rhs_algorithm(chain, alg_name)  # validate before running
     y_out, native_end, h_next, (n_steps, n_rej, n_fev, n_newton) = _execute(
-        chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f)
+        chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f, algorithm=alg_name)
     wall = time.perf_counter() - tic
 
     err_th = err_om = err_e = None
@@ -449,14 +458,14 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
             # alone would repeat the same steps and report zero
             r_ref, a_ref = max(rtol_f / 100.0, 1e-14), atol_f / 100.0
             ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), r_ref, a_ref,
-                               sub_factor=2)
+                               sub_factor=2, algorithm=alg_name)
             scale = 1.0
             how = (f"|y - y_ref| against the same run with rtol = {r_ref:.3g}, atol = {a_ref:.3g} "
                    "(100 times tighter) and at least two steps per input interval, from the same "
                    "start state")
         else:
             ref, *_ = _execute(chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f,
-                               sub_factor=2)
+                               sub_factor=2, algorithm=alg_name)
             if info.order is None:
                 scale = 1.0
                 how = ("|y - y_ref| against the same exact discretisation at dt_s / 2: round-off "
@@ -485,9 +494,11 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     final = SimState(t_s=float(t[-1]), theta_rad=_readonly(theta[-1].copy()),
                      omega_rad_s=_readonly(omega[-1].copy()), method=method,
                      native=_readonly(native_end.copy()), h_next_s=float(h_next))
+    rhs_name = (("n=2 scalar", "dense", "recursive")[rhs_algorithm(chain, alg_name)]
+                if method in ("rk4", "dop853") else None)
     settings = dict(method=method, order=info.order, kind=info.kind, duration_s=duration,
                     t0_s=t0, rtol=rtol_f if info.kind == "adaptive" else None,
-                    atol=atol_f if info.kind == "adaptive" else None, **grid)
+                    atol=atol_f if info.kind == "adaptive" else None, rhs=rhs_name, **grid)
     return Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, energy_j=energy,
                       method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
                       n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
