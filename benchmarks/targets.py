@@ -1,0 +1,91 @@
+#!/usr/bin/env python3
+"""The issue's speed targets, timed with many repeats (min / median / max of wall and CPU time).
+
+    .venv/bin/python benchmarks/targets.py            # about 2 minutes
+    .venv/bin/python benchmarks/targets.py --repeats 41
+
+1. The paper's run: 3000 s, nonlinear, band-limited random base acceleration (0.05 m/s^2 rms)
+   held at 1 kHz: etd3 (dt = 1 ms), rk4 (dt = 1 ms) and the linear model through
+   ``rig.simulate.simulate`` (no error estimate), with their relative RMS angle error against
+   DOP853 at 2 fixed steps per sample (whose own error, against 4 steps per sample, is printed).
+   Target: <= 1e-6 in <= 0.3 s.
+2. Rod chains at n = 100 (rod-chain preset), one simulated second: straight release at 0.5 rad
+   with rk4 at 1 ms; horizontal release with dop853 at rtol = 1e-6; with the energy drift over
+   10 s relative to the energy above the hanging rest. Target: <= 1e-4 in <= 0.4 s per simulated
+   second.
+
+The machine is shared (2 vCPUs): the load average is printed before and after.
+"""
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from rig.benchmark import paper_input, rel_rms_error  # noqa: E402
+from rig.integrators import integrate  # noqa: E402
+from rig.scene import load_scene  # noqa: E402
+from rig.simulate import simulate  # noqa: E402
+
+
+def timed(fn, repeats):
+    walls, cpus = [], []
+    out = fn()  # warm-up (numba cache load)
+    for _ in range(repeats):
+        t, c = time.perf_counter(), time.process_time()
+        out = fn()
+        walls.append(time.perf_counter() - t)
+        cpus.append(time.process_time() - c)
+    return np.array(walls), np.array(cpus), out
+
+
+def line(name, walls, cpus, extra):
+    print(f"{name:38s} wall min {walls.min():.3f}  median {np.median(walls):.3f}  max "
+          f"{walls.max():.3f} s | CPU median {np.median(cpus):.3f} s | {extra}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeats", type=int, default=21)
+    args = ap.parse_args(argv)
+    print(f"load average before: {os.getloadavg()}")
+    chain = load_scene("ishizaki2009").chain
+    base = paper_input(3000.0)
+    ref_runs = [integrate(chain, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
+                          n_intervals=base.n_intervals, out_every=10, method="dop853",
+                          substeps=k, adaptive=False).y_out[:, :2] for k in (2, 4)]
+    ref = ref_runs[0]
+    print(f"paper's run, 3000 s: reference DOP853 2 steps/sample, its error against 4 "
+          f"steps/sample: {rel_rms_error(ref_runs[1], ref):.1e}")
+    for method in ("etd3", "rk4", "linear"):
+        kw = dict(theta0=0.0, base=base, method=method, output_dt_s=0.01, estimate_error=False)
+        if method != "linear":
+            kw["dt_s"] = 1e-3
+        walls, cpus, tr = timed(lambda: simulate(chain, 3000.0, **kw), args.repeats)
+        err = rel_rms_error(tr.theta_rad, ref)
+        line(f"paper 3000 s {method}" + (" dt=1 ms" if method != "linear" else ""), walls, cpus,
+             f"error {err:.2g}; {3000 / np.median(walls):,.0f}x real time")
+    for label, theta0, kw in (
+            ("chain n=100 straight, rk4 dt=1 ms", 0.5, dict(method="rk4", dt_s=1e-3)),
+            ("chain n=100 horizontal, dop853 1e-6", np.pi / 2,
+             dict(method="dop853", rtol=1e-6, atol=1e-8))):
+        scene = load_scene("rod-chain", ["pendulum.n=100"])
+        ch = scene.chain
+        th0 = np.full(100, theta0)
+        walls, cpus, _ = timed(lambda: simulate(ch, 1.0, theta0=th0, output_dt_s=0.01,
+                                                estimate_error=False, **kw),
+                               max(3, args.repeats // 3))
+        long = simulate(ch, 10.0, theta0=th0, output_dt_s=0.01, estimate_error=False, **kw)
+        avail = long.energy_j[0] + ch.g_mps2 * ch.S.sum()
+        drift = np.abs(long.energy_j - long.energy_j[0]).max() / avail
+        line(label + " (1 s)", walls, cpus, f"energy drift over 10 s {drift:.2g}")
+    print(f"load average after: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()
