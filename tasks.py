@@ -47,6 +47,14 @@ def ensure_venv() -> None:
     STAMP.write_text(want)
 
 
+def compile_bytecode() -> None:
+    """Byte-compile the project's packages (what a non-editable install does): with
+    PYTHONDONTWRITEBYTECODE set, as on some CI machines, every ``daq`` command would otherwise
+    recompile ~40 modules at start-up (~0.2 s). Up-to-date files are skipped."""
+    subprocess.run([str(PY), "-m", "compileall", "-q", "rig", "daq", "processing"], check=True,
+                   cwd=ROOT, stdout=subprocess.DEVNULL)
+
+
 DAQ = [PY, "-m", "daq.cli"]
 
 # The paper's experiment end to end (SPEC section 1): 30 records of 100 s of the emulated bench,
@@ -73,6 +81,7 @@ def main(argv: list[str]) -> int:
         print(f"usage: python3 tasks.py {{{','.join(jobs)}}} [extra args]", file=sys.stderr)
         return 2
     ensure_venv()
+    compile_bytecode()
     cmds = jobs[argv[0]]
     if not cmds:
         return 0

@@ -41,6 +41,7 @@ from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, Rec
                          Recording, TruthField)
 from rig.blocks import AnalogBlock, Calibration
 from rig.errors import ConfigError, RigError
+from rig.prefetch import prefetch
 from rig.scene import Scene
 
 FORMAT_VERSION = "1.0"
@@ -202,9 +203,11 @@ class _RigBench:
         acq = scene.settings["acquisition"]
         n = min(round(BLOCK_S * acq["rate_hz"]), round(acq["record_s"] * acq["rate_hz"]))
         self._block_s = max(1, n) / acq["rate_hz"]  # a whole number of ADC samples
+        # exactly what the run consumes (nothing simulated beyond it, even when prefetching)
+        self._duration_s = RecordPlan.from_settings(acq).simulation_samples / self.fs_hz
 
     def blocks(self) -> Iterator[AnalogBlock]:
-        return self._sim.blocks(self._block_s)
+        return self._sim.blocks(self._block_s, self._duration_s)
 
     def calibrations(self) -> dict[str, Calibration]:
         return dict(self._sim.calibrations())
@@ -455,7 +458,9 @@ def acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bo
     status, message = "failed", ""
     try:
         fan.send("start", header)
-        _run(header, _chain(first, blocks), fan, progress, clips)
+        # the bench simulates the next blocks on one core while this thread filters,
+        # digitises and writes the previous one on the other (same blocks, same order)
+        _run(header, _chain(first, prefetch(blocks, 2)), fan, progress, clips)
         status = "complete"
     except KeyboardInterrupt:
         status, message = "interrupted", "KeyboardInterrupt"
@@ -487,6 +492,8 @@ def acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bo
 def _chain(first, rest):
     yield first
     yield from rest
+
+
 
 
 def model_response(bench: Bench, aa: AntiAliasFilter, plan: RecordPlan,

@@ -49,12 +49,18 @@ in blocks of any sizes gives the same samples, bit for bit, as filtering it in o
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
+import os
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from rig.errors import ConfigError
+from rig.jit import njit
 
 KINDS = ("elliptic", "none")
 
@@ -153,11 +159,8 @@ class AntiAliasFilter:
         if kind == "none":
             order, sos = 0, np.array([[1.0, 0, 0, 1.0, 0, 0]])
         else:
-            from scipy import signal  # imported when used: scipy.signal costs ~1 s to import
-
-            order, wn = signal.ellipord(fp, fst, ripple_db, attenuation_db, fs=fs_hz)
-            sos = signal.ellip(order, ripple_db, attenuation_db, wn, btype="low", output="sos",
-                               fs=fs_hz)
+            order, sos = _elliptic_design(float(fs_hz), float(fp), float(fst), float(ripple_db),
+                                          float(attenuation_db))
         sos = np.ascontiguousarray(sos, dtype=float)
         sos.setflags(write=False)
         return cls(fs_hz=float(fs_hz), rate_hz=float(rate_hz), kind=kind, passband_hz=float(fp),
@@ -227,8 +230,80 @@ class AntiAliasFilter:
         if self.kind == "none":
             y, zi = x, state.zi
         else:
-            from scipy import signal
-
-            y, zi = signal.sosfilt(self.sos.copy(), x, axis=-1, zi=state.zi)
+            y = np.array(x, dtype=float, order="C", ndmin=2)
+            zi = np.array(state.zi, dtype=float, order="C")
+            _sosfilt_inplace(self.sos, y.reshape(-1, n), zi.reshape(len(self.sos), -1, 2))
+            y = y.reshape(x.shape)
         return (np.ascontiguousarray(y[..., sl]),
                 FilterState(zi=zi, phase=(state.phase - n) % self.decimation))
+
+
+# -- compiled filtering and the design cache ---------------------------------------------------
+
+@njit(cache=True, nogil=True)
+def _sosfilt_inplace(sos, x, zi):
+    """Filter every row of ``x`` (channels, samples) in place through the sections ``sos``
+    (rows ``[b0, b1, b2, 1, a1, a2]``), transposed direct form II, updating ``zi`` (sections,
+    channels, 2): the arithmetic of ``scipy.signal.sosfilt`` in the same order (equal to it bit for
+    bit, tests/test_antialias.py) without importing scipy.signal (~1 s)."""
+    n_sec = sos.shape[0]
+    for c in range(x.shape[0]):
+        for k in range(x.shape[1]):
+            cur = x[c, k]
+            for s in range(n_sec):
+                new = sos[s, 0] * cur + zi[s, c, 0]
+                zi[s, c, 0] = sos[s, 1] * cur - sos[s, 4] * new + zi[s, c, 1]
+                zi[s, c, 1] = sos[s, 2] * cur - sos[s, 5] * new
+                cur = new
+            x[c, k] = cur
+
+
+def design_cache_dir() -> Path:
+    """Where designed filters are kept: ``$PENDULUM_DAQ_CACHE``, else
+    ``$XDG_CACHE_HOME/pendulum-daq``, else ``~/.cache/pendulum-daq``."""
+    env = os.environ.get("PENDULUM_DAQ_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "pendulum-daq"
+
+
+def _elliptic_design(fs_hz: float, fp_hz: float, fst_hz: float, ripple_db: float,
+                     attenuation_db: float) -> tuple[int, np.ndarray]:
+    """``scipy.signal.ellipord`` + ``ellip(..., output="sos")``, memoised on disk.
+
+    Importing scipy.signal costs about 1 s (scipy 1.17 rewrites ~800 docstrings at import), half
+    of the 2 s a whole ``daq acquire`` may take; the design is a pure function of its arguments
+    and of scipy's version, so it is computed once and read back from a JSON file (floats written
+    with ``repr``, which round-trips exactly) in :func:`design_cache_dir`. A missing, unreadable or
+    foreign cache entry is recomputed; a cache that cannot be written is skipped silently.
+    """
+    import scipy  # the package alone is cheap; its version is part of the key
+
+    key = {"design": "ellipord+ellip sos lowpass", "fs_hz": repr(fs_hz), "fp_hz": repr(fp_hz),
+           "fst_hz": repr(fst_hz), "ripple_db": repr(ripple_db),
+           "attenuation_db": repr(attenuation_db), "scipy": scipy.__version__}
+    digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:20]
+    path = design_cache_dir() / f"antialias-{digest}.json"
+    try:
+        entry = json.loads(path.read_text())
+        if entry["key"] == key:
+            sos = np.array(entry["sos"], dtype=float)
+            if sos.ndim == 2 and sos.shape[1] == 6 and np.isfinite(sos).all():
+                return int(entry["order"]), sos
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    from scipy import signal  # imported when used: scipy.signal costs ~1 s to import
+
+    order, wn = signal.ellipord(fp_hz, fst_hz, ripple_db, attenuation_db, fs=fs_hz)
+    sos = signal.ellip(order, ripple_db, attenuation_db, wn, btype="low", output="sos", fs=fs_hz)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, suffix=".tmp",
+                                         delete=False) as fh:
+            json.dump({"key": key, "order": int(order), "sos": sos.tolist()}, fh)
+        os.replace(fh.name, path)
+    except OSError:
+        pass
+    return int(order), np.asarray(sos, dtype=float)
+

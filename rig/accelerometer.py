@@ -47,6 +47,7 @@ import numpy as np
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
+from rig.jit import njit
 from rig.validate import finite_at_least as _finite
 from rig.integrators import discretise
 
@@ -146,12 +147,15 @@ class Accelerometer:
         ``rng`` draws the noise (one standard normal per sample) unless ``noise`` is False.
         Returns (volts (N,), overrange (N,) bool).
         """
-        v = self.volts_per_mps2 * np.asarray(sensed_mps2, float)
+        s = np.ascontiguousarray(sensed_mps2, dtype=float).reshape(-1)
         if noise and self.noise_mps2_rthz > 0:
-            v = v + self.noise_rms_v(fs_hz) * rng.standard_normal(v.shape[0])
-        lim = self.sensitivity_vpmps2 * self.range_mps2
-        over = np.abs(v) > lim
-        return np.minimum(np.maximum(v, -lim), lim), over
+            sd, w = self.noise_rms_v(fs_hz), rng.standard_normal(s.shape[0])
+        else:
+            sd, w = 0.0, np.zeros(0)
+        volts, over = np.empty(s.shape[0]), np.empty(s.shape[0], dtype=np.bool_)
+        _output_kernel(s, self.volts_per_mps2, w, sd, self.sensitivity_vpmps2 * self.range_mps2,
+                       volts, over)
+        return volts, over
 
     def measure(self, accel_mps2, fs_hz: float, state: AccelerometerState | None,
                 rng: np.random.Generator | None, *, noise: bool = True
@@ -181,14 +185,12 @@ class Accelerometer:
                 prev = np.concatenate([[a[0]], a[:-1]])
                 drive = g0 * prev + g1 * (a - prev)
                 drive[0] = state.q
-                zi = np.array([0.0])
+                q0 = 0.0
             else:
                 prev = np.concatenate([[state.last_accel_mps2], a[:-1]])
                 drive = g0 * prev + g1 * (a - prev)
-                zi = np.array([phi * state.q])
-            import scipy.signal  # imported when used: scipy.signal costs ~1 s to import
-
-            q, _ = scipy.signal.lfilter([1.0], [1.0, -phi], drive, zi=zi)
+                q0 = state.q
+            q = _first_order_recursion(phi, drive, q0)
         new = AccelerometerState(q=float(q[-1]), last_accel_mps2=float(a[-1]))
         volts, over = self.output(self.sensed(a, q), fs_hz, rng, noise=noise)
         return volts, new, over
@@ -198,3 +200,30 @@ class Accelerometer:
         phi, g0, g1 = discretise(np.array([[-self.corner_rad_s]]), np.array([[1.0]]),
                                  1.0 / fs_hz, "linear")
         return float(phi[0, 0]), float(g0[0, 0]), float(g1[0, 0])
+
+
+@njit(cache=True, nogil=True)
+def _first_order_recursion(phi, drive, q_before):
+    """``q[k] = drive[k] + phi q[k-1]`` with ``q[-1] = q_before`` (what
+    ``scipy.signal.lfilter([1], [1, -phi], drive, zi=[phi q_before])`` computes, without
+    importing scipy.signal)."""
+    q = np.empty(drive.shape[0])
+    acc = q_before
+    for k in range(drive.shape[0]):
+        acc = drive[k] + phi * acc
+        q[k] = acc
+    return q
+
+
+@njit(cache=True, nogil=True)
+def _output_kernel(sensed, volts_per_mps2, w, sd, lim, volts, over):
+    """``volts = clip(volts_per_mps2 sensed + sd w, +-lim)``, ``over = |.| > lim`` in one pass
+    (``w`` empty: no noise)."""
+    noisy = w.shape[0] > 0
+    for k in range(sensed.shape[0]):
+        v = volts_per_mps2 * sensed[k]
+        if noisy:
+            v = v + sd * w[k]
+        over[k] = abs(v) > lim
+        volts[k] = min(max(v, -lim), lim)
+

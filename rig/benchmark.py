@@ -520,7 +520,8 @@ def scene_paper(ctx: _Ctx) -> SceneResult:
     entries.append(_rig_entry(
         ctx, "paper", chain, duration, "linear", "exact",
         dict(common, method="linear"), metric, estimate=False,
-        note="the linearised model: its error is the model's, not the integrator's"))
+        note=("the linearised model, stepped once per 10 ms output row (lifted: Phi^10 and a "
+              "FIR of the input); its error is the model's, not the integrator's")))
     if ctx.mode == "full":
         entries.append(_rig_entry(ctx, "paper", chain, duration, "gauss4", "dt=1 ms",
                                   dict(common, method="gauss4", dt_s=1e-3), metric,

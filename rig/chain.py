@@ -23,11 +23,11 @@ import math
 from dataclasses import dataclass
 from functools import cached_property
 
-import numba
 import numpy as np
 import scipy.linalg
 
 from rig.errors import ConfigError
+from rig.jit import njit
 
 G_STANDARD = 9.80665  # m/s^2
 DAMPING_MODES = ("absolute", "relative")
@@ -326,7 +326,7 @@ class Chain:
 
 # -- compiled kernels (shared by every integrator) ----------------------------------------
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def solve_spd_inplace(a, b):
     """Solve a x = b for symmetric positive definite a (n, n) by Cholesky; overwrites a and b
     (x is returned in b)."""
@@ -354,7 +354,7 @@ def solve_spd_inplace(a, b):
         b[i] = s / a[i, i]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def accel_kernel(hc, s, cm, g, theta, omega, ax, ay, out, work):
     """th'' of the nonlinear chain into ``out`` (n,); ``work`` is scratch of shape (n, n+1)."""
     n = theta.shape[0]
@@ -377,7 +377,7 @@ def accel_kernel(hc, s, cm, g, theta, omega, ax, ay, out, work):
     solve_spd_inplace(m, out)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def energy_kernel(hc, s, g, theta, omega, out):
     """Energy 1/2 w^T M w - g S.cos(th) for each row of theta, omega (T, n) into out (T,)."""
     t_len, n = theta.shape
@@ -390,7 +390,7 @@ def energy_kernel(hc, s, g, theta, omega, out):
         out[t] = e
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def accel_recursive_kernel(mass, length, com, inertia, gamma, relative, g, theta, omega, ax, ay,
                            out, work):
     """th'' of the nonlinear chain in O(n) operations (articulated-body recursion), into ``out``.

@@ -65,11 +65,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import scipy.linalg
 
 from rig.chain import Chain
+from rig.jit import njit
 from rig.stage import Stage
 
 
@@ -145,7 +145,7 @@ def coupled_params(chain: Chain, stage: Stage, a: np.ndarray, *, q_idx: int = -1
 # the nonlinear accelerations (own copy of the articulated-body recursion of rig.chain)
 # ================================================================================================
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _accel(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, reaction, th0,
            z, work, alpha):
     """Stage acceleration x0'' (returned) and alpha = theta'' of the coupled nonlinear bench at
@@ -230,7 +230,7 @@ def _accel(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, re
     return ax
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
     """The same as :func:`_accel` for n = 2, from the dense equations (one division)::
 
@@ -281,7 +281,7 @@ def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
     return ax
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f):
     """f = (x0'', alpha, [x0'' - wc q]) - a_rows z."""
     n = alpha.shape[0]
@@ -299,7 +299,7 @@ def _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f):
         f[r] -= acc
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z,
                 alpha, f):
     """The remainder f for n = 2 (dense accelerations); returns the nonlinear x0''."""
@@ -308,7 +308,7 @@ def _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
     return ax
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, reaction,
                  th0, q_idx, wc, a_rows, z, work, alpha, f):
     """The remainder f for any n (O(n) recursion); returns the nonlinear x0''. Not inlined:
@@ -371,7 +371,7 @@ def lawson_matrices(a: np.ndarray, b: np.ndarray, h: float):
     return e_h, e_2, g_h, g_2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
                    m_stage, reaction, th0, q_idx, wc, rows, a_rows, e_h, e_2, g_h, g_2, h, nsub,
                    v, z, z_out, ax_out):
@@ -467,7 +467,7 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
 # first-order linearisation error (the predictor)
 # ================================================================================================
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
                        m_stage, reaction, th0, q_idx, wc, rows, a_rows, phi, g0, g1, gf0, gf1, v,
                        z, d, k_rec, n_batches, sums, peaks):

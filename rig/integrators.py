@@ -9,7 +9,8 @@ may jump at its ends, so every method steps *exactly onto* each sample instant: 
 take ``substeps`` equal steps per interval, the adaptive method never steps across an instant
 (it splits what is left of an interval into equal steps no longer than its proposal) and carries its
 proposed step over to the next interval. Stage times are local to the interval, so the result does
-not depend on the absolute time (block-wise runs reproduce one-shot runs bit for bit).
+not depend on the absolute time (block-wise runs reproduce one-shot runs bit for bit; for the
+linear method, which steps once per output row, blocks that end on output rows).
 
 =========  =====  ========  ===================================================================
 method     order  kind      error behaviour
@@ -22,7 +23,9 @@ gauss4     4      implicit  2-stage Gauss-Legendre in (theta, p = M omega): symp
 midpoint   2      implicit  1-stage Gauss (implicit midpoint) in (theta, p): symplectic, O(h^2)
 linear     exact  exact     exact discretisation of the *linearised* model for the held input;
                             only round-off (the linearisation is a model error, ~ theta^3;
-                            the vertical input y0'' drops out of it at first order)
+                            the vertical input y0'' drops out of it at first order); composed
+                            into one step per output row (Phi^L and a FIR of the row's input
+                            samples, :func:`lift_linear`) where a row spans L > 1 substeps
 etd3       3      exponen-  the linearised chain and the held input exactly (as ``linear``), the
                   tial      nonlinear remainder N by 2-node Gauss exponential quadrature with
                             extrapolated stages: error O(h^3 |N| |dN/dz| + h^4 |A|^2 |N|), i.e.
@@ -66,12 +69,12 @@ import functools
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import scipy.linalg
 
 from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
+from rig.jit import njit
 
 HOLDS = ("zoh", "linear")
 
@@ -248,7 +251,7 @@ GAUSS_ROUNDOFF_FLOOR = 1e-13  # a stagnating iteration below this relative chang
 # compiled helpers
 # ================================================================================================
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _cholesky_solve(w, f, r, off, n):
     """Solve M x = f[r, off:off+n] in place for M (SPD) in the lower triangle of w[:, :n]
     (overwritten by its Cholesky factor)."""
@@ -283,7 +286,7 @@ def _cholesky_solve(w, f, r, off, n):
 # calls instead of O(n^2)), and a Cholesky solve; ``w`` is their scratch of shape (n, n + 2).
 # Kernels choose between them once per call site (``if two: ... else: ...``).
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _rhs2(hc, s, cm, g, y, ax, ay, f, r):
     """f[r] = (omega, th'') for y = (theta, omega), n = 2."""
     ga = g + ay
@@ -307,7 +310,7 @@ def _rhs2(hc, s, cm, g, y, ax, ay, f, r):
     f[r, 3] = (h00 * f1 - m01 * f0) / det
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _rhs_n(hc, s, cm, g, y, ax, ay, f, r, w):
     """f[r] = (omega, th'') for y = (theta, omega), any n."""
     n = hc.shape[0]
@@ -337,7 +340,7 @@ def _rhs_n(hc, s, cm, g, y, ax, ay, f, r, w):
     _cholesky_solve(w, f, r, n, n)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _canon2(hc, s, cm, g, y, ax, ay, f, r):
     """f[r] = (theta', p') for y = (theta, p), n = 2."""
     ga = g + ay
@@ -360,7 +363,7 @@ def _canon2(hc, s, cm, g, y, ax, ay, f, r):
     f[r, 3] = t - cm[1, 0] * w0 - cm[1, 1] * w1 - s[1] * (ga * s1 + ax * c1)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _canon_n(hc, s, cm, g, y, ax, ay, f, r, w):
     """f[r] = (theta', p') for y = (theta, p), any n:
     theta' = omega = M^{-1} p;  p'_j = -sum_k H_jk sin(th_j - th_k) w_j w_k - (C w)_j
@@ -394,7 +397,7 @@ def _canon_n(hc, s, cm, g, y, ax, ay, f, r, w):
 SINCOS_POLY_MAX = 0.8
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _sincos_poly(x):
     """(sin x, cos x) by their Taylor polynomials, for |x| <= SINCOS_POLY_MAX only (Estrin's
     scheme: the dependency chain is 5 multiplications deep instead of Horner's 9)."""
@@ -417,7 +420,7 @@ def _sincos_poly(x):
     return sn, cs
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _sincos(x):
     """(sin x, cos x): the polynomial for |x| <= SINCOS_POLY_MAX, libm otherwise."""
     if abs(x) <= SINCOS_POLY_MAX:
@@ -425,7 +428,7 @@ def _sincos(x):
     return math.sin(x), math.cos(x)
 
 
-@numba.njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath={"contract"})
 def _rhs_rec(bod, g, y, ax, ay, f, r, w):
     """f[r] = (omega, th'') for y = (theta, omega), any n, in O(n) operations.
 
@@ -506,7 +509,7 @@ ALG_TWO, ALG_DENSE, ALG_RECURSIVE = 0, 1, 2
 RECURSIVE_FROM_N = 3
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _rhs(hc, s, cm, g, bod, alg, y, ax, ay, f, r, w):
     """f[r] = (omega, th'') by the algorithm ``alg`` (ALG_TWO, ALG_DENSE or ALG_RECURSIVE); ``w``
     is scratch of shape (n, max(n + 2, 6)). (Outside the hot loops: there the kernels branch
@@ -573,7 +576,7 @@ def rhs(chain: Chain, y, ax: float = 0.0, ay: float = 0.0, *, canonical: bool = 
     return f[0]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def omega_to_momentum(hc, theta, omega, p):
     """p = M(theta) omega for rows of theta, omega (T, n) into p (T, n)."""
     t_len, n = theta.shape
@@ -586,7 +589,7 @@ def omega_to_momentum(hc, theta, omega, p):
             p[t, j] = acc
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def momentum_to_omega(hc, theta, p, omega):
     """omega = M(theta)^{-1} p for rows of theta, p (T, n) into omega (T, n)."""
     t_len, n = theta.shape
@@ -604,7 +607,7 @@ def momentum_to_omega(hc, theta, p, omega):
             omega[t, j] = b[0, j]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _all_finite(y):
     for i in range(y.shape[0]):
         if not math.isfinite(y[i]):
@@ -612,7 +615,7 @@ def _all_finite(y):
     return True
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _store(y, y_out, row):
     """y_out[row] = y; returns whether y is finite (the once-per-output divergence check)."""
     ok = True
@@ -631,7 +634,7 @@ def _store(y, y_out, row):
 # rk4
 # ================================================================================================
 
-@numba.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def rk4_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
     """Classic RK4, ``nsub`` equal steps per input interval, over ``n_int`` intervals.
 
@@ -687,7 +690,7 @@ def rk4_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, nsub, n_int, out_ev
     return OK, row, n_int
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _sincos2(a, b):
     """sin and cos of two angles, (sa, ca, sb, cb): the polynomial when both |angles| <=
     SINCOS_POLY_MAX (one branch), libm otherwise."""
@@ -698,7 +701,7 @@ def _sincos2(a, b):
     return math.sin(a), math.cos(a), math.sin(b), math.cos(b)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _acc2(hc, s, cm, g, th0, th1, w0, w1, ax, ay):
     """th'' of the n = 2 chain as two numbers (the arithmetic of :func:`_rhs2`)."""
     s0, c0, s1, c1 = _sincos2(th0, th1)
@@ -714,7 +717,7 @@ def _acc2(hc, s, cm, g, th0, th1, w0, w1, ax, ay):
     return (h11 * f0 - m01 * f1) * idet, (h00 * f1 - m01 * f0) * idet
 
 
-@numba.njit(cache=True, nogil=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def rk4_kernel2(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
     """:func:`rk4_kernel` for n = 2 in scalar code (the state in registers, the sines and
     cosines from the inlined polynomial, fused multiply-adds). Same arguments (without the body
@@ -790,7 +793,7 @@ def rk4_kernel2(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y
 # dop853
 # ================================================================================================
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _dop_step(hc, s, cm, g, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, yt, work, st0):
     """One DOP853 step of size h from local time s_loc.
 
@@ -812,7 +815,7 @@ def _dop_step(hc, s, cm, g, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, yt, 
             _rhs_rec(bod, g, yt, a0 + da * fr, b0 + db * fr, kk, st, work)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _dop_error_norm(kk, h, y, y_new, rtol, atol):
     """Hairer's DOP853 error norm (scipy's _estimate_error_norm): <= 1 means accept."""
     n2 = y.shape[0]
@@ -834,7 +837,7 @@ def _dop_error_norm(kk, h, y, y_new, rtol, atol):
     return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n2)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _rms_scaled(v, r, y, rtol, atol):
     """RMS of v[r] / (atol + |y| rtol)."""
     n2 = y.shape[0]
@@ -845,7 +848,7 @@ def _rms_scaled(v, r, y, rtol, atol):
     return math.sqrt(acc / n2)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def dop853_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, n_int, out_every, y, y_out,
                   rtol, atol, h_prop, min_step, adaptive, nsub):
     """Dormand-Prince 8(5,3) over ``n_int`` input intervals.
@@ -978,7 +981,7 @@ def dop853_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, n_int, out_every
 # Gauss-Legendre (implicit midpoint, gauss4) in canonical coordinates
 # ================================================================================================
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _lu_factor(a, piv):
     """In-place LU with partial pivoting of a (m, m); returns False if singular."""
     m = a.shape[0]
@@ -1005,7 +1008,7 @@ def _lu_factor(a, piv):
     return True
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _lu_solve(a, piv, b):
     m = a.shape[0]
     for k in range(m):
@@ -1026,7 +1029,7 @@ def _lu_solve(a, piv, b):
         b[i] = acc / a[i, i]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _stage_change(znew, zold, y):
     """max over stages and components of |dZ| / (|y| + |Z|); the relative change of the stages."""
     ns, n2 = znew.shape
@@ -1046,7 +1049,7 @@ def _stage_change(znew, zold, y):
     return big
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _converged(d, old):
     """Stopping rule for the stage iterations, from the last two relative changes d, old.
 
@@ -1071,7 +1074,7 @@ def _converged(d, old):
     return -1
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _gauss_newton(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gc, z, zold, ff, yt, work,
                   jac, big, piv, rhs, fy):
     """Solve the stage equations Z = h A F(y + Z) by simplified Newton,
@@ -1138,7 +1141,7 @@ def _gauss_newton(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gc, z, zol
     return False, nfev
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, zold, ff, yt,
                 work, jac, big, piv, rhs, fy):
     """One Gauss-Legendre step (stages ``ga``, ``gb``, ``gc``) of y = (theta, p) in place.
@@ -1200,7 +1203,7 @@ def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, z
     return OK, nfev, used_newton
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out,
                  ga, gb, gc):
     """Gauss-Legendre collocation (tableau ga, gb, gc) in y = (theta, p), nsub steps per interval.
@@ -1285,7 +1288,7 @@ def discretise(a, b, h, hold="zoh"):
     return phi, g0, g1
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
     """z <- Phi z + Gamma0 u_a + Gamma1 (u_b - u_a) per substep (single input x0'').
 
@@ -1321,6 +1324,171 @@ def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
             if not ok:
                 return NONFINITE, row, i + 1
     return OK, row, n_int
+
+
+# -- lifted to the output rate --------------------------------------------------------------------
+#
+# When each output row spans L = out_every * substeps substeps, the per-substep recursion composes
+# into one step per row, z_{k+1} = Phi^L z_k + sum_q c_q u_{k m + q}: a FIR of the row's
+# m = out_every input samples (m + 1 with the linear hold: rows share their boundary sample). With
+# the interval's map ``z <- P_I z + a_I u_q + b_I u_{q+1}`` (P_I = Phi^substeps; a_I, b_I the
+# substeps' Gamma0, Gamma1 terms carried to the interval's end, b_I = 0 for zoh) the taps are
+# ``c_q = P_I^{m-1-q} a_I + P_I^{m-q} b_I`` (each term where its exponent is >= 0). They come from
+# the discretised Phi itself (repeated products, Phi^L by squaring), so the lifted run follows the
+# per-substep run to round-off (a few ulp per row), not merely the exact solution.
+
+
+def _matrix_power(a: np.ndarray, k: int) -> np.ndarray:
+    """a^k by repeated squaring (k >= 0; relative error ~ log2(k) ulp)."""
+    out = np.eye(a.shape[0])
+    sq = a.copy()
+    while k:
+        if k & 1:
+            out = sq @ out
+        k >>= 1
+        if k:
+            sq = sq @ sq
+    return out
+
+
+def lift_linear(phi, g0, g1, hold: str, substeps: int, out_every: int):
+    """The linear method over one output row of ``out_every`` input intervals at once.
+
+    Parameters
+    ----------
+    phi, g0, g1 : the substep's exact discretisation (:func:`discretise`; (N, N), (N, 1), (N, 1)).
+    hold : ``"zoh"`` or ``"linear"`` (the input inside an interval, as in :func:`linear_kernel`).
+    substeps : substeps per input interval.
+    out_every : input intervals per output row, m.
+
+    Returns
+    -------
+    p : (N, N) Phi^(m substeps).
+    taps : (m, N) for ``zoh``, (m + 1, N) for ``linear``: the row's state is
+        ``z_{k+1} = p z_k + taps.T @ u[k m : k m + len(taps)]``, the same map as
+        :func:`linear_kernel` over the row's m intervals (equal to round-off).
+    """
+    phi = np.ascontiguousarray(phi, dtype=float)
+    n2 = phi.shape[0]
+    g0 = np.ascontiguousarray(g0, dtype=float).reshape(n2)
+    g1 = np.ascontiguousarray(g1, dtype=float).reshape(n2)
+    la = int(hold == "linear")
+    p_i = _matrix_power(phi, substeps)
+    taps = np.zeros((out_every + la, n2))
+    _lift_taps(phi, p_i, g0, g1, la, substeps, out_every, taps)
+    return _matrix_power(p_i, out_every), taps
+
+
+@njit(cache=True, nogil=True)
+def _lift_taps(phi, p_i, g0, g1, la, nsub, m, taps):
+    """taps[q] += P_I^(m-1-q) a_I (and taps[q+1] += P_I^(m-1-q) b_I with la = 1) for
+    :func:`lift_linear`.
+
+    Inside one interval substep j sees u_a = u_q (1 - j f) + u_{q+1} j f and u_b - u_a =
+    (u_{q+1} - u_q) f (f = 1/nsub; linear hold), u_a = u_q (zoh), so by Horner
+    a_I = sum_j Phi^(nsub-1-j) (Gamma0 (1 - j f) - Gamma1 f) and
+    b_I = sum_j Phi^(nsub-1-j) (Gamma0 j f + Gamma1 f) (zoh: Gamma0 alone, b_I = 0)."""
+    n2 = phi.shape[0]
+    a = np.zeros(n2)
+    b = np.zeros(n2)
+    t = np.empty(n2)
+    f = 1.0 / nsub
+    for j in range(nsub):
+        _matvec(phi, a, t)
+        for r in range(n2):
+            a[r] = t[r] + (g0[r] * (1.0 - j * f) - g1[r] * f if la else g0[r])
+        if la:
+            _matvec(phi, b, t)
+            for r in range(n2):
+                b[r] = t[r] + (g0[r] * (j * f) + g1[r] * f)
+    for q in range(m - 1, -1, -1):
+        for r in range(n2):
+            taps[q, r] += a[r]
+        _matvec(p_i, a, t)
+        a[:] = t
+        if la:
+            for r in range(n2):
+                taps[q + 1, r] += b[r]
+            _matvec(p_i, b, t)
+            b[:] = t
+
+
+@njit(cache=True)
+def _matvec(a, x, out):
+    """out = a @ x, each row summed in column order."""
+    for r in range(a.shape[0]):
+        acc = 0.0
+        for c in range(a.shape[1]):
+            acc += a[r, c] * x[c]
+        out[r] = acc
+
+
+@njit(cache=True, nogil=True)
+def lifted_kernel(p, taps, ax, m, n_rows, y, y_out):
+    """z <- P z + sum_q taps[q] ax[k m + q] once per output row k (see :func:`lift_linear`).
+
+    Stores the start and each of the ``n_rows`` rows into ``y_out[0 .. n_rows]``. Returns
+    (status, rows, intervals done) like :func:`linear_kernel`. A row's input sum and matrix
+    product are taken in a fixed order, so a row's result does not depend on where it sits in the
+    run (blocks that end on output rows reproduce a one-shot run bit for bit)."""
+    n2 = y.shape[0]
+    nt = taps.shape[0]
+    yt = np.empty(n2)
+    w = np.empty(n2)
+    zero = n_rows - n_rows  # see _NOTE_LITERALS
+    _store(y, y_out, zero)
+    for k in range(n_rows):
+        i0 = k * m
+        for r in range(n2):
+            w[r] = 0.0
+        for q in range(nt):
+            u = ax[i0 + q]
+            for r in range(n2):
+                w[r] += taps[q, r] * u
+        for r in range(n2):
+            acc = w[r]
+            for c in range(n2):
+                acc += p[r, c] * y[c]
+            yt[r] = acc
+        for r in range(n2):
+            y[r] = yt[r]
+        if not _store(y, y_out, k + 1):
+            return NONFINITE, k + 2, (k + 1) * m
+    return OK, n_rows + 1, n_rows * m
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"})
+def lifted_kernel2(p, taps, ax, m, n_rows, y, y_out):
+    """:func:`lifted_kernel` for the 4-state (n = 2) chain, the state in scalars (the generic
+    loops keep it in memory, ~3 times slower); fused multiply-adds, no reassociation."""
+    nt = taps.shape[0]
+    p00, p01, p02, p03 = p[0, 0], p[0, 1], p[0, 2], p[0, 3]
+    p10, p11, p12, p13 = p[1, 0], p[1, 1], p[1, 2], p[1, 3]
+    p20, p21, p22, p23 = p[2, 0], p[2, 1], p[2, 2], p[2, 3]
+    p30, p31, p32, p33 = p[3, 0], p[3, 1], p[3, 2], p[3, 3]
+    y0, y1, y2, y3 = y[0], y[1], y[2], y[3]
+    y_out[0, 0], y_out[0, 1], y_out[0, 2], y_out[0, 3] = y0, y1, y2, y3
+    for k in range(n_rows):
+        i0 = k * m
+        w0 = w1 = w2 = w3 = 0.0
+        for q in range(nt):
+            u = ax[i0 + q]
+            w0 += taps[q, 0] * u
+            w1 += taps[q, 1] * u
+            w2 += taps[q, 2] * u
+            w3 += taps[q, 3] * u
+        z0 = w0 + p00 * y0 + p01 * y1 + p02 * y2 + p03 * y3
+        z1 = w1 + p10 * y0 + p11 * y1 + p12 * y2 + p13 * y3
+        z2 = w2 + p20 * y0 + p21 * y1 + p22 * y2 + p23 * y3
+        z3 = w3 + p30 * y0 + p31 * y1 + p32 * y2 + p33 * y3
+        y0, y1, y2, y3 = z0, z1, z2, z3
+        y_out[k + 1, 0], y_out[k + 1, 1], y_out[k + 1, 2], y_out[k + 1, 3] = y0, y1, y2, y3
+        if not (math.isfinite(y0) and math.isfinite(y1) and math.isfinite(y2)
+                and math.isfinite(y3)):
+            y[0], y[1], y[2], y[3] = y0, y1, y2, y3
+            return NONFINITE, k + 2, (k + 1) * m
+    y[0], y[1], y[2], y[3] = y0, y1, y2, y3
+    return OK, n_rows + 1, n_rows * m
 
 
 # ================================================================================================
@@ -1433,7 +1601,7 @@ def etd3_coefficients(chain: Chain, h: float, hold: str) -> Etd3Coefficients:
         xp=arr(xp), p=arr(hinv @ chain.K), q=arr(hinv @ chain.C), bw=arr(b[n:, 0]))
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _sincos4(a, b, c, d):
     """sin and cos of four angles: (sa, ca, sb, cb, sc, cc, sd, cd). One branch for all four: the
     polynomial when every |angle| <= SINCOS_POLY_MAX (straight-line code whose four evaluations
@@ -1449,7 +1617,7 @@ def _sincos4(a, b, c, d):
             math.sin(d), math.cos(d))
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _nsplit2(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
     """(N0, N1, N2) of the n = 2 chain at (theta, omega), as six numbers (N0_0, N0_1, N1_0, ...);
     s0, c0, s1, c1 are sin and cos of th0 and th1."""
@@ -1476,7 +1644,7 @@ def _nsplit2(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
     return n00, n01, n10, n11, n20, n21
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _nsplit_n(hc, s, cm, g, p, q, bw, z, rz, out, ro, w):
     """out[ro, 0:3n] = (N0, N1, N2) at the state z[rz] = (theta, omega), any n (dense Cholesky
     of M(theta), three solves); ``w`` is scratch of shape (n, n + 5)."""
@@ -1556,13 +1724,13 @@ def nonlinear_remainder(chain: Chain, y, *, generic: bool = False) -> np.ndarray
     return out.reshape(3, n)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _sincos_pair(a, b):
     sa, ca, sb, cb, _, _, _, _ = _sincos4(a, b, 0.0, 0.0)
     return sa, ca, sb, cb
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def etd3_kernel(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp, ax, ay, sa, la,
                 h_in, nsub, n_int, out_every, y, y_out, hist, have):
     """etd3 (see the section comment above), ``nsub`` steps per input interval, any n.
@@ -1655,7 +1823,7 @@ def etd3_kernel(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp,
     return OK, row, n_int, nev
 
 
-@numba.njit(cache=True, nogil=True, fastmath={"contract"})
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def etd3_kernel2(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp, ax, ay, sa, la,
                  h_in, nsub, n_int, out_every, y, y_out, hist, have):
     """:func:`etd3_kernel` for n = 2 in scalar code (the same arithmetic up to the order of the
@@ -1801,7 +1969,7 @@ def etd3_kernel2(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp
     return OK, row, n_int, nev
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _etd3_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21):
     hist[0, 0] = a00
     hist[0, 1] = a01
@@ -1833,7 +2001,10 @@ class Run:
         back as ``native0`` to continue bit for bit.
     h_next_s : proposed next step of an adaptive method [s] (``nan`` otherwise).
     n_steps, n_rejected, n_fev, n_newton : accepted steps, rejected steps, right-hand-side
-        evaluations, Gauss steps that needed Newton.
+        evaluations, Gauss steps that needed Newton (the linear method counts its substeps, also
+        where it took them composed, one output row at a time).
+    lifted : the linear method's substeps per kernel step where it stepped once per output row
+        (:func:`lift_linear`; out_every * substeps), 0 where it stepped every substep.
     """
 
     y_out: np.ndarray
@@ -1843,6 +2014,7 @@ class Run:
     n_rejected: int
     n_fev: int
     n_newton: int
+    lifted: int = 0
 
 
 def output_rows(n_intervals: int, out_every: int) -> np.ndarray:
@@ -1882,7 +2054,7 @@ def from_native(chain: Chain, method: str, rows) -> np.ndarray:
 def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_intervals: int,
               out_every: int, method: str, substeps: int = 1, rtol: float = 1e-10,
               atol: float = 1e-12, h0_s: float = float("nan"), adaptive: bool = True,
-              t0_s: float = 0.0, algorithm: str = "auto") -> Run:
+              t0_s: float = 0.0, algorithm: str = "auto", lift: bool = True) -> Run:
     """Run one method over ``n_intervals`` held-input intervals of ``h_in`` seconds.
 
     Parameters
@@ -1905,6 +2077,9 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
     algorithm : right-hand side of rk4 and dop853 (:func:`rhs_algorithm`): ``"auto"`` (the
         n = 2 scalar code, the dense solve for n < :data:`RECURSIVE_FROM_N`, the O(n) recursion
         from there), ``"dense"`` or ``"recursive"``.
+    lift : linear only: step once per output row (:func:`lift_linear`, :func:`lifted_kernel`)
+        where a row spans more than one substep, and the partial last row (if any) per substep;
+        ``False`` steps every substep (the same map to round-off, ~out_every times slower).
 
     Raises
     ------
@@ -1932,6 +2107,7 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
     y_out = np.empty((rows.size, y.size if method != "etd3" else 2 * chain.n))
     h_next, n_rej, n_newton = float("nan"), 0, 0
     s_fail = 0.0
+    lifted = 0
     alg = rhs_algorithm(chain, algorithm)
     bod = bodies_array(chain)
     if method == "rk4":
@@ -1976,8 +2152,22 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
     else:  # linear
         a, b = chain.state_space()
         phi, g0, g1 = discretise(a, b, h_in / substeps, hold)
-        status, nrow, i_done = linear_kernel(phi, g0, g1, ax, la, substeps, n_intervals,
-                                             out_every, y, y_out)
+        n_full = n_intervals // out_every if lift and out_every * substeps > 1 else 0
+        if n_full:
+            p_row, taps = lift_linear(phi, g0, g1, hold, substeps, out_every)
+            kernel = lifted_kernel2 if y.size == 4 else lifted_kernel
+            status, nrow, i_done = kernel(p_row, taps, ax, out_every, n_full, y, y_out)
+            lifted = out_every * substeps
+            tail = n_intervals - i_done
+            if status == OK and tail:  # the partial last output interval, per substep
+                part = np.empty((2, y.size))
+                status, k, di = linear_kernel(phi, g0, g1, ax[i_done:], la, substeps, tail,
+                                              tail, y, part)
+                y_out[nrow] = part[1]
+                nrow, i_done = nrow + k - 1, i_done + di
+        else:
+            status, nrow, i_done = linear_kernel(phi, g0, g1, ax, la, substeps, n_intervals,
+                                                 out_every, y, y_out)
         n_steps, nfev = i_done * substeps, 0
 
     if status != OK:
@@ -1985,7 +2175,7 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
                           substeps)
     return Run(y_out=from_native(chain, method, y_out), native_end=y, h_next_s=float(h_next),
                n_steps=int(n_steps), n_rejected=int(n_rej), n_fev=int(nfev),
-               n_newton=int(n_newton))
+               n_newton=int(n_newton), lifted=lifted)
 
 
 def _raise_divergence(chain, method, status, y, y_out, rows, nrow, i_done, s_fail, h_in, t0_s,

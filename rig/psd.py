@@ -70,11 +70,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
+from rig.jit import njit
 from rig.validate import finite_at_least as _finite
 
 
@@ -217,19 +217,21 @@ class OpticalLever:
         u0, v0 = self.spot_m(mirror_x_m, mirror_rot_rad, mirror_z_m)
         u0 = np.array(u0, float, ndmin=1)
         v0 = np.array(v0, float, ndmin=1)
-        u, v = u0, v0
+        if u0.ndim != 1:
+            raise ConfigError(f"the mirror motion has shape {u0.shape}: expected a 1-D record")
         if noise and self.noise_m_rthz > 0:
             sd = self.noise_rms_m(fs_hz)
-            u = u + sd * rng_x.standard_normal(u.shape[0])
-            v = v + sd * rng_y.standard_normal(v.shape[0])
-        h = self.half_size_m
-        off = (np.abs(u) > h) | (np.abs(v) > h)
-        x_v = self.sign_x * self.gain_vpm * np.minimum(np.maximum(u, -h), h)
-        y_v = self.sign_y * self.gain_vpm * np.minimum(np.maximum(v, -h), h)
+            wx, wy = rng_x.standard_normal(u0.shape[0]), rng_y.standard_normal(v0.shape[0])
+        else:
+            sd, wx, wy = 0.0, np.zeros(0), np.zeros(0)
+        x_v, y_v = np.empty(u0.shape[0]), np.empty(v0.shape[0])
+        off = np.empty(u0.shape[0], dtype=np.bool_)
+        _volts_kernel(u0, v0, wx, wy, sd, self.half_size_m, self.sign_x * self.gain_vpm,
+                      self.sign_y * self.gain_vpm, x_v, y_v, off)
         return PsdReading(x_v=x_v, y_v=y_v, spot_u_m=u0, spot_v_m=v0, off_detector=off)
 
 
-@numba.njit(cache=True)
+@njit(cache=True, nogil=True)
 def spot_kernel(dx, dz, th, cphi, sphi, dist, u, v):
     """Exact spot (u, v) for each sample (module docstring; compiled, one pass)."""
     for k in range(dx.shape[0]):
@@ -244,3 +246,20 @@ def spot_kernel(dx, dz, th, cphi, sphi, dist, u, v):
         step = (dist - (cphi * qx - sphi * qy)) / (cphi * rx - sphi * ry)
         u[k] = sphi * (qx + step * rx) + cphi * (qy + step * ry)
         v[k] = step * rz
+
+
+@njit(cache=True, nogil=True)
+def _volts_kernel(u0, v0, wx, wy, sd, h, gx, gy, x_v, y_v, off):
+    """Spot plus noise (``u0 + sd wx``; ``wx`` empty: none), clipped at the edge ``h`` and
+    flagged there, times the signed gains: one pass."""
+    noisy = wx.shape[0] > 0
+    for k in range(u0.shape[0]):
+        u = u0[k]
+        v = v0[k]
+        if noisy:
+            u = u + sd * wx[k]
+            v = v + sd * wy[k]
+        off[k] = (abs(u) > h) or (abs(v) > h)
+        x_v[k] = gx * min(max(u, -h), h)
+        y_v[k] = gy * min(max(v, -h), h)
+

@@ -17,6 +17,7 @@ Public API: :class:`BaseInput`, :class:`SimState`, :class:`Trajectory`, :func:`s
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -172,10 +173,12 @@ class Trajectory:
     ----------
     t_s : (T,) output times [s].
     theta_rad, omega_rad_s : (T, n) angles [rad] and angular velocities [rad/s].
+    chain : the simulated chain.
     energy_j : (T,) mechanical energy in the base frame, 1/2 w^T M w - g sum S cos th [J]
-        (conserved for a fixed, undamped base).
+        (conserved for a fixed, undamped base); computed when first read.
     method : integrator name (:data:`rig.integrators.METHODS`).
-    settings : the resolved settings (steps, tolerances, output and input intervals, hold).
+    settings : the resolved settings (steps, tolerances, output and input intervals, hold;
+        for the linear method ``linear_step``: whether it stepped once per output row).
     n_steps, n_rejected, n_fev : accepted steps, rejected steps, right-hand-side evaluations of
         the main run.
     n_newton : Gauss steps whose stage equations needed Newton (fixed-point iteration did not
@@ -194,7 +197,7 @@ class Trajectory:
     t_s: np.ndarray
     theta_rad: np.ndarray
     omega_rad_s: np.ndarray
-    energy_j: np.ndarray
+    chain: Chain = field(repr=False)
     method: str
     settings: dict
     n_steps: int
@@ -208,6 +211,12 @@ class Trajectory:
     error_method: str
     estimate_wall_time_s: float
     final_state: SimState = field(repr=False)
+
+    @functools.cached_property
+    def energy_j(self) -> np.ndarray:
+        """(T,) mechanical energy in the base frame [J] (computed on first use: for a long
+        linear run it costs as much as the run itself)."""
+        return _readonly(np.asarray(self.chain.energy(self.theta_rad, self.omega_rad_s), float))
 
     @property
     def max_error_rad(self) -> float:
@@ -307,10 +316,12 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
 
 
 def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, algorithm="auto"):
-    """Run the segments in turn; returns (y_out (T, 2n), native_end, h_next, counts)."""
+    """Run the segments in turn; returns (y_out (T, 2n), native_end, h_next, counts, lifted)
+    with ``lifted`` each segment's :attr:`rig.integrators.Run.lifted`."""
     y = native0
     h = h0
     rows = []
+    lifted = []
     n_steps = n_rej = n_fev = n_newton = 0
     t = t0
     for k, sg in enumerate(segs):
@@ -323,8 +334,21 @@ def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, alg
         n_rej += run.n_rejected
         n_fev += run.n_fev
         n_newton += run.n_newton
+        lifted.append(run.lifted)
         t += sg.n_int * sg.h_in
-    return np.concatenate(rows), y, h, (n_steps, n_rej, n_fev, n_newton)
+    y_out = rows[0] if len(rows) == 1 else np.concatenate(rows)
+    return y_out, y, h, (n_steps, n_rej, n_fev, n_newton), lifted
+
+
+def _linear_step(segs, lifted) -> str:
+    """How the linear method stepped, for :attr:`Trajectory.settings` (``linear_step``)."""
+    if not any(lifted):
+        return "every substep"
+    what = (f"lifted to the output rate: one step of Phi^{max(lifted)} and a FIR of the held input "
+            "per output row, Phi the substep's exact discretisation")
+    if any(k and sg.n_int % sg.out_every for k, sg in zip(lifted, segs)):
+        what += "; the partial last output interval every substep"
+    return what
 
 
 def _times(segs, t0, duration) -> np.ndarray:
@@ -366,7 +390,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         divide the input interval (on a fixed base: the duration). Default for those: the
         input interval split into equal steps of at most 1/(100 f_max), f_max the fastest linear
         mode (on a fixed base: the longest such step dividing the duration); the linear method
-        steps once per interval. Not accepted for dop853, which chooses its own steps.
+        steps once per interval, composed into one step per output row where a row spans several
+        (``settings["linear_step"]``; :func:`rig.integrators.lift_linear`). Not accepted for
+        dop853, which chooses its own steps.
     output_dt_s : output interval [s], a whole multiple of the input interval (of ``dt_s`` for a
         fixed-step method on a fixed base). Default: the largest multiple of the input interval
         not over 1 s (every input sample if that is over 1 s); on a fixed base 1 s (and the end).
@@ -444,7 +470,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     tic = time.perf_counter()
     alg_name = algorithm
     rhs_algorithm(chain, alg_name)  # validate before running
-    y_out, native_end, h_next, (n_steps, n_rej, n_fev, n_newton) = _execute(
+    y_out, native_end, h_next, (n_steps, n_rej, n_fev, n_newton), lifted = _execute(
         chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f, algorithm=alg_name)
     wall = time.perf_counter() - tic
 
@@ -488,9 +514,8 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         error_method = "not estimated (estimate_error=False)"
 
     t = _times(segs, t0, duration)
-    theta = _readonly(np.ascontiguousarray(y_out[:, :n]))
-    omega = _readonly(np.ascontiguousarray(y_out[:, n:]))
-    energy = _readonly(np.asarray(chain.energy(theta, omega), float))
+    y_out = _readonly(y_out)
+    theta, omega = y_out[:, :n], y_out[:, n:]  # read-only views (no copy of a long run)
     final = SimState(t_s=float(t[-1]), theta_rad=_readonly(theta[-1].copy()),
                      omega_rad_s=_readonly(omega[-1].copy()), method=method,
                      native=_readonly(native_end.copy()), h_next_s=float(h_next))
@@ -499,7 +524,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     settings = dict(method=method, order=info.order, kind=info.kind, duration_s=duration,
                     t0_s=t0, rtol=rtol_f if info.kind == "adaptive" else None,
                     atol=atol_f if info.kind == "adaptive" else None, rhs=rhs_name, **grid)
-    return Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, energy_j=energy,
+    if method == "linear":
+        settings["linear_step"] = _linear_step(segs, lifted)
+    return Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
                       method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
                       n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
                       error_estimate_rad_s=err_om, energy_error_estimate_j=err_e,

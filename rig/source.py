@@ -105,6 +105,30 @@ def _whole_samples(where: str, duration_s: float, fs_hz: float) -> int:
     return k
 
 
+def butterworth_poles(order: int) -> np.ndarray:
+    """Poles of the unit-corner analog Butterworth low-pass of ``order`` (gain 1, no zeros): the
+    left half of the unit circle, ``-exp(i pi m / (2 order))``, m = -order+1, -order+3, ...,
+    order-1 (the numbers of ``scipy.signal.buttap``, which is not imported here: importing
+    scipy.signal costs ~1 s, half of a whole ``daq acquire``)."""
+    m = np.arange(-order + 1, order, 2)
+    return -np.exp(1j * np.pi * m / (2 * order))
+
+
+def butterworth_state_space(order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Controller-canonical realisation (a, b, c) of the unit-corner Butterworth low-pass,
+    ``r' = a r + b v``, output ``c . r`` (the matrices of ``scipy.signal.zpk2ss(*buttap(order))``,
+    tests/test_source.py)."""
+    den = np.poly(butterworth_poles(order)).real
+    a = np.zeros((order, order))
+    a[0] = -den[1:]
+    a[1:, :-1] = np.eye(order - 1)
+    b = np.zeros(order)
+    b[0] = 1.0
+    c = np.zeros(order)
+    c[-1] = 1.0
+    return a, b, c
+
+
 @dataclass(frozen=True)
 class Source:
     """The analyzer's source as a DAC (parameters frozen and validated; see the module docstring).
@@ -192,25 +216,18 @@ class Source:
             return None
         # the unit-corner prototype (O(1) coefficients) with time scaled by the corner:
         # H(s / wc) has the realisation (wc a, wc b, c)
-        import scipy.signal  # imported when used: scipy.signal costs ~1 s to import
-
+        a, b, c = butterworth_state_space(self.reconstruction_order)
         wc = 2 * np.pi * self.reconstruction_hz
-        z, p, k = scipy.signal.buttap(self.reconstruction_order)
-        a, b, c, d = scipy.signal.zpk2ss(z, p, k)
-        assert not np.any(d)
-        return wc * a, wc * b[:, 0], c[0]
+        return wc * a, wc * b, c
 
     def reconstruction_response(self, freqs_hz) -> np.ndarray:
         """Complex response of the reconstruction filter at ``freqs_hz`` [Hz] (1 when off)."""
         f = np.atleast_1d(np.asarray(freqs_hz, float))
         if self.reconstruction_hz == 0:
             return np.ones(f.shape, complex)
-        import scipy.signal
-
-        z, p, k = scipy.signal.butter(self.reconstruction_order,
-                                      2 * np.pi * self.reconstruction_hz, analog=True,
-                                      output="zpk")
-        return scipy.signal.freqs_zpk(z, p, k, worN=2 * np.pi * f)[1]
+        s = 1j * f / self.reconstruction_hz  # s / wc
+        p = butterworth_poles(self.reconstruction_order)
+        return 1.0 / np.prod(s[..., None] - p, axis=-1)
 
     # -- derived constants ----------------------------------------------------------------
     @property

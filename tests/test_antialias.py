@@ -138,3 +138,52 @@ def test_rates_that_do_not_decimate_are_refused(fs, rate, message):
 def test_bad_designs_are_refused(kw, message):
     with pytest.raises(ConfigError, match=message):
         AntiAliasFilter.design(FS, RATE, **kw)
+
+
+def test_compiled_filter_equals_scipy_sosfilt_bit_for_bit():
+    """The filter runs in compiled code (no scipy.signal import at run time) with scipy's
+    arithmetic: the same samples and final state, bit for bit, on 3 channels of noise."""
+    from scipy import signal
+
+    filt = AntiAliasFilter.design(FS, RATE)
+    x = np.random.default_rng(5).standard_normal((3, 20_001))
+    state = filt.initial_state(3)
+    y, after = filt.step(state, x)
+    ref, zf = signal.sosfilt(np.array(filt.sos), x, axis=-1, zi=state.zi)
+    assert y.tobytes() == np.ascontiguousarray(ref[:, ::10]).tobytes()
+    assert after.zi.tobytes() == zf.tobytes()
+
+
+def test_design_is_read_back_from_the_cache_bit_for_bit_without_scipy_signal(tmp_path):
+    """A second process reads the design from the cache: the same sections, bit for bit, and
+    scipy.signal never imported."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PENDULUM_DAQ_CACHE=str(tmp_path))
+    code = ("import sys, json; from daq.antialias import AntiAliasFilter as A; "
+            "f = A.design(1000.0, 100.0); "
+            "print(json.dumps([f.order, f.sos.tolist(), 'scipy.signal' in sys.modules]))")
+    runs = [json.loads(subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                                      capture_output=True, text=True).stdout) for _ in range(2)]
+    assert len(list(tmp_path.glob("antialias-*.json"))) == 1
+    assert runs[0][:2] == runs[1][:2]
+    assert runs[0][2] is True and runs[1][2] is False  # designed, then read back
+    from scipy import signal
+
+    order, wn = signal.ellipord(40.0, 50.0, 0.01, default_attenuation_db(16), fs=FS)
+    fresh = signal.ellip(order, 0.01, default_attenuation_db(16), wn, output="sos", fs=FS)
+    assert runs[1][0] == order and np.array(runs[1][1]).tobytes() == fresh.tobytes()
+
+
+def test_a_corrupt_design_cache_entry_is_recomputed(tmp_path, monkeypatch):
+    monkeypatch.setenv("PENDULUM_DAQ_CACHE", str(tmp_path))
+    good = AntiAliasFilter.design(FS, RATE)
+    (entry,) = tmp_path.glob("antialias-*.json")
+    for junk in ("{not json", '{"key": {}, "order": 3, "sos": [[1, 2]]}', ""):
+        entry.write_text(junk)
+        again = AntiAliasFilter.design(FS, RATE)
+        assert (again.order, again.sos.tobytes()) == (good.order, good.sos.tobytes())
+    assert entry.read_text().startswith('{"key"')  # rewritten

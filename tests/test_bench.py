@@ -1,7 +1,6 @@
 """The whole bench (rig/bench.py): source -> coil -> stage -> pendulum -> sensors, in blocks."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -31,18 +30,32 @@ def one_period_response(sim, key=None, volts=None, settle_s=150.0, period_s=10.0
     return b, f, v
 
 
-def test_paper_run_with_the_linear_model_takes_well_under_a_few_seconds():
+def test_blocks_over_a_duration_with_the_source_made_ahead_equal_sequential_blocks():
+    """blocks(block_s, duration_s) makes the source's blocks ahead in another thread: the same
+    bytes as next_block() one after the other, and nothing simulated beyond the duration."""
     sc = ishizaki()
-    BenchSimulation(sc, seed=0).next_block(10)  # compile / load the kernels and the FIR
-    sim = BenchSimulation(sc, seed=0)
-    cpu, wall = time.process_time(), time.perf_counter()
-    n = 0
-    for b in sim.blocks(10.0, 330.0 + 30 * 100.0):
-        n += b.samples
-    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-    print(f"paper run ({n} samples at 1 kHz): {cpu:.2f} s CPU, {wall:.2f} s wall")
-    assert n == 3_330_000
-    assert cpu < 4.0  # ~1.4 s CPU on an idle core; the bound leaves room for a shared machine
+    ahead = BenchSimulation(sc, seed=4)
+    got = list(ahead.blocks(2.0, 7.0))
+    seq = BenchSimulation(sc, seed=4)
+    want = [seq.next_block(k) for k in (2000, 2000, 2000, 1000)]
+    assert [b.samples for b in got] == [2000, 2000, 2000, 1000]
+    for g, w in zip(got, want):
+        for ch in ("a", "x", "y"):
+            assert g.volts[ch].tobytes() == w.volts[ch].tobytes()
+        for key, val in w.truth.items():
+            assert np.asarray(g.truth[key]).tobytes() == np.asarray(val).tobytes(), key
+    assert ahead.state.index == seq.state.index == 7000
+    assert ahead.next_block(5).volts["x"].tobytes() == seq.next_block(5).volts["x"].tobytes()
+
+
+def test_advance_refuses_a_source_block_that_does_not_start_at_its_state():
+    sc = ishizaki()
+    sim = BenchSimulation(sc, seed=4)
+    from rig.source import generate
+
+    v, src = generate(sim.model.source, sim.state.source, 100)
+    with pytest.raises(ValueError, match="source_block covers samples up to 100"):
+        advance(sim.model, sim.state, 50, (v, src))
 
 
 @pytest.mark.parametrize("model, reaction, method", [

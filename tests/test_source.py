@@ -208,3 +208,22 @@ def test_bad_sample_count_raises():
     s = Source(type="sine")
     with pytest.raises(ConfigError, match="n = -1 is invalid"):
         generate(s, start_source(s, 0), -1)
+
+
+@pytest.mark.parametrize("order", [1, 2, 4, 7])
+def test_reconstruction_filter_is_scipys_butterworth_without_importing_scipy_signal(order):
+    """The reconstruction filter's realisation is exactly scipy.signal.zpk2ss(*buttap(order))
+    scaled by the corner, and its response equals butter(..., analog=True) to round-off
+    (1e-15 of a gain <= 1)."""
+    src = Source(reconstruction_hz=100.0, reconstruction_order=order)
+    a, b, c = src.reconstruction_state_space()
+    z, p, k = scipy.signal.buttap(order)
+    ra, rb, rc, rd = scipy.signal.zpk2ss(z, p, k)
+    wc = 2 * np.pi * 100.0
+    np.testing.assert_array_equal(a, wc * ra)
+    np.testing.assert_array_equal(b, wc * rb[:, 0])
+    np.testing.assert_array_equal(c, rc[0])
+    f = np.linspace(0.0, 500.0, 101)
+    zz, pp, kk = scipy.signal.butter(order, wc, analog=True, output="zpk")
+    ref = scipy.signal.freqs_zpk(zz, pp, kk, worN=2 * np.pi * f)[1]
+    np.testing.assert_allclose(src.reconstruction_response(f), ref, rtol=0, atol=1e-15)
