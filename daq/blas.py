@@ -1,4 +1,4 @@
-"""One BLAS thread for the analyzer's thin matrix products (private helper).
+"""One BLAS thread for thin matrix products: the analyzer's fits and the bench's block products.
 
 The analysis multiplies thin matrices (a thousand rows by a dozen columns: the modal fits' least
 squares, QR factorisations, covariances) hundreds of times. OpenBLAS runs products of that size on
