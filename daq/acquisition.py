@@ -199,13 +199,15 @@ class _RigBench:
 
     def __init__(self, rb, scene: Scene, seed: int):
         self._rb, self._scene = rb, scene
-        self._sim = rb.BenchSimulation(scene, seed)
-        self.fs_hz = float(self._sim.fs_hz)
         acq = scene.settings["acquisition"]
         n = min(round(BLOCK_S * acq["rate_hz"]), round(acq["record_s"] * acq["rate_hz"]))
         self._block_s = max(1, n) / acq["rate_hz"]  # a whole number of ADC samples
         # exactly what the run consumes (nothing simulated beyond it, even when prefetching)
-        self._duration_s = RecordPlan.from_settings(acq).simulation_samples / self.fs_hz
+        plan = RecordPlan.from_settings(acq)
+        self._duration_s = plan.simulation_samples / plan.simulation_rate_hz
+        # the source is made from now on, while the model is chosen and the kernels load
+        self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s))
+        self.fs_hz = float(self._sim.fs_hz)
 
     def blocks(self) -> Iterator[AnalogBlock]:
         return self._sim.blocks(self._block_s, self._duration_s)

@@ -16,6 +16,10 @@ An elliptic (Cauer) low-pass in second-order sections (:func:`scipy.signal.ellip
   f_s, up to ``fs_hz / 2``;
 - order from :func:`scipy.signal.ellipord` (12 for 1000 Hz -> 100 Hz).
 
+The design is memoised on disk (:func:`design_cache_dir`) and the filter runs in compiled code
+with ``scipy.signal.sosfilt``'s arithmetic (the same samples, bit for bit): importing
+scipy.signal costs about 1 s, half of what a whole ``daq acquire`` may take.
+
 Whatever lies at or above the Nyquist frequency folds back into 0..rate/2 attenuated by at least
 ``attenuation_db``: with the default, a full-scale sine (amplitude ``2^(bits-1)`` LSB) aliases to
 at most LSB/4, below the ADC's rounding threshold, so it leaves no code. Between f_p and f_s the

@@ -8,12 +8,14 @@ from __future__ import annotations
 import csv
 import functools
 import json
+import os
 import sys
 from pathlib import Path
 
 import click
 import numpy as np
 
+from daq.bench_cmd import bench
 from daq.files import atomic_output, check_writable
 from rig.errors import RigError
 
@@ -476,8 +478,36 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
         click.echo(f"wrote {p}")
 
 
-if __name__ == "__main__":
-    sys.exit(main())
 
-from daq.bench_cmd import bench
 main.add_command(bench)
+
+
+def run() -> None:
+    """The ``daq`` console script: :func:`main`, then leave without tearing the interpreter down.
+
+    Finalising the interpreter after numba has been loaded (freeing its and LLVM's module
+    objects one by one) takes about 0.25 s, a tenth of a whole ``daq acquire``. Every command
+    closes its files itself, so once :func:`main` has returned (or exited), the output streams
+    are flushed and the process ends with ``os._exit`` and the exit status. Set
+    ``PENDULUM_DAQ_FULL_EXIT=1`` for a normal exit (e.g. to let coverage or a profiler write their
+    data at exit).
+    """
+    try:
+        main()
+        code = 0
+    except SystemExit as exc:  # click's standalone mode always ends here
+        code = exc.code
+    if os.environ.get("PENDULUM_DAQ_FULL_EXIT", "") not in ("", "0"):
+        sys.exit(code)
+    if code is None:
+        code = 0
+    elif not isinstance(code, int):
+        print(code, file=sys.stderr)
+        code = 1
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
+if __name__ == "__main__":
+    run()

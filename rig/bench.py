@@ -141,7 +141,7 @@ from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
 from rig.integrators import METHODS, discretise, integrate, to_native
 from rig.jit import njit
-from rig.prefetch import prefetch
+from rig.prefetch import Prefetch
 from rig.psd import OpticalLever
 from rig.scene import Scene
 from rig.source import NOISE_TYPES, Source, SourceState, generate, start_source
@@ -641,6 +641,29 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     return block, new
 
 
+def _block_sizes(fs: float, decimation: int, block_s, duration_s) -> list[int]:
+    """Samples per block for :meth:`BenchSimulation.blocks` (one block if ``duration_s`` is
+    None), or :class:`ConfigError` naming the bad value."""
+    r = block_s * fs if isinstance(block_s, (int, float)) and not isinstance(block_s, bool) \
+        else float("nan")
+    n = int(round(r)) if math.isfinite(r) else 0
+    if n < 1 or abs(r - n) > _REL * max(1.0, r) or n % decimation:
+        raise ConfigError(f"block_s = {block_s!r} s is invalid: expected a whole number (>= 1)"
+                          f" of ADC samples at acquisition.rate_hz = {fs / decimation:g} Hz")
+    if duration_s is None:
+        return [n]
+    total = duration_s * fs if isinstance(duration_s, (int, float)) else float("nan")
+    if not (math.isfinite(total) and total >= 1 and abs(total - round(total)) <= _REL * total):
+        raise ConfigError(f"duration_s = {duration_s!r} s is invalid: expected a whole number "
+                          f"(>= 1) of samples at {fs:g} Hz")
+    left = int(round(total))
+    sizes = []
+    while left > 0:
+        sizes.append(min(n, left))
+        left -= sizes[-1]
+    return sizes
+
+
 def _source_blocks(source, state, sizes):
     """``generate(source, ., k)`` for each k of ``sizes`` in turn, from ``state``."""
     for k in sizes:
@@ -662,18 +685,35 @@ class BenchSimulation:
     seed : int or SeedSequence for every random stream of the run.
     method, oversample, substeps, rtol, atol : nonlinear-model settings (:func:`build_model`).
 
+    ahead : ``(block_s, duration_s)`` of the first :meth:`blocks` call to come: its source is
+        made from now on in another thread (the source does not depend on the model; numpy's
+        FFTs release the GIL), while the model is chosen and the compiled kernels load. A later
+        call with other arguments, or after other steps, makes its own.
+
     With ``acquisition.model = "auto"`` the model is chosen at construction (:func:`select_model`).
     ``next_block(n)`` returns the next n samples, ``blocks(block_s, duration_s)`` yields blocks of
     ``block_s`` seconds; both continue where the previous call stopped. ``state`` is the current
     :class:`BenchState` (assignable, e.g. to rewind).
     """
 
+    #: source blocks made ahead at most (10 s blocks at 1 kHz: 64 x 80 kB)
+    AHEAD_BLOCKS = 64
+
     def __init__(self, scene: Scene, seed=0, *, method: str | None = None, oversample: int = 8,
-                 substeps: int = 1, rtol: float = 1e-10, atol: float = 1e-12):
+                 substeps: int = 1, rtol: float = 1e-10, atol: float = 1e-12,
+                 ahead: tuple[float, float] | None = None):
+        root, children = _spawn(seed)
+        self.seed = root  # seed=None draws OS entropy once; root.entropy is then the record
+        self._ahead = None
+        if ahead is not None:
+            fs, decimation = _acquisition_rates(scene.settings["acquisition"])
+            source = Source.from_settings(scene.settings["source"], fs)
+            sizes = _block_sizes(fs, decimation, *ahead)
+            made = Prefetch(_source_blocks(source, start_source(source, children[0]), sizes),
+                            self.AHEAD_BLOCKS)
+            self._ahead = (tuple(ahead), sizes, made)
         self.model = build_model(scene, method=method, oversample=oversample, substeps=substeps,
                                  rtol=rtol, atol=atol)
-        root, _ = _spawn(seed)
-        self.seed = root  # seed=None draws OS entropy once; root.entropy is then the record
         self.state = start(self.model, root)
         self._info = None
 
@@ -697,30 +737,25 @@ class BenchSimulation:
         ``duration_s`` seconds (a whole number of blocks' worth; the last block may be shorter)
         or for ever (None)."""
         fs = self.model.fs_hz
-        r = block_s * fs if isinstance(block_s, (int, float)) and not isinstance(block_s, bool) \
-            else float("nan")
-        n = int(round(r)) if math.isfinite(r) else 0
-        if n < 1 or abs(r - n) > _REL * max(1.0, r) or n % self.model.decimation:
-            raise ConfigError(f"block_s = {block_s!r} s is invalid: expected a whole number (>= 1)"
-                              f" of ADC samples at acquisition.rate_hz = "
-                              f"{fs / self.model.decimation:g} Hz")
         if duration_s is None:
+            n = _block_sizes(fs, self.model.decimation, block_s, None)[0]
             while True:
                 yield self.next_block(n)
-        total = duration_s * fs if isinstance(duration_s, (int, float)) else float("nan")
-        if not (math.isfinite(total) and total >= 1 and abs(total - round(total)) <= _REL * total):
-            raise ConfigError(f"duration_s = {duration_s!r} s is invalid: expected a whole number "
-                              f"(>= 1) of samples at {fs:g} Hz")
-        left = int(round(total))
-        sizes = []
-        while left > 0:
-            sizes.append(min(n, left))
-            left -= sizes[-1]
-        # the source does not depend on the bench: its blocks are made ahead in another thread
-        for k, src in zip(sizes, prefetch(_source_blocks(self.model.source, self.state.source,
-                                                         sizes), 2)):
-            block, self.state = advance(self.model, self.state, k, src)
-            yield block
+        sizes = _block_sizes(fs, self.model.decimation, block_s, duration_s)
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead[0] == (block_s, duration_s) and self.state.index == 0:
+            made = ahead[2]
+        else:
+            if ahead is not None:
+                ahead[2].close()
+            # the source does not depend on the bench: its blocks are made ahead in a thread
+            made = Prefetch(_source_blocks(self.model.source, self.state.source, sizes), 2)
+        try:
+            for k, src in zip(sizes, made):
+                block, self.state = advance(self.model, self.state, k, src)
+                yield block
+        finally:
+            made.close()
 
     def run(self, duration_s: float) -> AnalogBlock:
         """The next ``duration_s`` seconds as one block."""

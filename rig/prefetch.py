@@ -15,50 +15,68 @@ from typing import Iterable, Iterator, TypeVar
 T = TypeVar("T")
 
 
-def prefetch(items: Iterable[T], depth: int = 2) -> Iterator[T]:
-    """``items``, produced by a daemon thread up to ``depth`` items ahead.
+class Prefetch:
+    """``items``, produced by a daemon thread started at once, up to ``depth`` items ahead.
 
-    An exception raised while producing is re-raised here, where its item would have been. When
-    the consumer stops (exhausted, error, Ctrl-C or close()), the producer stops before its next
-    item.
+    Iterate it like ``items``. An exception raised while producing is re-raised by ``next``,
+    where its item would have been. :meth:`close` (also on garbage collection, and when
+    exhausted) stops the producer before its next item.
     """
-    if isinstance(depth, bool) or not isinstance(depth, int) or depth < 1:
-        raise ValueError(f"depth = {depth!r} is invalid: expected an integer >= 1")
-    q: queue.Queue = queue.Queue(maxsize=depth)
-    stop = threading.Event()
 
-    def put(item) -> bool:
-        while not stop.is_set():
+    def __init__(self, items: Iterable[T], depth: int = 2):
+        if isinstance(depth, bool) or not isinstance(depth, int) or depth < 1:
+            raise ValueError(f"depth = {depth!r} is invalid: expected an integer >= 1")
+        self._q: queue.Queue = queue.Queue(maxsize=depth)
+        self._stop = threading.Event()
+        self._done = False
+        q, stop = self._q, self._stop  # the thread must not keep self alive
+
+        def put(item) -> bool:
+            while not stop.is_set():
+                try:
+                    q.put(item, timeout=0.05)
+                    return True
+                except queue.Full:
+                    continue
+            return False
+
+        def produce():
             try:
-                q.put(item, timeout=0.05)
-                return True
-            except queue.Full:
-                continue
-        return False
-
-    def produce():
-        try:
-            for x in items:
-                if not put(("item", x)):
-                    return
-        except BaseException as exc:  # handed to the consumer
-            put(("error", exc))
-            return
-        put(("end", None))
-
-    return _consume(q, stop, threading.Thread(target=produce, name="prefetch", daemon=True))
-
-
-def _consume(q: queue.Queue, stop: threading.Event, worker: threading.Thread) -> Iterator:
-    worker.start()
-    try:
-        while True:
-            kind, x = q.get()
-            if kind == "item":
-                yield x
-            elif kind == "error":
-                raise x
-            else:
+                for x in items:
+                    if not put(("item", x)):
+                        return
+            except BaseException as exc:  # handed to the consumer
+                put(("error", exc))
                 return
-    finally:
-        stop.set()
+            put(("end", None))
+
+        threading.Thread(target=produce, name="prefetch", daemon=True).start()
+
+    def __iter__(self) -> "Prefetch":
+        return self
+
+    def __next__(self) -> T:
+        if self._done:
+            raise StopIteration
+        kind, x = self._q.get()
+        if kind == "item":
+            return x
+        self.close()
+        if kind == "error":
+            raise x
+        raise StopIteration
+
+    def close(self) -> None:
+        """Stop the producer (it finishes the item it is making, if any)."""
+        self._done = True
+        self._stop.set()
+
+    def __del__(self):
+        stop = getattr(self, "_stop", None)  # None if __init__ refused its arguments
+        if stop is not None:
+            stop.set()
+
+
+def prefetch(items: Iterable[T], depth: int = 2) -> Iterator[T]:
+    """:class:`Prefetch` of ``items`` (started now)."""
+    return Prefetch(items, depth)

@@ -48,6 +48,28 @@ def test_blocks_over_a_duration_with_the_source_made_ahead_equal_sequential_bloc
     assert ahead.next_block(5).volts["x"].tobytes() == seq.next_block(5).volts["x"].tobytes()
 
 
+@pytest.mark.parametrize("later", [(2.0, 7.0), (1.0, 3.0)])
+def test_a_source_started_ahead_gives_the_same_blocks_whatever_blocks_asks_for(later):
+    """ahead=(2 s, 7 s) starts the source during construction; blocks() with those arguments uses
+    it, other arguments make their own: the same bytes as sequential next_block calls."""
+    sc = ishizaki()
+    sim = BenchSimulation(sc, seed=4, ahead=(2.0, 7.0))
+    got = list(sim.blocks(*later))
+    seq = BenchSimulation(sc, seed=4)
+    sizes = [b.samples for b in got]
+    want = [seq.next_block(k) for k in sizes]
+    assert sum(sizes) == round(later[1] * 1000)
+    for g, w in zip(got, want):
+        for ch in ("a", "x", "y"):
+            assert g.volts[ch].tobytes() == w.volts[ch].tobytes()
+    assert sim.next_block(3).volts["a"].tobytes() == seq.next_block(3).volts["a"].tobytes()
+
+
+def test_a_bad_ahead_plan_is_refused_naming_the_value():
+    with pytest.raises(ConfigError, match="block_s = 0.0015 s is invalid"):
+        BenchSimulation(ishizaki(), seed=4, ahead=(0.0015, 7.0))
+
+
 def test_advance_refuses_a_source_block_that_does_not_start_at_its_state():
     sc = ishizaki()
     sim = BenchSimulation(sc, seed=4)
