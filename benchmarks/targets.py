@@ -11,9 +11,10 @@
    Target: <= 1e-6 in <= 0.3 s. The linear model is timed twice: as ``simulate`` runs it (lifted
    to the 100 Hz output rate: one step of Phi^10 and a FIR of the input per row) and stepped once
    per 1 ms input interval (``integrate(..., lift=False)``, the path before lifting), with the
-   round-off between the two; "kernel" is ``Trajectory.wall_time_s`` (the integration, without
-   the energy and copies ``simulate`` adds). Target: the exact linear model >= 300,000x real time
-   at round-off error.
+   round-off between the two; "kernel" is ``Trajectory.wall_time_s`` (the integration alone,
+   without ``simulate``'s planning around it), and once against ``scipy.signal.lsim`` (zero-order
+   hold, the same state space and input; one run, ~15 s; ``--no-lsim`` skips it). Target: the
+   exact linear model >= 300,000x real time at round-off error.
 2. Rod chains at n = 100 (rod-chain preset), one simulated second: straight release at 0.5 rad
    with rk4 at 1 ms; horizontal release with dop853 at rtol = 1e-6; with the energy drift over
    10 s relative to the energy above the hanging rest. Target: <= 1e-4 in <= 0.4 s per simulated
@@ -59,6 +60,7 @@ def line(name, walls, cpus, extra):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=21)
+    ap.add_argument("--no-lsim", action="store_true", help="skip the scipy.signal.lsim run")
     args = ap.parse_args(argv)
     print(f"load average before: {os.getloadavg()}")
     chain = load_scene("ishizaki2009").chain
@@ -82,6 +84,7 @@ def main(argv=None):
         line(f"paper 3000 s {method}" + (" dt=1 ms" if method != "linear" else extra), walls,
              cpus, f"error {err:.2g}; {3000 / np.median(walls):,.0f}x real time")
         if method == "linear":
+            lifted_wall = np.median(walls)
             per_interval = functools.partial(integrate, lift=False)
             with mock.patch("rig.simulate.integrate", per_interval):
                 walls, cpus, tr_pi = timed(lambda: simulate(chain, 3000.0, **kw), args.repeats)
@@ -89,6 +92,20 @@ def main(argv=None):
                  f"error {rel_rms_error(tr_pi.theta_rad, ref):.2g}; lifted - per interval: "
                  f"{rel_rms_error(tr.theta_rad, tr_pi.theta_rad):.2g} (theta), "
                  f"{rel_rms_error(tr.omega_rad_s, tr_pi.omega_rad_s):.2g} (omega)")
+            if not args.no_lsim:
+                from scipy import signal
+
+                a, b = chain.state_space()
+                sys_c = signal.StateSpace(a, b, np.eye(4), np.zeros((4, 1)))
+                u = np.append(base.ax_mps2, base.ax_mps2[-1])
+                t_in = np.arange(u.size) * base.dt_s
+                tic, c0 = time.perf_counter(), time.process_time()
+                _, y_ls, _ = signal.lsim(sys_c, u, t_in, interp=False)
+                walls, cpus = (np.array([time.perf_counter() - tic]),
+                               np.array([time.process_time() - c0]))
+                line("paper 3000 s linear, scipy.signal.lsim", walls, cpus,
+                     f"one run; lifted - lsim: {rel_rms_error(tr.theta_rad, y_ls[::10, :2]):.2g}"
+                     f" (theta); {walls[0] / lifted_wall:,.0f}x the lifted run's median")
     for label, theta0, kw in (
             ("chain n=100 straight, rk4 dt=1 ms", 0.5, dict(method="rk4", dt_s=1e-3)),
             ("chain n=100 horizontal, dop853 1e-6", np.pi / 2,

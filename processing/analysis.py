@@ -97,9 +97,11 @@ the modal form of its exact ZOH step (:class:`_FastBench`, checked against
 single-threaded (:mod:`daq.blas`: the products are thin, and OpenBLAS's spinning threads
 had tripled the CPU time on a busy two-core machine). Nothing here imports scipy or matplotlib
 (the Bode figure imports matplotlib when asked for). What ``daq analyze`` takes beyond that is
-importing the run-file reader and the bench (:mod:`daq.hdf5`, :mod:`rig`): about 1.9 s of CPU on
-that machine, half of it scipy.signal (with scipy.stats and scipy.optimize), which
-:mod:`daq.antialias`, :mod:`rig.source` and :mod:`rig.accelerometer` import at module level.
+starting Python and importing numpy, click, h5py, scipy.linalg (the bench model's matrix
+exponentials) and the run-file reader: about 0.6 s. Neither numba (:mod:`rig.jit`: kernels are
+compiled or loaded on their first call, and the analysis calls none) nor scipy.signal (~1 s to
+import; nothing imports it at run time) is imported; the whole command takes about 1 s
+(BENCHMARKS.md).
 
 Public API: :class:`AnalyzerSettings`, :class:`Analysis`, :class:`RunInfo`,
 :class:`ModelAtLines`, :class:`ExpectedEstimate`, :func:`analyze`, :func:`model_at_lines`,
