@@ -509,8 +509,6 @@ def _chain(first, rest):
     yield from rest
 
 
-
-
 def model_response(bench: Bench, aa: AntiAliasFilter, plan: RecordPlan,
                    channels: tuple) -> ModelResponse:
     """Exact responses of the whole chain on the record's FFT grid (0 .. rate/2).
