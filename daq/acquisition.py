@@ -89,6 +89,10 @@ class Bench(Protocol):
     filter is applied by the acquisition); ``units`` and ``long_names`` (optional dicts) say what
     they are. ``model_info()`` says what was simulated (model, method, error estimate...) and,
     for the rig, why (``reason``, ``selection``: the model chosen for the scene's error budget).
+    An optional ``saturation_keys`` dict maps a channel to the truth key of its sensor's
+    saturation flag (bool at the simulation rate: e.g. the spot off the PSD, the accelerometer
+    over its range); the acquisition stores, per sample, whether it was set within the sample's
+    decimation interval.
     """
 
     fs_hz: float
@@ -196,6 +200,7 @@ class _RigBench:
     units = RIG_RESPONSE_UNITS
     long_names = RIG_RESPONSE_NAMES
     truth_keys = RIG_TRUTH
+    saturation_keys = {"a": "a_overrange", "x": "psd_off_detector", "y": "psd_off_detector"}
 
     def __init__(self, rb, scene: Scene, seed: int):
         self._rb, self._scene = rb, scene
@@ -288,7 +293,9 @@ class MemorySink(Sink):
             codes={c.name: stack(lambda r: r.codes, c.name, (), c.adc.dtype) for c in h.channels},
             clipped={c.name: stack(lambda r: r.clipped, c.name, (), bool) for c in h.channels},
             truth={t.name: stack(lambda r: r.truth, t.name, t.shape, float) for t in h.truth},
-            status=self.footer.status if self.footer else "acquiring")
+            status=self.footer.status if self.footer else "acquiring",
+            saturated={c.name: stack(lambda r: r.saturated, c.name, (), bool)
+                       for c in h.channels})
 
 
 class _Fanout:
@@ -351,7 +358,8 @@ class AcquisitionSummary:
     ----------
     status : "complete", "interrupted" or "failed".
     records, records_planned, samples_per_record, rate_hz : the records taken.
-    channels : channel names; ``clip_counts`` is (records, channels).
+    channels : channel names; ``clip_counts`` is (records, channels): samples the ADC clipped;
+        ``saturation_counts`` the same shape: samples whose sensor saturated (:class:`Block`).
     model_info : what the bench simulated.
     seed : the seed of the run.
     wall_s : wall time of :func:`acquire` [s].
@@ -371,6 +379,7 @@ class AcquisitionSummary:
     path: Path | None = None
     file_bytes: int | None = None
     message: str = ""
+    saturation_counts: np.ndarray | None = None
 
     @property
     def samples(self) -> int:
@@ -380,6 +389,13 @@ class AcquisitionSummary:
     def clip_totals(self) -> dict:
         """Clipped samples per channel over all records."""
         return {c: int(self.clip_counts[:, i].sum()) for i, c in enumerate(self.channels)}
+
+    def saturation_totals(self) -> dict:
+        """Samples per channel over all records whose sensor saturated."""
+        counts = self.saturation_counts
+        if counts is None:
+            return {c: 0 for c in self.channels}
+        return {c: int(counts[:, i].sum()) for i, c in enumerate(self.channels)}
 
 
 def check_seed(seed) -> int:
@@ -470,12 +486,14 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
 
     fan = _Fanout(sinks)
     clips: list[list[int]] = []
+    sats: list[list[int]] = []
     status, message = "failed", ""
     try:
         fan.send("start", header)
         # the bench simulates the next blocks on one core while this thread filters, digitises
         # and writes the previous one on the other (same blocks, same order)
-        _run(header, _chain(first, prefetch(blocks, 2)), fan, progress, clips)
+        _run(header, _chain(first, prefetch(blocks, 2)), fan, progress, clips, sats,
+             dict(getattr(the_bench, "saturation_keys", None) or {}))
         status = "complete"
     except KeyboardInterrupt:
         status, message = "interrupted", "KeyboardInterrupt"
@@ -485,6 +503,8 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
         raise
     finally:
         clip_counts = np.array(clips, dtype=np.int64).reshape(len(clips), len(channels))
+        sat_counts = np.array(sats[:len(clips)], dtype=np.int64).reshape(len(clips),
+                                                                          len(channels))
         footer = Footer(status=status, records_complete=len(clips), clip_counts=clip_counts,
                         message=message, wall_s=time.perf_counter() - t_start)
         with _sigint_deferred():
@@ -493,7 +513,8 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
         summary = AcquisitionSummary(
             status=status, records=len(clips), records_planned=plan.records,
             samples_per_record=plan.samples, rate_hz=plan.rate_hz, channels=header.names,
-            clip_counts=clip_counts, model_info=header.model_info, seed=seed,
+            clip_counts=clip_counts, saturation_counts=sat_counts,
+            model_info=header.model_info, seed=seed,
             wall_s=time.perf_counter() - t_start, path=path,
             file_bytes=path.stat().st_size if path is not None and path.exists() else None,
             message=message)
@@ -544,11 +565,25 @@ def model_response(bench: Bench, aa: AntiAliasFilter, plan: RecordPlan,
     return ModelResponse(freqs_hz=f, values=values, units=units, long_names=long_names)
 
 
+def _interval_any(flags: np.ndarray, kept: slice, carry: bool) -> tuple[np.ndarray, bool]:
+    """Per kept instant j of a block: whether ``flags`` was set since the previous kept instant
+    (up to and including j; ``carry``: set after the previous block's last kept instant), and the
+    carry for the next block."""
+    flags = np.asarray(flags, bool)
+    idx = np.arange(kept.start, flags.size, kept.step)
+    if idx.size == 0:
+        return np.zeros(0, bool), bool(carry or flags.any())
+    starts = np.concatenate([[0], idx[:-1] + 1])
+    out = np.logical_or.reduceat(flags[:idx[-1] + 1], starts)
+    out[0] |= carry
+    return out, bool(flags[idx[-1] + 1:].any())
+
+
 def _run(header: Header, blocks: Iterator[AnalogBlock], fan: _Fanout, progress,
-         clips: list) -> None:
-    """The acquisition loop. Appends each finished record's clip counts to ``clips`` in the same
-    SIGINT-free section that hands the record to the sinks, so ``len(clips)`` is the number of
-    records every sink has."""
+         clips: list, sats: list, saturation_keys: dict) -> None:
+    """The acquisition loop. Appends each finished record's clip counts to ``clips`` (and its
+    saturation counts to ``sats``) in the same SIGINT-free section that hands the record to the
+    sinks, so ``len(clips)`` is the number of records every sink has."""
     plan, aa = header.plan, header.antialias
     names = header.names
     adcs = [c.adc for c in header.channels]
@@ -559,6 +594,8 @@ def _run(header: Header, blocks: Iterator[AnalogBlock], fan: _Fanout, progress,
     buf = RecordBuffer(header)
     done_sim = 0  # simulation samples consumed
     done_out = 0  # output samples produced
+    sat_keys = {k: v for k, v in saturation_keys.items() if k in names}
+    carry = {k: False for k in sat_keys}
     for ab in blocks:
         if not math.isclose(ab.fs_hz, fs, rel_tol=1e-12):
             raise StreamError(f"bench block at t = {ab.t0_s:g} s has fs = {ab.fs_hz:g} Hz; "
@@ -588,6 +625,11 @@ def _run(header: Header, blocks: Iterator[AnalogBlock], fan: _Fanout, progress,
         truth = {}
         for k in truth_names:
             truth[k] = np.asarray(ab.truth[k])[:n][kept]
+        saturated = {}
+        for k, key in sat_keys.items():
+            if key in ab.truth:
+                saturated[k], carry[k] = _interval_any(np.asarray(ab.truth[key])[:n], kept,
+                                                       carry[k])
         pos = 0
         while pos < m:
             g = done_out + pos
@@ -600,13 +642,15 @@ def _run(header: Header, blocks: Iterator[AnalogBlock], fan: _Fanout, progress,
             blk = Block(record=r, start=off, t0_s=g / plan.rate_hz,
                         codes={k: v[sl] for k, v in codes.items()},
                         clipped={k: v[sl] for k, v in clipped.items()},
-                        truth={k: v[sl] for k, v in truth.items()})
+                        truth={k: v[sl] for k, v in truth.items()},
+                        saturated={k: v[sl] for k, v in saturated.items()})
             fan.send("block", blk)
             rec = buf.add(blk)
             if rec is not None:
                 with _sigint_deferred():
                     fan.send("record", rec)
-                    counts = rec.clip_counts()
+                    counts, sat = rec.clip_counts(), rec.saturation_counts()
+                    sats.append([sat[c] for c in header.names])
                     clips.append([counts[c] for c in header.names])
             pos += take
         done_out += m

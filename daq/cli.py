@@ -322,12 +322,14 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
 
 def _acquire_summary(s) -> str:
     clips = ", ".join(f"{c} {n}" for c, n in s.clip_totals().items())
+    sats = ", ".join(f"{c} {n}" for c, n in s.saturation_totals().items())
     return "\n".join([
         f"wrote {s.path} ({_size(s.file_bytes)}): {s.records} records x {s.samples_per_record} "
         f"samples at {s.rate_hz:g} Hz ({s.samples} samples per channel), channels "
         f"{', '.join(s.channels)}",
         f"seed: {s.seed}",
         f"clipped samples: {clips}",
+        f"samples whose sensor saturated: {sats}",
         *_model_lines(s.model_info),
         f"wall time: {s.wall_s:.2f} s",
     ])
@@ -382,11 +384,12 @@ def _inspect_text(i: dict) -> str:
     for name, c in zip(names, i["channels"]):
         per = i["clip_counts"][name]
         hit = sum(1 for x in per if x)
+        sat = i["saturation_counts"][name]
         lines.append(
             f"  {name}: {c['long_name']} -- {c['quantity']} [{c['engineering_unit']}], "
             f"{_fmt(c['volts_per_unit'])} V per {c['engineering_unit']}, +-{_fmt(c['range_v'])} V, "
             f"{c['bits']} bit (LSB {_fmt(c['lsb_v'])} V), clipped {sum(per)} samples in {hit} "
-            f"of {len(per)} records")
+            f"of {len(per)} records, sensor saturated in {sum(sat)} samples")
     lines.extend(_model_lines(i["model_info"]))
     lines.append(f"model responses: {', '.join(i['responses'])}")
     lines.append(f"ground truth: {', '.join(i['truth']) if i['truth'] else 'not recorded'}")

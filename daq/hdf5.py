@@ -26,6 +26,10 @@ engine="h5netcdf")`` returns labelled arrays (also for ``entry/truth``, ``entry/
       clipping/             NXcollection: record, time, channel (names) scales;
         count   (record, channel) int64: clipped samples per record and channel
         a, x, y (record, time) uint8: 1 where a sample was clipped
+      saturation/           NXcollection, the same layout: 1 where the channel's sensor was
+                            beyond its range (accelerometer over range, spot off the PSD) at
+                            some simulation instant since the previous sample (files written
+                            before it existed: read as never)
       truth/                NXdata (only if acquisition.truth): record, time, body scales;
         stage_accel_mps2, mirror_x_m, mirror_rot_rad, source_v (record, time) float64,
         theta_rad (record, time, body) float64 -- sampled, not filtered (see daq.records);
@@ -213,6 +217,25 @@ class HDF5Sink(Sink):
             self._lock = open(self.path, "rb")
             fcntl.flock(self._lock, fcntl.LOCK_SH)
 
+    def _flag_collection(self, entry, group: str, n: int, count_name: str, what: str):
+        """An NXcollection of per-sample uint8 flags per channel and their counts per record."""
+        names = self._header.names
+        g = _group(entry, group, "NXcollection")
+        grec, gtim = self._scales(g, n)
+        chan = g.create_dataset("channel", data=np.array(names, dtype=_STR), track_times=False)
+        chan.make_scale("channel")
+        chan.attrs["long_name"] = "channel name"
+        count = g.create_dataset("count", shape=(0, len(names)), maxshape=(None, len(names)),
+                                 dtype=np.int64, chunks=(64, len(names)), track_times=False)
+        count.dims[0].attach_scale(grec)
+        count.dims[1].attach_scale(chan)
+        _set_attrs(count, {"long_name": count_name, "units": "1"})
+        self._grow.append(count)
+        flags = {c: self._series(g, c, (n,), np.uint8, grec, gtim, self.level,
+                                 long_name=f"1 where channel {c} {what}", units="1")
+                 for c in names}
+        return count, flags
+
     def record(self, record: Record) -> None:
         k = record.index
         if k != self._n:
@@ -222,10 +245,15 @@ class HDF5Sink(Sink):
         for rec in self._record_scales:
             rec[k] = k
         self._rec_start[k] = record.t0_s
-        for i, name in enumerate(self._header.names):
+        names = self._header.names
+        saturated = {c: record.saturated.get(c, np.zeros(len(record.codes[c]), bool))
+                     for c in names}
+        for name in names:
             self._codes[name][k] = record.codes[name]
             self._flags[name][k] = record.clipped[name]
-        self._count[k] = [np.count_nonzero(record.clipped[c]) for c in self._header.names]
+            self._sat_flags[name][k] = saturated[name]
+        self._count[k] = [np.count_nonzero(record.clipped[c]) for c in names]
+        self._sat_count[k] = [np.count_nonzero(saturated[c]) for c in names]
         for name, ds in self._truth.items():
             ds[k] = record.truth[name]
         self._f.flush()  # the record (data and metadata) first ...
@@ -309,24 +337,12 @@ class HDF5Sink(Sink):
                      **{k: v for k, v in d.items() if k not in ("long_name", "unit", "name")}}
             self._codes[c.name] = self._series(data, c.name, (n,), adc.dtype, rec, tim,
                                                self.level, **attrs)
-        # clipping
-        clip = _group(entry, "clipping", "NXcollection")
-        crec, ctim = self._scales(clip, n)
-        chan = clip.create_dataset("channel", data=np.array(h.names, dtype=_STR),
-                                   track_times=False)
-        chan.make_scale("channel")
-        chan.attrs["long_name"] = "channel name"
-        self._count = clip.create_dataset("count", shape=(0, len(h.names)),
-                                          maxshape=(None, len(h.names)), dtype=np.int64,
-                                          chunks=(64, len(h.names)), track_times=False)
-        self._count.dims[0].attach_scale(crec)
-        self._count.dims[1].attach_scale(chan)
-        _set_attrs(self._count, {"long_name": "clipped samples per record and channel",
-                                 "units": "1"})
-        self._grow.append(self._count)
-        self._flags = {c: self._series(clip, c, (n,), np.uint8, crec, ctim, self.level,
-                                       long_name=f"1 where channel {c} clipped", units="1")
-                       for c in h.names}
+        # per-sample flags: ADC clipping and sensor saturation
+        self._count, self._flags = self._flag_collection(
+            entry, "clipping", n, "clipped samples per record and channel", "clipped")
+        self._sat_count, self._sat_flags = self._flag_collection(
+            entry, "saturation", n, "samples per record and channel whose sensor saturated",
+            "saw its sensor beyond its range since the previous sample")
 
         # truth
         self._truth = {}
@@ -463,6 +479,8 @@ def run_info(path: str | Path) -> dict:
                              for k, v in a.items()
                              if k not in ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")})
         counts = e["clipping/count"][:n] if "clipping" in e else np.zeros((n, len(names)), int)
+        sat = (e["saturation/count"][:n] if "saturation" in e
+               else np.zeros((n, len(names)), int))
         model = e["model"]
         info = {
             "path": str(path),
@@ -487,6 +505,7 @@ def run_info(path: str | Path) -> dict:
                           if k not in ("NX_class", "sos", "description")},
             "channels": channels,
             "clip_counts": {c: [int(x) for x in counts[:, i]] for i, c in enumerate(names)},
+            "saturation_counts": {c: [int(x) for x in sat[:, i]] for i, c in enumerate(names)},
             "model_info": json.loads(_s(model.attrs["model_info_json"])),
             "truth": sorted(k for k in e["truth"] if e["truth"][k].ndim >= 2)
             if "truth" in e else [],
@@ -550,7 +569,10 @@ def read_run(path: str | Path) -> Recording:
                         start_time=_s(e.attrs["start_time"]))
         codes = {c: data[c][:n] for c in names}
         clipped = {c: e["clipping"][c][:n].astype(bool) for c in names}
-    return Recording(header=header, codes=codes, clipped=clipped, truth=truth, status=status)
+        saturated = ({c: e["saturation"][c][:n].astype(bool) for c in names}
+                     if "saturation" in e else {})
+    return Recording(header=header, codes=codes, clipped=clipped, truth=truth, status=status,
+                     saturated=saturated)
 
 
 # -- repair ----------------------------------------------------------------------------------

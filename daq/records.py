@@ -218,6 +218,8 @@ class Block:
     """Consecutive samples of one record as they are digitised (for live views).
 
     ``codes[name]`` and ``clipped[name]`` are (samples,); ``truth[name]`` is (samples,) + shape.
+    ``saturated[name]`` (samples,) is True where the channel's sensor was beyond its range at
+    some simulation instant of the sample's decimation interval (absent: never).
     ``start`` is the index within record ``record`` of the first sample.
     """
 
@@ -227,6 +229,7 @@ class Block:
     codes: dict
     clipped: dict
     truth: dict
+    saturated: dict = field(default_factory=dict)
 
     @property
     def samples(self) -> int:
@@ -235,17 +238,23 @@ class Block:
 
 @dataclass(frozen=True, eq=False)
 class Record:
-    """One complete record: ``codes[name]``, ``clipped[name]`` (samples,), ``truth[name]``."""
+    """One complete record: ``codes[name]``, ``clipped[name]``, ``saturated[name]`` (samples,),
+    ``truth[name]``."""
 
     index: int
     t0_s: float
     codes: dict
     clipped: dict
     truth: dict
+    saturated: dict = field(default_factory=dict)
 
     def clip_counts(self) -> dict:
         """Clipped samples per channel in this record."""
         return {k: int(np.count_nonzero(v)) for k, v in self.clipped.items()}
+
+    def saturation_counts(self) -> dict:
+        """Samples per channel whose sensor saturated (see :class:`Block`) in this record."""
+        return {k: int(np.count_nonzero(self.saturated.get(k, ()))) for k in self.codes}
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,6 +285,7 @@ class RecordBuffer:
         self._index, self._filled = index, 0
         self._codes = {c.name: np.empty(n, c.adc.dtype) for c in h.channels}
         self._clipped = {c.name: np.empty(n, bool) for c in h.channels}
+        self._saturated = {c.name: np.zeros(n, bool) for c in h.channels}
         self._truth = {t.name: np.empty((n,) + t.shape) for t in h.truth}
 
     def add(self, block: Block) -> Record | None:
@@ -289,13 +299,16 @@ class RecordBuffer:
         for k, v in block.codes.items():
             self._codes[k][sl] = v
             self._clipped[k][sl] = block.clipped[k]
+            if k in block.saturated:
+                self._saturated[k][sl] = block.saturated[k]
         for k, v in block.truth.items():
             self._truth[k][sl] = v
         self._filled = sl.stop
         if self._filled < self._header.plan.samples:
             return None
         return Record(index=self._index, t0_s=self._header.plan.record_start_s(self._index),
-                      codes=self._codes, clipped=self._clipped, truth=self._truth)
+                      codes=self._codes, clipped=self._clipped, truth=self._truth,
+                      saturated=self._saturated)
 
 
 @dataclass(frozen=True, eq=False)
@@ -309,6 +322,8 @@ class Recording:
     codes, clipped : per channel, (records, samples).
     truth : per truth field, (records, samples) + shape (empty if not recorded).
     status : "complete", "interrupted", "failed" or "acquiring" (writer stopped or still running).
+    saturated : per channel, (records, samples): the sensor beyond its range within the sample's
+        decimation interval (see :class:`Block`; a channel absent here never saturated).
     """
 
     header: Header
@@ -316,6 +331,7 @@ class Recording:
     clipped: dict
     truth: dict
     status: str
+    saturated: dict = field(default_factory=dict)
 
     @property
     def records(self) -> int:
@@ -339,6 +355,12 @@ class Recording:
         return np.array([[np.count_nonzero(self.clipped[c][r]) for c in self.header.names]
                          for r in range(self.records)], dtype=np.int64).reshape(
             self.records, len(self.header.names))
+
+    def saturation_counts(self) -> np.ndarray:
+        """Samples whose sensor saturated, (records, channels)."""
+        return np.array([[np.count_nonzero(self.saturated[c][r]) if c in self.saturated else 0
+                          for c in self.header.names] for r in range(self.records)],
+                        dtype=np.int64).reshape(self.records, len(self.header.names))
 
     def times_s(self) -> np.ndarray:
         """Sample times within a record [s]."""

@@ -833,6 +833,11 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
     if any(clipped.values()):
         notes.append("clipped samples (" + ", ".join(f"{c} {v}" for c, v in clipped.items() if v)
                      + "): the ratios are not those of a linear system there")
+    sats = recording.saturation_counts().sum(axis=0) if n_rec else np.zeros(len(h.names), int)
+    if sats.any():
+        notes.append("samples whose sensor saturated (" + ", ".join(
+            f"{c} {int(v)}" for c, v in zip(h.names, sats) if v) + "; the accelerometer over its "
+            "range or the spot off the PSD): the ratios are not those of a linear system there")
 
     units = {c: h.channel(c).unit for c in CHANNELS}
     ffts = segment_ffts({c: recording.values(c) for c in CHANNELS}, spectral, units=units)
