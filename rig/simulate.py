@@ -235,6 +235,7 @@ class _Segment:
     n_int: int
     out_every: int
     substeps: int
+    per_step: int = 1  # input intervals per step (etd3m; 1 for every other method)
 
 
 def _vector(name: str, value, n: int) -> np.ndarray:
@@ -256,8 +257,30 @@ def _default_substeps(chain: Chain, h: float) -> int:
     return max(1, math.ceil(h * STEPS_PER_PERIOD * f_max - 1e-9))
 
 
-def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment], dict]:
+def _samples_per_step(chain, dt_s, h_in, every, n_int) -> int:
+    """etd3m: input intervals per step, m (dt_s = m h_in), dividing the output interval and the
+    run; default the largest such m with m h_in <= 1 / (STEPS_PER_PERIOD f_max)."""
+    ok = [k for k in range(1, every + 1) if every % k == 0 and n_int % k == 0]
+    if dt_s is None:
+        f_max = float(np.max(chain.natural_frequencies_hz()))
+        return max([k for k in ok if k * h_in * STEPS_PER_PERIOD * f_max <= 1.0 + _REL] or [1])
+    r = dt_s / h_in
+    m = int(round(r))
+    if m < 1 or abs(r - m) > _REL * max(1.0, r) or m not in ok:
+        raise ConfigError(
+            f"dt_s = {dt_s!r} s is invalid for etd3m: a step spans whole input samples, so dt_s "
+            f"must be a whole multiple of base.dt_s = {h_in!r} s (the ratio is {r:.9g}) that "
+            f"divides the output interval ({every} samples) and the run ({n_int} samples); "
+            f"valid: {', '.join(f'{k * h_in:.6g}' for k in ok)} s")
+    return m
+
+
+def _plan(chain, duration, base, kind, dt_s, output_dt_s,
+          multisample=False) -> tuple[list[_Segment], dict]:
     """Split the run into held-input segments the kernels step through."""
+    if multisample and base is None:
+        raise ConfigError("base = None is invalid for etd3m: its steps span whole held input "
+                          "samples; give a BaseInput, or use etd3 on a fixed base")
     if base is not None:
         h_in = base.dt_s
         n_int = _whole("duration_s", duration, "base.dt_s", h_in)
@@ -265,7 +288,9 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
             raise ConfigError(f"duration_s = {duration!r} s is invalid: the base input covers only "
                               f"{base.duration_s!r} s ({base.n_intervals} intervals of {h_in} s, "
                               f"hold = {base.hold!r})")
-        if dt_s is not None:
+        if multisample:
+            sub = 1
+        elif dt_s is not None:
             sub = _divides("dt_s", dt_s, "the input interval base.dt_s", h_in)
         elif kind in ("fixed", "implicit", "exponential"):
             sub = _default_substeps(chain, h_in)
@@ -275,11 +300,14 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
             every = _whole("output_dt_s", output_dt_s, "base.dt_s", h_in)
         else:
             every = max(1, int(math.floor(1.0 / h_in + _REL)))
+        m = _samples_per_step(chain, dt_s, h_in, every, n_int) if multisample else 1
         need = n_int + (1 if base.hold == "linear" else 0)
         ay = None if base.ay_mps2 is None else base.ay_mps2[:need]
-        segs = [_Segment(base.ax_mps2[:need], ay, base.hold, h_in, n_int, every, sub)]
+        segs = [_Segment(base.ax_mps2[:need], ay, base.hold, h_in, n_int, every, sub, m)]
         info = dict(input_dt_s=h_in, hold=base.hold, output_dt_s=every * h_in,
                     dt_s=(h_in / sub if kind != "adaptive" else None), substeps_per_input=sub)
+        if multisample:
+            info.update(dt_s=m * h_in, substeps_per_input=None, samples_per_step=m)
         return segs, info
 
     if kind in ("fixed", "implicit", "exponential") or (kind == "exact" and dt_s is not None):
@@ -315,9 +343,11 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s) -> tuple[list[_Segment
                       substeps_per_input=None)
 
 
-def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, algorithm="auto"):
+def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, algorithm="auto",
+             per_step=None):
     """Run the segments in turn; returns (y_out (T, 2n), native_end, h_next, counts, lifted)
-    with ``lifted`` each segment's :attr:`rig.integrators.Run.lifted`."""
+    with ``lifted`` each segment's :attr:`rig.integrators.Run.lifted`. ``per_step`` overrides
+    the segments' input intervals per step (etd3m's error estimate)."""
     y = native0
     h = h0
     rows = []
@@ -327,7 +357,8 @@ def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, alg
     for k, sg in enumerate(segs):
         run = integrate(chain, y, sg.ax, sg.ay, hold=sg.hold, h_in=sg.h_in, n_intervals=sg.n_int,
                         out_every=sg.out_every, method=method, substeps=sg.substeps * sub_factor,
-                        rtol=rtol, atol=atol, h0_s=h, t0_s=t, algorithm=algorithm)
+                        rtol=rtol, atol=atol, h0_s=h, t0_s=t, algorithm=algorithm,
+                        samples_per_step=per_step or sg.per_step)
         rows.append(run.y_out if k == 0 else run.y_out[1:])
         y, h = run.native_end, run.h_next_s
         n_steps += run.n_steps
@@ -338,6 +369,30 @@ def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, alg
         t += sg.n_int * sg.h_in
     y_out = rows[0] if len(rows) == 1 else np.concatenate(rows)
     return y_out, y, h, (n_steps, n_rej, n_fev, n_newton), lifted
+
+
+def _multisample_reference(chain, segs, method, native0, t0, p):
+    """etd3m's Richardson reference: (y_ref, scale, sentence). m even: the same method at m / 2
+    samples per step (ratio 2); m odd > 1: at one sample per step (ratio m); m = 1: etd3 at half
+    a sample per step (ratio 2; etd3m at m = 1 is etd3's map to round-off)."""
+    m = segs[0].per_step
+    if m == 1:
+        ref, *_ = _execute(chain, segs, "etd3", native0.copy(), t0, float("nan"), 0.5, 1.0,
+                           sub_factor=2)
+        r, what = 2, "etd3 at dt_s / 2 (half an input interval; etd3m at m = 1 is etd3's map)"
+    elif m % 2 == 0:
+        ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), 0.5, 1.0,
+                           per_step=m // 2)
+        r, what = 2, f"the same method at dt_s / 2 ({m // 2} input intervals per step)"
+    else:
+        ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), 0.5, 1.0,
+                           per_step=1)
+        r, what = m, (f"the same method at dt_s / {m} (one input interval per step: m = {m} is "
+                      "odd, so dt_s / 2 is not a whole number of samples)")
+    scale = r**p / (r**p - 1.0)
+    how = (f"Richardson: |y - y_ref| * {r}^{p}/({r}^{p} - 1) against {what} (order p = {p}); "
+           "valid while the error is in its asymptotic range")
+    return ref, scale, how
 
 
 def _linear_step(segs, lifted) -> str:
@@ -382,9 +437,10 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         for every body; ``omega0`` defaults to 0). Give these or ``start``.
     base : held base acceleration (:class:`BaseInput`); ``None`` is a fixed base.
     method : ``"dop853"`` (default), ``"rk4"``, ``"gauss4"``, ``"midpoint"``, ``"linear"`` or
-        ``"etd3"`` (:data:`rig.integrators.METHODS`; etd3 for weakly nonlinear runs, e.g. the
-        paper's pendulum on a random base: the linearised chain exactly, only the nonlinear
-        remainder integrated).
+        ``"etd3"`` or ``"etd3m"`` (:data:`rig.integrators.METHODS`; etd3 for weakly nonlinear
+        runs, e.g. the paper's pendulum on a random base: the linearised chain exactly, only the
+        nonlinear remainder integrated; etd3m the same with steps spanning several held input
+        samples, for a base input only).
     rtol, atol : dop853 tolerances, rtol in (0, 1), atol > 0 [rad, rad/s per component].
     dt_s : step [s] of the fixed-step methods (rk4, gauss4, midpoint, etd3; linear substeps); must
         divide the input interval (on a fixed base: the duration). Default for those: the
@@ -392,7 +448,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         mode (on a fixed base: the longest such step dividing the duration); the linear method
         steps once per interval, composed into one step per output row where a row spans several
         (``settings["linear_step"]``; :func:`rig.integrators.lift_linear`). Not accepted for
-        dop853, which chooses its own steps.
+        dop853, which chooses its own steps. etd3m: a whole multiple m of the input interval
+        dividing the output interval and the run (the step spans m held samples; default: the
+        largest such m with m base.dt_s <= 1/(100 f_max); ``settings["samples_per_step"]``).
     output_dt_s : output interval [s], a whole multiple of the input interval (of ``dt_s`` for a
         fixed-step method on a fixed base). Default: the largest multiple of the input interval
         not over 1 s (every input sample if that is over 1 s); on a fixed base 1 s (and the end).
@@ -413,8 +471,11 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     ``err = |y_h - y_{h/2}| 2^p / (2^p - 1)``; dop853: ``|y - y_ref|`` against a run with
     rtol / 100, atol / 100 and at least two steps per input interval; linear: ``|y - y_ref|``
     against a run at dt_s / 2 (round-off only; the linearisation is a model error, not an
-    integrator error, and is not included). The estimate costs one more run (at twice the steps
-    for the half-step ones); ``energy_error_estimate_j`` applies it to the energy.
+    integrator error, and is not included); etd3m (m samples per step): Richardson against
+    m / 2 samples per step where m is even, against one sample per step (ratio m, scale
+    m^p/(m^p - 1)) where m is odd, against etd3 at half a sample where m = 1 (the sentence in
+    ``error_method`` says which). The estimate costs one more run (at twice the steps for the
+    half-step ones); ``energy_error_estimate_j`` applies it to the energy.
 
     Raises
     ------
@@ -466,7 +527,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         native0 = to_native(chain, method, np.concatenate([th0, om0]))
         h0 = float("nan")
 
-    segs, grid = _plan(chain, duration, base, info.kind, dt_s, output_dt_s)
+    segs, grid = _plan(chain, duration, base, info.kind, dt_s, output_dt_s, info.multisample)
     tic = time.perf_counter()
     alg_name = algorithm
     rhs_algorithm(chain, alg_name)  # validate before running
@@ -489,6 +550,8 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
             how = (f"|y - y_ref| against the same run with rtol = {r_ref:.3g}, atol = {a_ref:.3g} "
                    "(100 times tighter) and at least two steps per input interval, from the same "
                    "start state")
+        elif info.multisample:
+            ref, scale, how = _multisample_reference(chain, segs, method, native0, t0, info.order)
         else:
             ref, *_ = _execute(chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f,
                                sub_factor=2, algorithm=alg_name)
