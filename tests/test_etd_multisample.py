@@ -6,16 +6,13 @@ import numpy as np
 import pytest
 
 from rig.benchmark import paper_input, rel_rms_error
-from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
 from rig.integrators import (METHODS, etd3m_coefficients, etd3m_kernel, integrate, lift_linear,
                              discretise, to_native)
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 
-
-def rod_chain(n, *, damping=0.0):
-    return Chain((1.0,) * n, (1.0,) * n, (0.5,) * n, (1 / 12,) * n, (damping,) * n, "relative")
+from chains import blockwise_and_one_shot, rod_chain
 
 
 @pytest.fixture(scope="module")
@@ -164,22 +161,10 @@ def test_linear_hold_and_vertical_input_track_etd3_and_converge():
 
 def test_blockwise_etd3m_runs_reproduce_the_one_shot_run_bit_for_bit():
     """Blocks that end on output rows continue the predictor from the native state."""
-    chain = rod_chain(2, damping=0.02)
-    rng = np.random.default_rng(1)
-    base = BaseInput(0.5 * rng.standard_normal(500), 0.01, ay_mps2=0.3 * rng.standard_normal(500))
-    kw = dict(method="etd3m", dt_s=0.02, output_dt_s=0.04, estimate_error=False)
-    one = simulate(chain, 5.0, theta0=(1.0, -0.5), base=base, **kw)
-    state, thetas = None, []
-    for k0, k1 in [(0, 160), (160, 320), (320, 500)]:
-        blk = base.block(k0, k1)
-        if state is None:
-            tr = simulate(chain, blk.duration_s, theta0=(1.0, -0.5), base=blk, **kw)
-            thetas.append(tr.theta_rad)
-        else:
-            tr = simulate(chain, blk.duration_s, start=state, base=blk, **kw)
-            thetas.append(tr.theta_rad[1:])
-        state = tr.final_state
-    np.testing.assert_array_equal(np.concatenate(thetas), one.theta_rad)
+    joined, state, one = blockwise_and_one_shot(
+        [(0, 160), (160, 320), (320, 500)], method="etd3m", dt_s=0.02, output_dt_s=0.04,
+        estimate_error=False)
+    np.testing.assert_array_equal(joined, one.theta_rad)
     np.testing.assert_array_equal(state.native, one.final_state.native)
 
 

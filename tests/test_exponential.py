@@ -7,7 +7,6 @@ import numpy as np
 import numba
 import pytest
 
-from rig.chain import Chain
 from rig.errors import DivergenceError
 from rig.integrators import (METHODS, SINCOS_POLY_MAX, _sincos_poly, etd3_kernel,
                              etd3_coefficients, integrate, nonlinear_remainder, rhs, to_native)
@@ -15,19 +14,7 @@ from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 from rig.source import Source, generate, start_source
 
-
-def rod_chain(n, *, damping=0.0, mode="relative"):
-    """Takeno's uniform rods: 1 m, 1 kg/m (m = 1, l = 1, c = 0.5, J = 1/12)."""
-    return Chain((1.0,) * n, (1.0,) * n, (0.5,) * n, (1 / 12,) * n, (damping,) * n, mode)
-
-
-def random_chain(rng, n, mode):
-    m = rng.uniform(0.05, 2.0, n)
-    length = rng.uniform(0.05, 1.0, n)
-    com = length * rng.uniform(0.1, 0.9, n)
-    inertia = m * length**2 * rng.uniform(0.0, 0.2, n)
-    return Chain(tuple(m), tuple(length), tuple(com), tuple(inertia),
-                 tuple(rng.uniform(0.0, 0.3, n)), mode)
+from chains import blockwise_and_one_shot, random_chain, rod_chain
 
 
 def dop_fixed(chain, base, y0, substeps):
@@ -209,24 +196,12 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
 def test_blockwise_etd3_runs_reproduce_the_one_shot_run_bit_for_bit():
     """The previous step's stage remainders travel in the native state, so blocks continue the
     predictor instead of restarting it."""
-    chain = rod_chain(2, damping=0.02)
-    rng = np.random.default_rng(1)
-    base = BaseInput(0.5 * rng.standard_normal(500), 0.01, ay_mps2=0.3 * rng.standard_normal(500))
-    kw = dict(method="etd3", dt_s=0.005, output_dt_s=0.01, estimate_error=False)
-    one = simulate(chain, 5.0, theta0=(1.0, -0.5), base=base, **kw)
-    state, thetas = None, []
-    for k0, k1 in [(0, 150), (150, 320), (320, 500)]:
-        blk = base.block(k0, k1)
-        if state is None:
-            tr = simulate(chain, blk.duration_s, theta0=(1.0, -0.5), base=blk, **kw)
-            thetas.append(tr.theta_rad)
-        else:
-            tr = simulate(chain, blk.duration_s, start=state, base=blk, **kw)
-            thetas.append(tr.theta_rad[1:])
-        state = tr.final_state
-    np.testing.assert_array_equal(np.concatenate(thetas), one.theta_rad)
+    joined, state, one = blockwise_and_one_shot(
+        [(0, 150), (150, 320), (320, 500)], method="etd3", dt_s=0.005, output_dt_s=0.01,
+        estimate_error=False)
+    np.testing.assert_array_equal(joined, one.theta_rad)
     np.testing.assert_array_equal(state.native, one.final_state.native)
-    assert state.native.size == 8 * chain.n + 2 and state.native[2 * chain.n] == 1.0
+    assert state.native.size == 8 * 2 + 2 and state.native[2 * 2] == 1.0
 
 
 def test_restart_with_a_different_step_restarts_the_predictor():

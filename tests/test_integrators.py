@@ -11,21 +11,9 @@ from rig.chain import G_STANDARD, Chain
 from rig.integrators import METHODS, discretise, integrate, rhs, to_native
 from rig.simulate import BaseInput, simulate
 
+from chains import random_chain, rod_chain
+
 EPS = np.finfo(float).eps
-
-
-def rod_chain(n, *, damping=0.0, mode="relative"):
-    """Takeno's uniform rods: 1 m, 1 kg/m (m = 1, l = 1, c = 0.5, J = 1/12)."""
-    return Chain((1.0,) * n, (1.0,) * n, (0.5,) * n, (1 / 12,) * n, (damping,) * n, mode)
-
-
-def random_chain(rng, n, mode):
-    m = rng.uniform(0.05, 2.0, n)
-    length = rng.uniform(0.05, 1.0, n)
-    com = length * rng.uniform(0.1, 0.9, n)
-    inertia = m * length**2 * rng.uniform(0.0, 0.2, n)
-    return Chain(tuple(m), tuple(length), tuple(com), tuple(inertia),
-                 tuple(rng.uniform(0.0, 0.3, n)), mode)
 
 
 # -- right-hand sides ---------------------------------------------------------------------------
