@@ -41,3 +41,13 @@ def blockwise_and_one_shot(splits, **kw):
             thetas.append(tr.theta_rad[1:])
         state = tr.final_state
     return np.concatenate(thetas), state, one
+
+
+def random_sturdy_chain(rng, n, mode):
+    """Random chains of 0.5-2 kg, 0.3-1.5 m bodies with damping up to 0.5 N m s (no tiny or
+    massless bodies: for recursions and couplings checked against dense solves)."""
+    m = rng.uniform(0.5, 2.0, n)
+    l = rng.uniform(0.3, 1.5, n)
+    c = l * rng.uniform(0.1, 0.9, n)
+    j = m * l**2 * rng.uniform(0.01, 0.2, n)
+    return Chain(m, l, c, j, rng.uniform(0.0, 0.5, n), damping_mode=mode)

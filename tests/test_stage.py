@@ -10,6 +10,8 @@ from rig.errors import ConfigError
 from rig.scene import load_scene
 from rig.stage import Stage
 
+from chains import random_sturdy_chain
+
 FREQS = np.array([0.0, 0.01, 0.1, 0.5, 0.8268, 1.0, 2.0, 2.4794, 2.523, 4.66, 10.0, 12.5, 300.0])
 
 
@@ -191,16 +193,6 @@ def test_bad_stage_value_in_a_scene_is_reported_when_the_bench_is_built():
 
 # -- the nonlinear reaction (rig.coupled) --------------------------------------------------------
 
-def random_chain(rng, n, mode):
-    from rig.chain import Chain
-
-    m = rng.uniform(0.5, 2.0, n)
-    l = rng.uniform(0.3, 1.5, n)
-    c = l * rng.uniform(0.1, 0.9, n)
-    j = m * l**2 * rng.uniform(0.01, 0.2, n)
-    return Chain(m, l, c, j, rng.uniform(0.0, 0.5, n), damping_mode=mode)
-
-
 @pytest.mark.parametrize("reaction", [True, False])
 @pytest.mark.parametrize("mode", ["absolute", "relative"])
 @pytest.mark.parametrize("n", [1, 2, 3, 12])
@@ -213,7 +205,7 @@ def test_nonlinear_stage_acceleration_solves_the_stage_equation_with_the_chains_
 
     rng = np.random.default_rng(10 * n + reaction)
     for _ in range(4):
-        ch = random_chain(rng, n, mode)
+        ch = random_sturdy_chain(rng, n, mode)
         st = Stage(reaction=reaction, stiffness_npm=0.5, damping_nspm=0.3)
         p = coupled_params(ch, st, st.state_space(ch).a)
         z = np.concatenate([rng.normal(size=3), rng.uniform(-2, 2, n), rng.uniform(-3, 3, n)])
@@ -240,7 +232,7 @@ def test_nonlinear_remainder_vanishes_quadratically_so_it_linearises_to_the_stat
     from rig.coupled import coupled_params, remainder
 
     rng = np.random.default_rng(n)
-    ch = random_chain(rng, n, "relative")
+    ch = random_sturdy_chain(rng, n, "relative")
     st = Stage(reaction=reaction)
     a = st.state_space(ch).a
     p = coupled_params(ch, st, a)
