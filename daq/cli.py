@@ -160,6 +160,46 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     click.echo(resonance_table(sc))
 
 
+# -- live view (rerun; imported only when one of these options is used) ---------------------
+
+def _live_options(fn):
+    for opt in reversed([
+        click.option("--live", is_flag=True,
+                     help="Spawn a rerun viewer (memory limit 2 GiB) and stream to it."),
+        click.option("--connect", metavar="URL",
+                     help="Stream to a running rerun viewer, e.g. "
+                          "rerun+http://127.0.0.1:9876/proxy."),
+        click.option("--rrd", type=click.Path(dir_okay=False, path_type=Path),
+                     help="Save the live view's stream to this .rrd file."),
+        click.option("--magnify", type=click.FloatRange(min=0, min_open=True), default=None,
+                     help="Factor on the angles in the bench drawing (the stage travel gets a sixth of it) "
+                          "(default 30 for a run, 1 for free motion)."),
+    ]):
+        fn = opt(fn)
+    return fn
+
+
+def _viewer_stream(live, connect, rrd, force):
+    """A :class:`processing.live_view.ViewerStream`, or None without a live option."""
+    if not (live or connect or rrd):
+        return None
+    from processing.live_view import ViewerOptions, ViewerStream
+
+    try:
+        return ViewerStream(ViewerOptions(spawn=live, connect=connect, rrd=rrd, force=force))
+    except ValueError as exc:
+        raise click.BadParameter(str(exc)) from None
+
+
+def _live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
+    stream = _viewer_stream(live, connect, rrd, force)
+    if stream is None:
+        return []
+    from processing.live_view import MAGNIFICATION, LiveView
+
+    return [LiveView(stream, magnification=magnify or MAGNIFICATION, pacer=pacer)]
+
+
 # -- simulation ------------------------------------------------------------------------------
 
 def _floats(ctx, param, value):
@@ -186,14 +226,18 @@ def _floats(ctx, param, value):
 @click.option("--dt", "dt_s", type=float, help="Step of the fixed-step methods [s].")
 @click.option("--output-dt", "output_dt_s", type=float,
               help="Output interval [s] (default 1 s: a sample at every whole second).")
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Trajectory file: .csv, or .h5/.hdf5 for HDF5.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Trajectory file: .csv, or .h5/.hdf5 for HDF5 (optional with --live/--rrd).")
 @click.option("--no-error-estimate", is_flag=True, help="Skip the error estimate (one more run).")
 @_set_option
 @_force_option
+@click.option("--live", is_flag=True,
+              help="Show the motion in a spawned rerun viewer (memory limit 2 GiB).")
+@click.option("--rrd", type=click.Path(dir_okay=False, path_type=Path),
+              help="Save the motion as a rerun recording (.rrd).")
 @_library_errors
 def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt_s, out,
-             no_error_estimate, overrides, force):
+             no_error_estimate, overrides, force, live, rrd):
     """Simulate SCENE's pendulum on a fixed base from its initial state (free motion).
 
     Writes t, theta_1..theta_n, omega_1..omega_n and the energy, with the method and its error
@@ -206,22 +250,84 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
 
     if rtol is not None and dt_s is not None:
         raise click.UsageError("give --rtol (adaptive dop853) or --dt (fixed step), not both")
-    trajectory_format(out)
-    check_writable(out, force=force)
+    if out is None and not (live or rrd):
+        raise click.UsageError("give --out FILE (.csv, .h5) and/or --live / --rrd FILE.rrd")
+    if out is not None:
+        trajectory_format(out)
+        check_writable(out, force=force)
+    stream = _viewer_stream(live, None, rrd, force)
+    if stream is not None and output_dt_s is None:
+        from processing.bench_geometry import FRAMES_PER_S
+
+        output_dt_s = 1.0 / FRAMES_PER_S  # frames for the view, not one a second
     sc = load_scene(scene_name, overrides)
     kw = {} if rtol is None else {"rtol": rtol}
     traj = run_simulation(
         sc.chain, duration, theta0=sc.theta0_rad if theta0 is None else theta0,
         omega0=sc.omega0_rad_s if omega0 is None else omega0, method=method, dt_s=dt_s,
         output_dt_s=output_dt_s, estimate_error=not no_error_estimate, **kw)
-    write_trajectory(out, traj, sc, force=force)
+    if out is not None:
+        write_trajectory(out, traj, sc, force=force)
+    if stream is not None:
+        from processing.live_view import show_trajectory
+
+        path = show_trajectory(traj, sc, stream)
+        if path is not None:
+            click.echo(f"wrote {path} (rerun recording)")
     e = traj.energy_j
-    click.echo(f"wrote {out}: {traj.t_s.size} samples over {duration:g} s, {sc.chain.n} bodies, "
+    click.echo(f"{'wrote ' + str(out) if out else 'simulated'}: {traj.t_s.size} samples over {duration:g} s, {sc.chain.n} bodies, "
                f"method {traj.method} ({traj.n_steps} steps, {traj.wall_time_s:.3g} s)")
     click.echo(f"energy: {e[0]:.9g} J at t = 0, max |E - E0| = {np.max(np.abs(e - e[0])):.3g} J")
     if traj.error_estimate_rad is not None:
         click.echo(f"estimated max angle error: {traj.max_error_rad:.3g} rad "
                    f"({traj.error_method})")
+
+
+# -- live view: replay a run file (rerun) -------------------------------------------------
+
+@main.command()
+@click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--rrd", type=click.Path(dir_okay=False, path_type=Path),
+              help="Save the replay to this .rrd file.")
+@click.option("--connect", metavar="URL", help="Replay into a running rerun viewer.")
+@click.option("--screenshot", "screenshot_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Render the layout at the end of the run to a PNG, without a window.")
+@click.option("--size", default="1600x900", show_default=True, metavar="WxH",
+              help="Window size of --screenshot.")
+@click.option("--magnify", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Factor on the angles in the bench drawing (the stage travel gets a sixth of it) [default 30].")
+@_force_option
+@_library_errors
+def view(run, rrd, connect, screenshot_path, size, magnify, force):
+    """Replay the run file RUN into rerun as the live view showed it: a spawned viewer by
+    default, or --connect URL, --rrd FILE.rrd, --screenshot FILE.png (any combination). An
+    interrupted run shows its finished records."""
+    import tempfile
+
+    from processing.live_view import (MAGNIFICATION, LiveViewError, ViewerOptions,
+                                      ViewerStream, replay, screenshot)
+
+    for p in (rrd, screenshot_path):
+        if p is not None and p.resolve() == run.resolve():
+            raise click.BadParameter(f"output {str(p)!r} is the run file: choose another path")
+    if screenshot_path is not None:
+        check_writable(screenshot_path, force=force)
+    spawn = not (rrd or connect or screenshot_path)
+    with tempfile.TemporaryDirectory() as tmp:
+        target = rrd if rrd is not None or screenshot_path is None else Path(tmp) / "view.rrd"
+        stream = ViewerStream(ViewerOptions(spawn=spawn, connect=connect, rrd=target,
+                                            force=force))
+        v = replay(run, stream, magnification=magnify or MAGNIFICATION)
+        click.echo(f"replayed {v.footer.records_complete} of {v.header.plan.records} records "
+                   f"of {run} ({v.footer.status})")
+        if rrd is not None:
+            click.echo(f"wrote {rrd} (rerun recording)")
+        if screenshot_path is not None:
+            try:
+                screenshot(target, screenshot_path, size=size, force=force)
+            except LiveViewError as exc:
+                raise click.ClickException(str(exc)) from None
+            click.echo(f"wrote {screenshot_path}")
 
 
 # -- acquisition -----------------------------------------------------------------------------
@@ -278,13 +384,20 @@ def _model_lines(info: dict) -> list[str]:
 @click.option("--rate", type=float, help="Sample rate of every channel [Hz] (acquisition.rate_hz).")
 @click.option("--seed", type=click.IntRange(0, 2 ** 63 - 1),
               help="Seed of the run (default: a fresh random one, printed and stored).")
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="HDF5 run file to write.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="HDF5 run file to write (optional with a live option).")
 @_set_option
 @_force_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@_live_options
+@click.option("--realtime", is_flag=True,
+              help="Pace the run to the wall clock like the real bench (default: as fast as "
+                   "it can).")
+@click.option("--speed", type=float, default=None, metavar="K",
+              help="With --realtime: K times real time (default 1).")
 @_library_errors
-def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet):
+def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet, live,
+            connect, rrd, magnify, realtime, speed):
     """Acquire records of SCENE's bench into an HDF5 run file.
 
     --records, --duration and --rate override the scene's acquisition.records, .record_s and
@@ -300,12 +413,30 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
     extra = [f"acquisition.{key}={value!r}" for key, value in
              (("records", records), ("record_s", duration), ("rate_hz", rate))
              if value is not None]
+    if out is None and not (live or connect or rrd):
+        raise click.UsageError("give --out RUN.h5 and/or a live option (--live, --connect URL, "
+                               "--rrd FILE.rrd)")
+    if speed is not None and not realtime:
+        raise click.UsageError(f"--speed {speed:g} needs --realtime")
+    if out is not None and rrd is not None and out.resolve() == rrd.resolve():
+        raise click.BadParameter(f"--rrd {str(rrd)!r} is the run file: choose another path")
     sc = load_scene(scene_name, [*overrides, *extra])
     if seed is None:
         seed = secrets.randbits(63)
+    pacer = None
+    if realtime:
+        from daq.pacing import Pacer
+
+        pacer = Pacer(1.0 if speed is None else speed)
+    sinks = _live_sinks(live, connect, rrd, force, magnify, pacer)
+    if pacer is not None and not sinks:
+        from daq.pacing import PacingSink
+
+        sinks = [PacingSink(pacer)]
     bar = None if quiet else _ProgressBar(f"acquiring {sc.name}")
     try:
-        summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar)
+        summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar,
+                                  sinks=sinks)
     except AcquisitionInterrupted as exc:
         if bar is not None:
             bar.close()
@@ -318,13 +449,17 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
         if bar is not None:
             bar.close()
     click.echo(_acquire_summary(summary))
+    for sink in sinks:
+        if getattr(sink, "path", None) is not None:
+            click.echo(f"wrote {sink.path} (rerun recording)")
 
 
 def _acquire_summary(s) -> str:
     clips = ", ".join(f"{c} {n}" for c, n in s.clip_totals().items())
     sats = ", ".join(f"{c} {n}" for c, n in s.saturation_totals().items())
     return "\n".join([
-        f"wrote {s.path} ({_size(s.file_bytes)}): {s.records} records x {s.samples_per_record} "
+        f"{'wrote ' + str(s.path) if s.path else 'no run file'} ({_size(s.file_bytes)}): "
+        f"{s.records} records x {s.samples_per_record} "
         f"samples at {s.rate_hz:g} Hz ({s.samples} samples per channel), channels "
         f"{', '.join(s.channels)}",
         f"seed: {s.seed}",
