@@ -231,8 +231,10 @@ class ViewerStream:
         return self.url is None or self.viewer_lost
 
     def columns(self, entity: str, t_s: np.ndarray, columns) -> None:
+        """Send ``columns`` at times ``t_s`` [s] (rounded to the timeline's whole ns)."""
         if np.size(t_s):
-            self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=t_s)],
+            ns = np.round(np.asarray(t_s, float) * 1e9).astype("timedelta64[ns]")
+            self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=ns)],
                                   columns=columns)
 
     def queue(self, entity: str, kind: str, t_s: np.ndarray, data: np.ndarray) -> None:
