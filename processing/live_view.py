@@ -131,11 +131,15 @@ def _listening(host: str, port: int, wait_s: float = 0.0) -> bool:
 
 
 class ViewerStream:
-    """A rerun recording and its sinks (:class:`ViewerOptions`); warns instead of failing when a
-    viewer is missing or lost (:class:`LiveViewWarning`, once per viewer)."""
+    """A rerun recording going to the sinks of :class:`ViewerOptions`: one recording stream
+    per sink (the file's and the viewer's), so a viewer can be dropped while the file goes on.
+    Warns instead of failing when a viewer is missing or lost (:class:`LiveViewWarning`, once
+    per viewer)."""
 
     def __init__(self, options: ViewerOptions, *, application_id: str = "pendulum-daq",
                  recording_id: str | None = None):
+        import uuid
+
         self.options = options
         self.rrd = None if options.rrd is None else Path(options.rrd)
         if self.rrd is not None:
@@ -144,10 +148,15 @@ class ViewerStream:
         self.url = None
         if options.connect:
             _host_port(options.connect)  # validates before anything runs
-        self.rec = rr.RecordingStream(application_id, recording_id=recording_id,
-                                      send_properties=False)
+        self._app = application_id
+        self._id = recording_id or str(uuid.uuid4())
+        self._file = self._viewer = None
+        self.recs = []
         self.viewer_lost = False
         self._closed = False
+
+    def _stream(self):
+        return rr.RecordingStream(self._app, recording_id=self._id, send_properties=False)
 
     def open(self, blueprint) -> None:
         """Attach the sinks and send the blueprint."""
@@ -160,16 +169,15 @@ class ViewerStream:
                 url = self.options.connect
             else:
                 self._warn(f"no rerun viewer at {self.options.connect} (connection refused)")
-        sinks = []
         if self.rrd is not None:
-            sinks.append(rr.FileSink(str(self._part)))
+            self._file = self._stream()
+            self._file.set_sinks(rr.FileSink(str(self._part)), default_blueprint=blueprint)
+            self.recs.append(self._file)
         if url is not None:
-            sinks.append(rr.GrpcSink(url))
+            self._viewer = self._stream()
+            self._viewer.set_sinks(rr.GrpcSink(url), default_blueprint=blueprint)
+            self.recs.append(self._viewer)
         self.url = url
-        if sinks:
-            self.rec.set_sinks(*sinks, default_blueprint=blueprint)
-        else:
-            self.rec.set_sinks(rr.FileSink(os.devnull))
 
     def _spawn(self) -> str | None:
         exe = viewer_executable()
@@ -178,8 +186,8 @@ class ViewerStream:
             return None
         port = self.options.port
         try:
-            self.rec.spawn(port=port, connect=False, memory_limit=self.options.memory_limit,
-                           executable_path=exe, hide_welcome_screen=True)
+            rr.spawn(port=port, connect=False, memory_limit=self.options.memory_limit,
+                     executable_path=exe, hide_welcome_screen=True)
         except Exception as exc:  # the viewer cannot be started
             self._warn(f"the rerun viewer could not be started: {exc}")
             return None
@@ -193,34 +201,40 @@ class ViewerStream:
         warnings.warn(f"live view: {what}; the run goes on without the viewer",
                       LiveViewWarning, stacklevel=3)
 
+    def _drop_viewer(self, why) -> None:
+        self.viewer_lost = True
+        self._warn(f"lost the rerun viewer at {self.url} ({why})")
+        if self._viewer in self.recs:
+            self.recs.remove(self._viewer)
+
     def check(self) -> None:
         """Flush to the viewer (once per record); if it went away, warn once and go on with the
         file alone."""
-        if self.url is None or self.viewer_lost:
+        if self._viewer is None or self.viewer_lost:
             return
         try:
-            self.rec.flush(timeout_sec=10.0)
+            self._viewer.flush(timeout_sec=10.0)
+            if not _listening(*_host_port(self.url)):
+                raise ConnectionError("it no longer accepts connections")
         except Exception as exc:
-            self.viewer_lost = True
-            self._warn(f"lost the rerun viewer at {self.url} ({exc})")
-            self.rec.set_sinks(rr.FileSink(str(self._part)) if self.rrd is not None
-                               else rr.FileSink(os.devnull))
+            self._drop_viewer(exc)
 
     def close(self) -> Path | None:
         """Flush, write the file's footer and rename it into place; return its path."""
         if self._closed:
             return self.rrd
         self._closed = True
-        try:
-            self.rec.flush(timeout_sec=10.0)
-        except Exception as exc:
-            if not self.viewer_lost and self.url is not None:
-                self.viewer_lost = True
-                self._warn(f"lost the rerun viewer at {self.url} ({exc})")
-        self.rec.disconnect()
-        if self.rrd is not None and self._part.exists():
-            os.replace(self._part, self.rrd)
-            return self.rrd
+        self.check()
+        if self._viewer is not None and not self.viewer_lost:
+            try:
+                self._viewer.disconnect()
+            except Exception as exc:
+                self._drop_viewer(exc)
+        if self._file is not None:
+            self._file.disconnect()
+            if self._part.exists():
+                os.replace(self._part, self.rrd)
+                return self.rrd
         return None
 
     # columnar sends -----------------------------------------------------------------------
@@ -234,8 +248,9 @@ class ViewerStream:
         """Send ``columns`` at times ``t_s`` [s] (rounded to the timeline's whole ns)."""
         if np.size(t_s):
             ns = np.round(np.asarray(t_s, float) * 1e9).astype("timedelta64[ns]")
-            self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=ns)],
-                                  columns=columns)
+            for rec in self.recs:
+                rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=ns)],
+                                 columns=columns)
 
     def queue(self, entity: str, kind: str, t_s: np.ndarray, data: np.ndarray) -> None:
         """Gather columns of ``entity`` for :meth:`send_queued`. ``kind``: "scalars" ((N,) or
@@ -277,7 +292,8 @@ class ViewerStream:
             text=[markdown], media_type=["text/markdown"]))
 
     def static(self, entity: str, archetype) -> None:
-        self.rec.log(entity, archetype, static=True)
+        for rec in self.recs:
+            rec.log(entity, archetype, static=True)
 
 
 # -- what is drawn ---------------------------------------------------------------------------

@@ -378,3 +378,43 @@ def test_screenshot_renders_the_layout_to_a_png(run, tmp_path):
     # not a blank window: the signals' and the analyzer's colours are on screen
     colours = {tuple(c) for c in img.reshape(-1, 3)[::97]}
     assert len(colours) > 50
+
+
+def test_viewer_going_away_mid_run_warns_once_and_the_run_goes_on(tmp_path):
+    import rerun_cli
+
+    exe = Path(rerun_cli.__file__).parent / "rerun"
+    try:
+        lv.screenshot_command(tmp_path / "x.rrd", tmp_path / "x.png")
+    except lv.LiveViewError as exc:
+        pytest.skip(f"no headless viewer here: {exc}")
+    port = _closed_port()
+    viewer = subprocess.Popen([str(exe), "--headless", "--bind", "127.0.0.1", "--port",
+                               str(port), "--memory-limit", "200MiB"],
+                              env=dict(os.environ, WGPU_BACKEND="vulkan", RUST_LOG="off"),
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        if not lv._listening("127.0.0.1", port, wait_s=30.0):
+            pytest.skip("the headless viewer did not start here")
+
+        class KillViewer(Sink):
+            critical = False
+
+            def record(self, record):
+                if record.index == 0:
+                    viewer.kill()
+                    viewer.wait()
+
+        url = f"rerun+http://127.0.0.1:{port}/proxy"
+        rrd = tmp_path / "run.rrd"
+        with pytest.warns(lv.LiveViewWarning) as caught:
+            summary = acquire(short_scene(), seed=SEED, out=tmp_path / "run.h5",
+                              sinks=[live_sink(rrd, connect=url), KillViewer()])
+        assert len(caught) == 1 and "lost the rerun viewer" in str(caught[0].message)
+        assert summary.status == "complete"
+        rec = read_run(tmp_path / "run.h5")
+        _, a, _ = column(rrd, "/signals/a", "Scalars:scalars")  # the file kept everything
+        np.testing.assert_array_equal(a, rec.values("a").ravel())
+    finally:
+        viewer.kill()
+        viewer.wait()
