@@ -34,10 +34,12 @@ and renamed when the stream ends (also when interrupted); an existing file is re
 from __future__ import annotations
 
 import os
+import queue
 import shutil
 import socket
 import subprocess
 import sys
+import threading
 import time
 import warnings
 from dataclasses import dataclass
@@ -154,6 +156,7 @@ class ViewerStream:
         self.recs = []
         self.viewer_lost = False
         self._closed = False
+        self._jobs, self._worker, self._error = queue.Queue(), None, None
 
     def _stream(self):
         return rr.RecordingStream(self._app, recording_id=self._id, send_properties=False)
@@ -207,11 +210,38 @@ class ViewerStream:
         if self._viewer in self.recs:
             self.recs.remove(self._viewer)
 
+    # the sends run in order on one worker thread, beside the acquisition -------------------
+    def _submit(self, fn, *args) -> None:
+        if self._worker is None:
+            self._worker = threading.Thread(target=self._work, name="live-view", daemon=True)
+            self._worker.start()
+        self._jobs.put((fn, args))
+
+    def _work(self) -> None:
+        while True:
+            fn, args = self._jobs.get()
+            try:
+                if self._error is None:
+                    fn(*args)
+            except BaseException as exc:  # handed to the acquisition's thread by drain()
+                self._error = exc
+            finally:
+                self._jobs.task_done()
+
+    def drain(self) -> None:
+        """Wait until everything submitted is sent; re-raise a failure of the sends."""
+        if self._worker is not None:
+            self._jobs.join()
+        if self._error is not None:
+            exc, self._error = self._error, None
+            raise exc
+
     def check(self) -> None:
         """Flush to the viewer (once per record); if it went away, warn once and go on with the
         file alone."""
         if self._viewer is None or self.viewer_lost:
             return
+        self.drain()
         try:
             self._viewer.flush(timeout_sec=10.0)
             if not _listening(*_host_port(self.url)):
@@ -224,6 +254,13 @@ class ViewerStream:
         if self._closed:
             return self.rrd
         self._closed = True
+        try:
+            self.drain()
+        finally:
+            self._close()
+        return self.rrd if self.rrd is not None and self.rrd.exists() else None
+
+    def _close(self) -> None:
         self.check()
         if self._viewer is not None and not self.viewer_lost:
             try:
@@ -234,8 +271,6 @@ class ViewerStream:
             self._file.disconnect()
             if self._part.exists():
                 os.replace(self._part, self.rrd)
-                return self.rrd
-        return None
 
     # columnar sends -----------------------------------------------------------------------
     @property
@@ -244,7 +279,7 @@ class ViewerStream:
         once per record and entity (fewer, larger sends); with a viewer, once per block."""
         return self.url is None or self.viewer_lost
 
-    def columns(self, entity: str, t_s: np.ndarray, columns) -> None:
+    def _columns(self, entity: str, t_s: np.ndarray, columns) -> None:
         """Send ``columns`` at times ``t_s`` [s] (rounded to the timeline's whole ns)."""
         if np.size(t_s):
             ns = np.round(np.asarray(t_s, float) * 1e9).astype("timedelta64[ns]")
@@ -262,8 +297,12 @@ class ViewerStream:
         q.setdefault((entity, kind), []).append((np.asarray(t_s, float), np.asarray(data)))
 
     def send_queued(self) -> None:
-        """One ``send_columns`` per gathered entity."""
+        """One ``send_columns`` per gathered entity (on the worker thread)."""
         q = self.__dict__.pop("_queue", {})
+        if q:
+            self._submit(self._send_queued, q)
+
+    def _send_queued(self, q: dict) -> None:
         for (entity, kind), parts in q.items():
             t = np.concatenate([p[0] for p in parts])
             d = np.concatenate([p[1] for p in parts])
@@ -278,20 +317,26 @@ class ViewerStream:
                 k = d.shape[1]
                 cols = rr.Points2D.columns(positions=np.ascontiguousarray(
                     d.reshape(-1, 2))).partition(np.full(t.size, k, np.int32))
-            self.columns(entity, t, cols)
+            self._columns(entity, t, cols)
 
     def strips_at(self, t_s: float, entity: str, strips: list) -> None:
         """One row of line strips at ``t_s`` (its style is logged statically)."""
+        self._submit(self._strips_at, t_s, entity, strips)
+
+    def _strips_at(self, t_s, entity, strips) -> None:
         if not strips:
             strips = [np.full((2, 2), np.nan)]
-        self.columns(entity, np.array([t_s]), rr.LineStrips2D.columns(strips=strips).partition(
+        self._columns(entity, np.array([t_s]), rr.LineStrips2D.columns(strips=strips).partition(
             [len(strips)]))
 
     def text_at(self, t_s: float, entity: str, markdown: str) -> None:
-        self.columns(entity, np.array([t_s]), rr.TextDocument.columns(
-            text=[markdown], media_type=["text/markdown"]))
+        self._submit(lambda: self._columns(entity, np.array([t_s]), rr.TextDocument.columns(
+            text=[markdown], media_type=["text/markdown"])))
 
     def static(self, entity: str, archetype) -> None:
+        self._submit(self._static, entity, archetype)
+
+    def _static(self, entity: str, archetype) -> None:
         for rec in self.recs:
             rec.log(entity, archetype, static=True)
 
@@ -628,7 +673,7 @@ class LiveView(Sink):
             f"## Record {records} of {h.plan.records}  ({state}"
             + (f": {message}" if message else "") + ")",
             "",
-            f"**scene** {h.scene.name}, **seed** {h.seed}",
+            f"**scene** {h.scene.name}, **seed** {h.seed}  ",
             f"**sampling** {h.plan.rate_hz:g} Hz, records of {h.plan.record_s:g} s after "
             f"{h.plan.settle_s:g} s of settling",
             "",
@@ -637,7 +682,7 @@ class LiveView(Sink):
             *[f"| {c} | {int(clip[i])} | {int(sat[i])} |" for i, c in enumerate(self.names)],
             "",
             f"**model** {info.get('model', '-')}, estimated error "
-            f"{_error_text(info.get('error_estimate', '-'))}",
+            f"{_error_text(info.get('error_estimate', '-'))}  ",
             f"**why** {info.get('reason', '-')}",
             "",
             f"bench: sizes to scale, angles x{self.drawing.magnification:g}, stage travel "
@@ -704,7 +749,7 @@ def acquisition_blueprint(view: LiveView) -> rrb.Blueprint:
     shares = [1.0, 1.0]
     if view.panels is not None:
         w = view.panels["coherence"][0].width
-        bounds = rrb.VisualBounds2D(x_range=(-16, w + 50), y_range=(-4, 118))
+        bounds = rrb.VisualBounds2D(x_range=(-16, w + 50), y_range=(-4, 124))
         key_units = {"H_t": "m/(m/s^2)", "Theta_2": "rad/(m/s^2)"}
         names = {k: f"analyzer: {k} = {'x' if k == 'H_t' else 'y'}/a averaged after each record:"
                     f" gain [dB re 1 {u}], phase [deg]" for k, u in key_units.items()}
