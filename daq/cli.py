@@ -192,12 +192,56 @@ def _viewer_stream(live, connect, rrd, force):
 
 
 def _live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
-    stream = _viewer_stream(live, connect, rrd, force)
-    if stream is None:
+    """The live view as a sink of ``acquire``, or [] without a live option. Its options are
+    checked now; rerun (~1 s to import) is imported on a thread while the bench starts."""
+    if not (live or connect or rrd):
         return []
-    from processing.live_view import MAGNIFICATION, LiveView
+    if rrd is not None:
+        check_writable(rrd, force=force)
+    if connect:
+        from processing.viewer_url import host_port
 
-    return [LiveView(stream, magnification=magnify or MAGNIFICATION, pacer=pacer)]
+        try:
+            host_port(connect)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc)) from None
+    from daq.acquisition import Sink
+
+    class DeferredLiveView(Sink):
+        """processing.live_view.LiveView, made when the run starts (its import runs
+        beside the bench's start-up)."""
+
+        critical = False
+
+        def __init__(self):
+            import importlib
+            import threading
+
+            self.path, self._view = None, None
+            self._import = threading.Thread(
+                target=importlib.import_module, args=("processing.live_view",), daemon=True)
+            self._import.start()
+
+        def start(self, header):
+            self._import.join()
+            from processing.live_view import MAGNIFICATION, LiveView
+
+            self._view = LiveView(_viewer_stream(live, connect, rrd, force),
+                                  magnification=magnify or MAGNIFICATION, pacer=pacer)
+            self._view.start(header)
+
+        def block(self, block):
+            self._view.block(block)
+
+        def record(self, record):
+            self._view.record(record)
+
+        def stop(self, footer):
+            if self._view is not None:
+                self._view.stop(footer)
+                self.path = self._view.path
+
+    return [DeferredLiveView()]
 
 
 # -- simulation ------------------------------------------------------------------------------

@@ -60,9 +60,9 @@ from processing import bode_canvas as bc  # noqa: E402
 from processing.bench_geometry import (FRAMES_PER_S, MAGNIFICATION, MM, BenchDrawing,  # noqa
                                        StagePosition, frame_indices, frame_step)
 from processing.running_average import RunningAverage  # noqa: E402
+from processing.viewer_url import DEFAULT_PORT, host_port as _host_port  # noqa: E402
 
 TIMELINE = "time"
-DEFAULT_PORT = 9876
 MEMORY_LIMIT = "2GiB"
 SIGNAL_WINDOW_S = 20.0
 TRAIL_S = 2.0
@@ -108,16 +108,6 @@ def viewer_executable() -> str | None:
     """The ``rerun`` viewer installed with rerun-sdk (beside this Python), else on PATH."""
     here = Path(sys.executable).parent / "rerun"
     return str(here) if here.exists() else shutil.which("rerun")
-
-
-def _host_port(url: str) -> tuple[str, int]:
-    rest = url.split("://", 1)[-1].split("/", 1)[0]
-    host, _, port = rest.rpartition(":")
-    try:
-        return (host or "127.0.0.1"), int(port)
-    except ValueError:
-        raise ValueError(f"viewer URL {url!r} is invalid: expected e.g. "
-                         f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy") from None
 
 
 def _listening(host: str, port: int, wait_s: float = 0.0) -> bool:
