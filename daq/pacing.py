@@ -28,6 +28,11 @@ class Pacer:
         self._clock, self._sleep = clock, sleep
         self._origin = None  # (simulated s, wall s)
 
+    @property
+    def started(self) -> bool:
+        """Whether the first instant has been paced."""
+        return self._origin is not None
+
     def wait(self, t_s: float) -> None:
         """Return when simulated time ``t_s`` is due (at once for the first call)."""
         now = self._clock()
@@ -52,6 +57,6 @@ class PacingSink(Sink):
         self._rate = header.plan.rate_hz
 
     def block(self, block) -> None:
-        if self.pacer._origin is None:
+        if not self.pacer.started:
             self.pacer.wait(block.t0_s)
         self.pacer.wait(block.t0_s + block.samples / self._rate)

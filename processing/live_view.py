@@ -60,6 +60,7 @@ from processing import bode_canvas as bc  # noqa: E402
 from processing.bench_geometry import (FRAMES_PER_S, MAGNIFICATION, MM, BenchDrawing,  # noqa
                                        StagePosition, frame_indices, frame_step)
 from processing.running_average import RunningAverage  # noqa: E402
+from processing.spectra import ProcessingError, SettingsError  # noqa: E402
 from processing.viewer_url import DEFAULT_PORT, host_port as _host_port  # noqa: E402
 
 TIMELINE = "time"
@@ -369,12 +370,12 @@ def _log_bench_static(s: ViewerStream, d: BenchDrawing, *, moving_stage: bool,
             show_labels=True))
     note = (f"side view, sizes to scale; angles x{d.magnification:g}, stage travel "
             f"x{d.stage_magnification:g}" if moving_stage else "side view, to scale")
-    s.static("/bench/note", rr.Points2D([(-w, top - 0.12 * lay["reach"] - 4)], radii=0.0,
+    s.static("/bench/note", rr.Points2D([(0.0, top - 0.12 * lay["reach"] - 4)], radii=0.0,
                                         labels=[note], show_labels=True,
                                         colors=(220, 220, 220)))
     bar = 10.0 if lay["reach"] < 300 else 10 ** np.floor(np.log10(lay["reach"] / 2))
-    y = top - 0.12 * lay["reach"] - 4
-    s.static("/bench/scale", rr.LineStrips2D([np.array([[w - bar, y], [w, y]])],
+    y = floor - 0.15 * lay["reach"]
+    s.static("/bench/scale", rr.LineStrips2D([np.array([[-0.9 * w, y], [-0.9 * w + bar, y]])],
                                              colors=(220, 220, 220), radii=0.8,
                                              labels=[f"{bar:g} mm"], show_labels=True))
 
@@ -487,9 +488,11 @@ class LiveView(Sink):
         self.stage = StagePosition(self.rate) if "stage_accel_mps2" in truth else None
         self.has_spot = ({"x", "y"} <= set(self.names)
                          and self.drawing.psd_gain_vpm is not None)
+        self._clip = np.zeros(len(self.names), int)
+        self._sat = np.zeros(len(self.names), int)
         try:
             self.average = RunningAverage(header, self.settings)
-        except Exception:
+        except SettingsError:  # not a run with a, x and y: no analyzer screen
             self.average = None
         self.panels = None
         if self.average is not None:
@@ -534,7 +537,7 @@ class LiveView(Sink):
                                   fmax_hz=avg.settings.fmax_hz)
             idx = np.searchsorted(e.freqs_hz, f)
             self.expected = {"H_t": e.h_t[idx], "Theta_2": e.theta_2[idx]}
-        except Exception:  # no E[H1] for this source: the model alone
+        except ProcessingError:  # no E[H1] for this source (e.g. a sine): the model alone
             pass
         self.panels = _analyzer_panels(f, {k: _db(v) for k, v in self.model.items()},
                                        {k: _db(v) for k, v in self.expected.items()})
@@ -547,7 +550,7 @@ class LiveView(Sink):
             _log_panel_static(s, base, (gain, phase))
             s.static(f"{base}/model", rr.LineStrips2D(_bode_strips(gain, phase, f,
                                                                    self.model[key]),
-                                                      colors=MODEL, radii=0.25,
+                                                      colors=MODEL, radii=0.15,
                                                       draw_order=30.0))
             legend = [("exact model (whole chain)", MODEL), ("measured, averaged", MEASURED)]
             if key in self.expected:
@@ -580,7 +583,7 @@ class LiveView(Sink):
             self._send(block, 0, n)
             return
         g0 = int(round(block.t0_s * self.rate))
-        if self.pacer._origin is None:
+        if not self.pacer.started:
             self.pacer.wait(block.t0_s)
         chunk = max(1, int(round(self.rate / 10)))  # 0.1 s of samples per paced send
         for i in range(0, n, chunk):
@@ -627,10 +630,8 @@ class LiveView(Sink):
     def record(self, record: Record) -> None:
         self.stream.send_queued()
         t_end = (record.t0_s + self.header.plan.record_s)
-        self._sat = getattr(self, "_sat", np.zeros(len(self.names), int)) + np.array(
-            [record.saturation_counts()[c] for c in self.names])
-        self._clip = getattr(self, "_clip", np.zeros(len(self.names), int)) + np.array(
-            [record.clip_counts()[c] for c in self.names])
+        self._sat = self._sat + np.array([record.saturation_counts()[c] for c in self.names])
+        self._clip = self._clip + np.array([record.clip_counts()[c] for c in self.names])
         if self.average is not None:
             est = self.average.add(record.codes)
             s, f = self.stream, est.freqs_hz
@@ -656,9 +657,7 @@ class LiveView(Sink):
                 message: str = "") -> None:
         h = self.header
         info = h.model_info
-        n_ch = len(self.names)
-        clip = getattr(self, "_clip", np.zeros(n_ch, int))
-        sat = getattr(self, "_sat", np.zeros(n_ch, int))
+        clip, sat = self._clip, self._sat
         lines = [
             f"## Record {records} of {h.plan.records}  ({state}"
             + (f": {message}" if message else "") + ")",

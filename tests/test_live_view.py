@@ -418,3 +418,24 @@ def test_viewer_going_away_mid_run_warns_once_and_the_run_goes_on(tmp_path):
     finally:
         viewer.kill()
         viewer.wait()
+
+
+def test_realtime_live_view_sends_the_run_paced_and_unchanged(tmp_path):
+    from daq.pacing import Pacer
+
+    now, slept = [0.0], []
+
+    def sleep(s):
+        slept.append(s)
+        now[0] += s
+
+    rrd = tmp_path / "paced.rrd"
+    view = lv.LiveView(lv.ViewerStream(lv.ViewerOptions(rrd=rrd)),
+                       pacer=Pacer(50.0, clock=lambda: now[0], sleep=sleep))
+    acquire(short_scene(), seed=SEED, out=tmp_path / "run.h5", sinks=[view])
+    rec = read_run(tmp_path / "run.h5")
+    # the records' 15 s, from the first sample to the last, at 50 x real time, in 0.1 s steps
+    assert sum(slept) == pytest.approx(15.0 / 50.0, rel=1e-12)
+    assert len(slept) == 150 and max(slept) == pytest.approx(0.1 / 50.0)
+    _, a, _ = column(rrd, "/signals/a", "Scalars:scalars")
+    np.testing.assert_array_equal(a, rec.values("a").ravel())
