@@ -20,40 +20,35 @@ import numpy as np
 DATA = Path(__file__).resolve().parent / "data"
 SEED = 2009
 SHORT = ("acquisition.records=3", "acquisition.record_s=4", "acquisition.settle_s=10")
-#: name -> scene overrides (the paper's drive, forced models; and a strongly driven one)
+#: name -> (scene overrides, BenchSimulation keywords): the paper's drive with forced models, a
+#: strongly driven one, and the nonlinear runs of the coupled bench's earlier path (lawson4)
 RUNS = {
-    "linear": ("acquisition.model=linear",),
-    "nonlinear": ("acquisition.model=nonlinear",),
-    "nonlinear_1v": ("acquisition.model=nonlinear", "source.level_vrms=1.0"),
+    "linear": (("acquisition.model=linear",), {}),
+    "nonlinear_lawson4": (("acquisition.model=nonlinear",), {"method": "lawson4"}),
+    "nonlinear_1v_lawson4": (("acquisition.model=nonlinear", "source.level_vrms=1.0"),
+                             {"method": "lawson4"}),
 }
 
 
 def golden_scene(name: str):
     from rig.scene import load_scene
 
-    return load_scene("ishizaki2009", list(SHORT) + list(RUNS[name]))
+    return load_scene("ishizaki2009", list(SHORT) + list(RUNS[name][0]))
 
 
 def run_arrays(name: str, **bench_kw) -> dict[str, np.ndarray]:
     """The arrays of a fresh golden run ``name``, through a run file (codes, clipped, saturated,
-    truth, model). ``bench_kw`` go to :class:`rig.bench.BenchSimulation` (e.g. ``method``)."""
+    truth, model). ``bench_kw`` (e.g. ``method``) go to :class:`rig.bench.BenchSimulation`,
+    in place of the run's own."""
+    import functools
+
     from daq.acquisition import acquire, rig_bench
     from daq.hdf5 import read_run
 
-    bench = None
-    if bench_kw:
-        from daq.acquisition import _RigBench
-        from rig import bench as rb
-
-        class _Bench(_RigBench):
-            def __init__(self, scene, seed):
-                super().__init__(rb, scene, seed)
-                self._sim = rb.BenchSimulation(scene, seed, **bench_kw)
-
-        bench = _Bench
+    bench = functools.partial(rig_bench, **(bench_kw or RUNS[name][1]))
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.h5"
-        acquire(golden_scene(name), seed=SEED, out=path, bench=bench or rig_bench)
+        acquire(golden_scene(name), seed=SEED, out=path, bench=bench)
         rec = read_run(path)
     out = {}
     for group in ("codes", "clipped", "saturated", "truth"):
