@@ -31,3 +31,28 @@ def test_golden_runs_are_distinct_runs_of_the_paper_scene():
     # ten times the drive: ten times the angles (within the nonlinearity)
     ratio = np.sqrt(np.mean(strong["truth/theta_rad"] ** 2) / np.mean(th_n ** 2))
     assert 9 < ratio < 11
+
+
+#: relative RMS of the truth, default path (etdab) against the earlier one (lawson4): 20 times
+#: etdab's own error estimate on these drives (6.7e-12 at 0.1 V, 6.7e-10 at 1 V, 20 s probe;
+#: lawson4's is 16 times smaller)
+TRUTH_BOUND = {"nonlinear": 1.4e-10, "nonlinear_1v": 1.4e-8}
+
+
+@pytest.mark.parametrize("name", list(TRUTH_BOUND))
+def test_the_default_nonlinear_path_equals_the_earlier_one_within_its_error(name):
+    # the angles' error propagates to every truth series; an ADC code can change only where its
+    # sample lies within that error of a rounding edge: a fraction ~2 err |x| / LSB (< 1e-4
+    # here), so at most 1 LSB in at most 1e-3 of the samples
+    new, old = golden.load(name), golden.load(name + "_lawson4")
+    assert sorted(new) == sorted(old)
+    for k, v in old.items():
+        if k.startswith("truth/"):
+            rel = np.sqrt(np.mean((new[k] - v) ** 2) / max(np.mean(v ** 2), 1e-300))
+            assert rel <= TRUTH_BOUND[name], (k, rel)
+        elif k.startswith("codes/"):
+            d = np.abs(new[k].astype(np.int64) - v.astype(np.int64))
+            assert d.max() <= 1 and np.mean(d > 0) <= 1e-3, k
+        else:  # flags and the model response: unchanged
+            assert np.array_equal(new[k], v), k
+    assert not np.array_equal(new["truth/theta_rad"], old["truth/theta_rad"])  # another path
