@@ -117,3 +117,24 @@ def test_etd_ab_weights_integrate_the_interpolating_polynomial_exactly(order, la
 
         ref, _ = scipy.integrate.quad_vec(integrand, 0.0, h, epsabs=0, epsrel=1e-12)
         np.testing.assert_allclose(w[j].T, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+
+
+def test_etdab_skipping_the_exact_zeros_changes_no_bit():
+    # rig.coupled.etd_ab_sparsity: the weights never reach the reconstruction filter's states,
+    # and the remainder's linear rows never read them
+    from rig.coupled import etd_ab_kernel
+    from rig.source import generate, start_source
+
+    m = build_model(load_scene("ishizaki2009", ["acquisition.model=nonlinear",
+                                                "source.level_vrms=1.0"]))
+    phi_t, gam, w, w_rows, a_cols = m.etdab
+    assert (w_rows, a_cols) == (8, 8) and m.n_states == 12
+    v, _ = generate(m.source, start_source(m.source, np.random.SeedSequence(1)), 5000)
+    out = []
+    for rows_, cols_ in ((w_rows, a_cols), (m.n_states, m.n_states)):
+        z, z_out, ax = np.zeros(m.n_states), np.empty((v.size, m.n_states)), np.empty(v.size)
+        etd_ab_kernel(*m.coupled.args(), phi_t, gam, w, rows_, cols_, 1, False,
+                      np.zeros((w.shape[0], m.coupled.rows.size)), v, z, z_out, ax)
+        out.append((z_out, ax))
+    assert out[0][0].tobytes() == out[1][0].tobytes()
+    assert out[0][1].tobytes() == out[1][1].tobytes()
