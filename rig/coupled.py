@@ -607,8 +607,9 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
     ``ax_out[k]`` at DAC instant k; ``z_out[k]`` = z there. With lag >= 1 the step does not wait
     for the newest evaluation.
 
-    ``w_rows, a_cols`` (:func:`etd_ab_sparsity`) skip exact zeros of the products. ``hist`` (lag + order, nf) holds f at the last steps (newest first) and is updated;
-    ``have`` False: none yet (a start: every entry is taken as f(z_0)). ``z`` (in/out) ends at
+    ``w_rows, a_cols`` (:func:`etd_ab_sparsity`) skip exact zeros of the products. ``hist``
+    (lag + order, nf) holds f at the last steps (newest first) and is updated; ``have`` False:
+    none yet (a start: every entry is taken as f(z_0)). ``z`` (in/out) ends at
     the instant len(v). The rows are summed in a fixed order, so block splits reproduce one-shot
     runs bit for bit."""
     n = mass.shape[0]
