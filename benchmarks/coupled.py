@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""The bench kernels alone on the paper's run (330 s settle + 30 x 100 s = 3.33e6 samples at
-1 kHz, the paper's 0.1 V drive, seed 2009): the nonlinear coupled bench by etdab (default) and
+"""The bench kernels alone on 3330 s at 1 kHz (the paper's run, 300 s settle + 30 x 100 s, and
+30 s more), the paper's 0.1 V drive, seed 2009: the nonlinear coupled bench by etdab (default) and
 lawson4 (the earlier path), the exact linear bench, and their peers.
 
     .venv/bin/python benchmarks/coupled.py                # ~3 minutes
