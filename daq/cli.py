@@ -68,15 +68,32 @@ def scene_list():
 @click.argument("scene_name", metavar="SCENE")
 @_set_option
 @click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
+@click.option("--toml", "as_toml", is_flag=True,
+              help="Print a complete scene file (every key, documented) to edit and load back.")
 @_library_errors
-def scene_show(scene_name, overrides, as_json):
+def scene_show(scene_name, overrides, as_json, as_toml):
     """Show SCENE fully resolved: every physical parameter in SI units, the derived design
-    parameters and the natural frequencies."""
+    parameters and the natural frequencies (--toml: the scene as an editable file)."""
     from rig.summary import scene_summary
 
     from rig.scene import load_scene
 
-    summary = scene_summary(load_scene(scene_name, overrides))
+    if as_json and as_toml:
+        raise click.UsageError("give --json or --toml, not both")
+    sc = load_scene(scene_name, overrides)
+    if as_toml:
+        from importlib.metadata import version
+
+        from rig.scene_toml import scene_toml
+
+        sets = "".join(f" --set {o}" for o in overrides)
+        click.echo(scene_toml(sc, header=(
+            f"scene {sc.name} resolved from {sc.source}{sets} by pendulum-daq "
+            f"{version('pendulum-daq')}: every key, as loaded.\n"
+            "Edit and load it as a scene file (or start a new file with base = \"NAME\" and "
+            "only the keys that differ).")), nl=False)
+        return
+    summary = scene_summary(sc)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     else:
@@ -100,9 +117,13 @@ def _format_summary(s: dict, indent: int = 0) -> str:
 
 
 def _fmt(v) -> str:
+    """A value as a person reads it: numbers to 6 digits, booleans and nothing as in JSON/TOML
+    (true, false, null), lists in brackets."""
+    if isinstance(v, bool) or v is None:
+        return json.dumps(v)
     if isinstance(v, float):
         return f"{v:.6g}"
-    if isinstance(v, list):
+    if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_fmt(x) for x in v) + "]"
     return str(v)
 
@@ -271,8 +292,9 @@ def _model_lines(info: dict) -> list[str]:
 
 
 @main.command()
-@click.option("--scene", "scene_name", required=True, metavar="SCENE",
-              help="Preset name or scene TOML file.")
+@click.argument("scene_arg", metavar="SCENE", required=False)
+@click.option("--scene", "scene_name", metavar="SCENE",
+              help="The same as the SCENE argument (preset name or scene TOML file).")
 @click.option("--records", type=int, help="Number of records (acquisition.records).")
 @click.option("--duration", type=float, help="Seconds per record (acquisition.record_s).")
 @click.option("--rate", type=float, help="Sample rate of every channel [Hz] (acquisition.rate_hz).")
@@ -284,7 +306,7 @@ def _model_lines(info: dict) -> list[str]:
 @_force_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 @_library_errors
-def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet):
+def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides, force, quiet):
     """Acquire records of SCENE's bench into an HDF5 run file.
 
     --records, --duration and --rate override the scene's acquisition.records, .record_s and
@@ -297,6 +319,13 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
     from daq.acquisition import acquire as run_acquisition
     from rig.scene import load_scene
 
+    if scene_arg is not None and scene_name is not None and scene_arg != scene_name:
+        raise click.UsageError(f"two scenes given: {scene_arg!r} and --scene {scene_name!r}; "
+                               "give one (the SCENE argument, or --scene)")
+    scene_name = scene_arg if scene_arg is not None else scene_name
+    if scene_name is None:
+        raise click.UsageError("missing the scene: daq acquire SCENE ... (a preset name or a "
+                               "scene TOML file; see daq scene list)")
     extra = [f"acquisition.{key}={value!r}" for key, value in
              (("records", records), ("record_s", duration), ("rate_hz", rate))
              if value is not None]
