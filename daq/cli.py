@@ -472,11 +472,14 @@ def _processing_errors(fn):
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write spectra, responses, coherence, model and E[H1] to a new HDF5 file "
                    "(xarray: group 'spectra', engine h5netcdf).")
+@click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write H_t and Theta_2 with their coherence as UFF 58 (.uff/.unv) for modal "
+                   "software (processing.uff).")
 @_force_option
 @_library_errors
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
-            report_path, spectra_path, force):
+            report_path, spectra_path, uff_path, force):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -490,11 +493,13 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
                                      write_report)
     from processing.analysis import analyze as run_analysis
     from processing.spectra_hdf5 import write_spectra
+    from processing.uff import write_frf_uff
 
     settings = AnalyzerSettings(window=window, averaging=averaging, nperseg=nperseg, lines=lines,
                                 span_hz=span_hz, overlap=overlap)
     outputs = [(p, w) for p, w in ((csv_path, write_csv), (plot_path, write_bode_png),
-                                   (report_path, write_report), (spectra_path, write_spectra))
+                                   (report_path, write_report), (spectra_path, write_spectra),
+                                   (uff_path, write_frf_uff))
                if p is not None]
     seen = {run.resolve(): "the run file being analysed"}
     for p, _ in outputs:
@@ -509,6 +514,49 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
         write(analysis, p, force=force)
         click.echo(f"wrote {p}")
 
+
+
+# -- export ----------------------------------------------------------------------------------
+
+@main.command()
+@click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the channels as a netCDF-4/HDF5 file (.nc, .h5, .hdf5) that xarray "
+                   "opens directly (daq.eu.to_xarray).")
+@click.option("--units", type=click.Choice(["eu", "volts", "codes"]), default="eu",
+              show_default=True, help="Units of --out: engineering units (m/s^2, m, rad), the "
+              "sensors' volts or the raw ADC codes.")
+@click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write every record of every channel in engineering units as UFF 58 time "
+                   "responses (.uff/.unv, daq.uff).")
+@_force_option
+@_library_errors
+def export(run, out_path, units, uff_path, force):
+    """Export the run file RUN's channels (finished records) in engineering units: to a netCDF
+    file (--out) and/or to UFF 58 time records (--uff). The run file is only read."""
+    from daq.eu import write_eu_file
+    from daq.hdf5 import read_run
+    from daq.uff import write_time_uff
+
+    outputs = [p for p in (out_path, uff_path) if p is not None]
+    if not outputs:
+        raise click.UsageError("nothing to export: give --out FILE.nc and/or --uff FILE.uff")
+    seen = {run.resolve()}
+    for p in outputs:
+        if p.resolve() in seen:
+            raise click.BadParameter(f"output {str(p)!r} is the run file or another output: "
+                                     "choose another path")
+        seen.add(p.resolve())
+        check_writable(p, force=force)
+    recording = read_run(run)
+    if out_path is not None:
+        write_eu_file(recording, out_path, units=units, force=force)
+        click.echo(f"wrote {out_path}: {recording.records} records of "
+                   f"{', '.join(recording.header.names)} in {units}")
+    if uff_path is not None:
+        write_time_uff(recording, uff_path, source=run.name, force=force)
+        click.echo(f"wrote {uff_path}: {recording.records * len(recording.header.names)} UFF 58 "
+                   "time records in engineering units")
 
 
 main.add_command(bench)

@@ -52,7 +52,7 @@ def to_xarray(recording, units: str = "eu"):
     time = np.arange(plan.samples) / plan.rate_hz
     start = (plan.settle_samples + np.arange(n) * plan.samples) / plan.rate_hz
     coords = {
-        "record": ("record", np.arange(n), {"long_name": "record index"}),
+        "record": ("record", np.arange(n), {"units": "1", "long_name": "record index"}),
         "time": ("time", time, {"units": "s", "long_name": "time within the record"}),
         "record_start": ("record", start, {"units": "s", "long_name":
                                            "first sample of the record from the start of the run"}),
