@@ -172,7 +172,8 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     if plot_path is not None:
         from processing.plots import model_bode_figure
 
-        fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model")
+        fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model",
+                                paper_figures=sc.settings["pendulum"]["kind"] == "ishizaki")
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
         click.echo(f"wrote {plot_path}")
@@ -475,11 +476,26 @@ def _processing_errors(fn):
 @click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write H_t and Theta_2 with their coherence as UFF 58 (.uff/.unv) for modal "
                    "software (processing.uff).")
+@click.option("--estimator", type=click.Choice(["h1", "h2", "hv"]), default="h1",
+              show_default=True, help="FRF estimator: H1 = G_ax/G_aa (noise on the output), "
+                   "H2 = G_xx/G_xa (noise on the input), Hv (total least squares).")
+@click.option("--fmin", "fmin_hz", type=float, default=0.1, show_default=True,
+              help="Lowest frequency of the display band [Hz] (CSV, UFF, plots, statistics).")
+@click.option("--fmax", "fmax_hz", type=float, default=10.0, show_default=True,
+              help="Highest frequency of the display band [Hz].")
+@click.option("--phase", type=click.Choice(["wrapped", "unwrapped"]), default="wrapped",
+              show_default=True, help="Phase display of the plots: wrapped to (-180, 180] "
+                   "(broken at each wrap) or unwrapped along frequency.")
+@click.option("--view", type=click.Choice(["bode", "nyquist", "coherence", "all"]),
+              default="bode", show_default=True, help="What --plot draws: Bode (gain, phase, "
+              "coherence over the model), Nyquist with real and imaginary parts, the coherences; "
+              "all: the three, as PLOT-bode.png, PLOT-nyquist.png, PLOT-coherence.png.")
 @_force_option
 @_library_errors
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
-            report_path, spectra_path, uff_path, force):
+            report_path, spectra_path, uff_path, estimator, fmin_hz, fmax_hz, phase, view,
+            force):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -489,20 +505,21 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     interrupted run is analysed with the records it holds). The run file is only read.
     """
     from daq.hdf5 import read_run
-    from processing.analysis import (AnalyzerSettings, write_bode_png, write_csv,
-                                     write_report)
+    from processing.analysis import AnalyzerSettings, write_csv, write_report
     from processing.analysis import analyze as run_analysis
     from processing.spectra_hdf5 import write_spectra
     from processing.uff import write_frf_uff
+    from processing.views import view_paths, write_views
 
     settings = AnalyzerSettings(window=window, averaging=averaging, nperseg=nperseg, lines=lines,
-                                span_hz=span_hz, overlap=overlap)
-    outputs = [(p, w) for p, w in ((csv_path, write_csv), (plot_path, write_bode_png),
-                                   (report_path, write_report), (spectra_path, write_spectra),
-                                   (uff_path, write_frf_uff))
+                                span_hz=span_hz, overlap=overlap, estimator=estimator,
+                                fmin_hz=fmin_hz, fmax_hz=fmax_hz)
+    plots = [] if plot_path is None else list(view_paths(plot_path, view).values())
+    outputs = [(p, w) for p, w in ((csv_path, write_csv), (report_path, write_report),
+                                   (spectra_path, write_spectra), (uff_path, write_frf_uff))
                if p is not None]
     seen = {run.resolve(): "the run file being analysed"}
-    for p, _ in outputs:
+    for p in [q for q, _ in outputs] + plots:
         key = p.resolve()
         if key in seen:
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
@@ -513,6 +530,9 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     for p, write in outputs:
         write(analysis, p, force=force)
         click.echo(f"wrote {p}")
+    if plot_path is not None:
+        for p in write_views(analysis, plot_path, view, phase=phase, force=force):
+            click.echo(f"wrote {p}")
 
 
 

@@ -1157,12 +1157,26 @@ def _fine_grid(a: Analysis) -> np.ndarray:
     return f[(f >= max(lo, 1e-3)) & (f <= hi)]
 
 
-def bode_figures(a: Analysis, *, k: float | None = None):
+def incomplete_note(a: Analysis) -> str:
+    """"" for a complete run, else what the figures must say: "4 of 30 records (interrupted)"."""
+    if a.run.complete:
+        return ""
+    return f"{a.run.records} of {a.run.records_planned} records ({a.run.status})"
+
+
+def paper_figures(scene) -> bool:
+    """Whether the paper's Figs. 9 and 10 show this kind of pendulum (an Ishizaki design)."""
+    return scene.settings["pendulum"]["kind"] == "ishizaki"
+
+
+def bode_figures(a: Analysis, *, k: float | None = None, phase: str = "wrapped"):
     """The measured Bode diagrams (:func:`processing.plots.measured_bode_figure`): translation
-    H_t like the paper's Fig. 9 and rotation Theta_2 like Fig. 10, measured lines with their
-    Bendat-Piersol band over the exact whole-chain model, stage 1 dotted (body 1's centre of
-    mass, resp. theta_1, per unit stage acceleration as the analyzer reads it), E[H1] dashed, and
-    the coherence. Returns ``(fig_translation, fig_rotation)``; the caller closes them."""
+    H_t (cf. the paper's Fig. 9 for an Ishizaki pendulum) and rotation Theta_2 (cf. Fig. 10),
+    measured lines with their Bendat-Piersol band over the exact whole-chain model, stage 1
+    dotted (body 1's centre of mass, resp. theta_1, per unit stage acceleration as the analyzer
+    reads it), E[H1] dashed, and the coherence; titled from the scene, an incomplete run marked.
+    ``phase``: "wrapped" or "unwrapped". Returns ``(fig_translation, fig_rotation)``; the caller
+    closes them."""
     from processing.plots import Curve, measured_bode_figure
 
     scene = a.scene
@@ -1174,29 +1188,38 @@ def bode_figures(a: Analysis, *, k: float | None = None):
         theta1 = r["theta"][:, 0] / a_eng
     g1 = theta1 * chain.point_weights(0, chain.com_m[0])[0]
     kk = a.settings.k if k is None else k
+    paper = paper_figures(scene)
     figs = []
     lines = a.freqs_hz
-    for frf, model, stage1, e, title, unit in (
-            (a.h_t, r["h_t"], g1, None if a.expected is None else a.expected.h_t,
-             "H_t = W_ax/W_aa: mirror translation (like Fig. 9)", "m/(m/s^2)"),
+    est = a.settings.estimator.upper()
+    for frf, model, stage1, e, what, title, s1, unit in (
+            (a.h_t, r["h_t"], g1, None if a.expected is None else a.expected.h_t, "H_t",
+             "mirror translation H_t = W_ax/W_aa" + (" (cf. the paper's Fig. 9)" if paper else ""),
+             "stage 1: translation of its centre of mass G1 (model)", "m/(m/s^2)"),
             (a.theta_2, r["theta_2"], theta1, None if a.expected is None else a.expected.theta_2,
-             "Θ₂ = W_ay/W_aa: mirror rotation (like Fig. 10)", "rad/(m/s^2)")):
+             "Θ₂", "mirror rotation Θ₂ = W_ay/W_aa" + (" (cf. the paper's Fig. 10)" if paper
+                                                       else ""),
+             "stage 1: rotation θ₁ (model)", "rad/(m/s^2)")):
         figs.append(measured_bode_figure(
-            frf, model=Curve("exact model (whole chain)", f, model),
-            stage1=Curve("stage 1 (model)", f, stage1),
-            expected=None if e is None else Curve("E[H1] (expected estimate)", lines, e),
-            k=kk, title=f"{title}\n{a.run.scene}, seed {a.run.seed}, {a.h_t.n_averages} averages",
-            unit=unit, fmin_hz=a.settings.fmin_hz, fmax_hz=a.settings.fmax_hz))
+            frf, model=Curve(f"exact model of {what} (whole chain)", f, model),
+            stage1=Curve(s1, f, stage1),
+            expected=None if e is None else Curve(f"E[H1] of {what} (expected estimate)", lines,
+                                                  e),
+            k=kk, title=f"{a.run.scene}: {title}\nseed {a.run.seed}, {est}, "
+                        f"{a.settings.window} window, {frf.n_averages} averages",
+            unit=unit, fmin_hz=a.settings.fmin_hz, fmax_hz=a.settings.fmax_hz, what=what,
+            phase=phase, incomplete=incomplete_note(a)))
     return tuple(figs)
 
 
-def write_bode_png(a: Analysis, path, *, force: bool = False, dpi: int = 100) -> Path:
+def write_bode_png(a: Analysis, path, *, force: bool = False, dpi: int = 100,
+                   phase: str = "wrapped") -> Path:
     """Both Bode diagrams side by side in one PNG (translation left, rotation right)."""
     import matplotlib.image
     import matplotlib.pyplot as plt
 
     path = Path(path)
-    figs = bode_figures(a)
+    figs = bode_figures(a, phase=phase)
     try:
         imgs = []
         for fig in figs:
