@@ -250,18 +250,34 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
 
 class _ProgressBar:
     """``progress(simulated_s, total_s)`` for :func:`daq.acquisition.acquire` as a click bar on
-    stderr (created on the first call, when the total is known)."""
+    stderr (created on the first call, when the total is known), with the analyzer's averaging
+    display: "settling" and then "average n of N" (records finished), and the time left."""
 
-    def __init__(self, label: str):
+    def __init__(self, label: str, *, records: int = 0, record_s: float = 0.0,
+                 settle_s: float = 0.0):
         self.label, self.bar, self.last = label, None, 0
+        self.records, self.record_s, self.settle_s = records, record_s, settle_s
+        self.done_s = 0.0
+
+    def status(self, done_s: float) -> str:
+        """What the display shows after ``done_s`` simulated seconds."""
+        if self.records <= 0 or self.record_s <= 0:
+            return ""
+        if done_s < self.settle_s:
+            return f"settling, average 0 of {self.records}"
+        n = min(self.records, int((done_s - self.settle_s + 1e-9) // self.record_s))
+        return f"average {n} of {self.records}"
 
     def __call__(self, done_s: float, total_s: float) -> None:
+        self.done_s = done_s
         if self.bar is None:
             self.bar = click.progressbar(length=max(1, round(total_s * 1000)), file=sys.stderr,
-                                         label=f"{self.label} ({total_s:g} s simulated)")
+                                         label=f"{self.label} ({total_s:g} s simulated)",
+                                         show_eta=True,
+                                         item_show_func=lambda _: self.status(self.done_s))
             self.bar.__enter__()
         n = round(done_s * 1000)
-        self.bar.update(n - self.last)
+        self.bar.update(n - self.last, current_item=done_s)
         self.last = n
 
     def close(self) -> None:
@@ -333,7 +349,9 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     sc = load_scene(scene_name, [*overrides, *extra])
     if seed is None:
         seed = secrets.randbits(63)
-    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}")
+    a = sc.settings["acquisition"]
+    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a["records"],
+                                          record_s=a["record_s"], settle_s=a["settle_s"])
     try:
         summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar)
     except AcquisitionInterrupted as exc:

@@ -58,3 +58,22 @@ def test_acquire_needs_exactly_one_scene(runner, tmp_path, args, message):
     res = runner.invoke(main, ["acquire", *args, *SHORT, "--out", str(out)])
     assert res.exit_code == 2 and message in res.output
     assert not out.exists()
+
+
+def test_acquire_progress_shows_average_n_of_N_and_time_left():
+    from daq.cli import _ProgressBar
+
+    bar = _ProgressBar("acquiring", records=30, record_s=100.0, settle_s=300.0)
+    assert bar.status(0.0) == "settling, average 0 of 30"
+    assert bar.status(299.9) == "settling, average 0 of 30"
+    assert bar.status(300.0) == "average 0 of 30"
+    assert bar.status(499.99) == "average 1 of 30"
+    assert bar.status(500.0) == "average 2 of 30"
+    assert bar.status(3300.0) == "average 30 of 30"
+    bar(0.0, 3300.0)
+    try:
+        assert bar.bar.show_eta and bar.bar.item_show_func(None) == "settling, average 0 of 30"
+        bar(1400.0, 3300.0)
+        assert bar.bar.item_show_func(None) == "average 11 of 30"
+    finally:
+        bar.close()
