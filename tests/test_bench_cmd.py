@@ -140,3 +140,25 @@ def test_bench_command_writes_its_outputs_and_refuses_to_overwrite(tmp_path, mon
 def test_entry_label_names_the_solver():
     e = rb.Entry("paper", "solve_ivp", "LSODA", "rtol=1e-8", 1.0, (1.0,), 1e-6, 1.0)
     assert e.label == "solve_ivp LSODA" and math.isfinite(e.wall_s)
+
+
+def test_every_curve_of_the_stored_benchmark_plots_has_its_own_colour_and_marker():
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    from daq.bench_cmd import plot_scene
+    from rig.benchmark import BenchmarkReport
+
+    stored = Path(__file__).resolve().parents[1] / "docs" / "bench" / "bench.json"
+    report = BenchmarkReport.from_json(stored.read_text())
+    for scene in report.scenes:
+        fig = plot_scene(scene)
+        try:
+            lines = [ln for ax in fig.axes[:1] for ln in ax.get_lines()
+                     if not ln.get_label().startswith("_")]
+            pairs = [(ln.get_color(), ln.get_marker()) for ln in lines]
+            assert len(pairs) >= 2 and len(set(pairs)) == len(pairs), scene.name
+            assert len(fig.legends) == 1 and fig.axes[0].get_legend() is None
+        finally:
+            plt.close(fig)
