@@ -244,6 +244,8 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     if traj.error_estimate_rad is not None:
         click.echo(f"estimated max angle error: {traj.max_error_rad:.3g} rad "
                    f"({traj.error_method})")
+    for text in traj.warnings:
+        click.echo(f"WARNING: {text}", err=True)
 
 
 # -- acquisition -----------------------------------------------------------------------------
