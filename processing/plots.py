@@ -225,6 +225,7 @@ class Response:
     measured: object
     unit: str
     model: Curve | None = None
+    expected_coherence: np.ndarray | None = None
 
 
 def nyquist_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz: float = 10.0,
@@ -283,7 +284,7 @@ def coherence_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz
     """The coherence gamma^2 of every response on one log frequency axis, with optional
     ``marks`` ``(frequency_hz, label)`` (e.g. the frequencies where a known mechanism lowers
     it) as thin vertical lines labelled at the top. Returns the figure."""
-    fig = plt.figure(figsize=(9, 4.8), layout="constrained")
+    fig = plt.figure(figsize=(9, 6), layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
     styles = ({"color": "tab:red", "marker": "o"}, {"color": "tab:blue", "marker": "s"},
               {"color": "tab:green", "marker": "^"})
@@ -292,6 +293,10 @@ def coherence_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz
         sel = (f >= fmin_hz) & (f <= fmax_hz) & np.isfinite(r.measured.h)
         ax.semilogx(f[sel], r.measured.coherence[sel], lw=0.7, ms=2.0, mfc="none", mew=0.6,
                     label=f"γ² of {r.name} ({r.measured.n_averages} averages)", **st)
+        if r.expected_coherence is not None:
+            ax.semilogx(f[sel], np.asarray(r.expected_coherence)[sel], color="k",
+                        ls="--" if st["marker"] == "o" else ":", lw=0.9,
+                        label=f"expected γ² of {r.name} (model: lever geometry, noise, leakage)")
     for fm, label in marks:
         if fmin_hz <= fm <= fmax_hz:
             ax.axvline(fm, color="0.5", lw=0.6, ls="--")

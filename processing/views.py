@@ -2,7 +2,8 @@
 
 ``bode`` (gain, phase and coherence over the exact model: :func:`processing.analysis.bode_figures`),
 ``nyquist`` (the Nyquist plot with the real and imaginary parts against frequency) and
-``coherence`` (both coherences on one axis, the modes marked); ``all`` writes the three.
+``coherence`` (both coherences on one axis with their expected curves, each predicted dip
+marked with its cause); ``all`` writes the three.
 ``daq analyze --plot PATH --view V`` uses :func:`view_paths` and :func:`write_views`.
 """
 
@@ -35,8 +36,29 @@ def _responses(a):
 
     f = _fine_grid(a)
     r = _FastBench(a.scene)(f)
-    return [Response("H_t", a.h_t, "m/(m/s^2)", Curve("exact model of H_t", f, r["h_t"])),
-            Response("Θ₂", a.theta_2, "rad/(m/s^2)", Curve("exact model of Θ₂", f, r["theta_2"]))]
+    b = a.coherence_budget
+    ex = {"x": None, "y": None} if b is None else b.expected
+    return [Response("H_t", a.h_t, "m/(m/s^2)", Curve("exact model of H_t", f, r["h_t"]),
+                     ex["x"]),
+            Response("Θ₂", a.theta_2, "rad/(m/s^2)", Curve("exact model of Θ₂", f, r["theta_2"]),
+                     ex["y"])]
+
+
+_SHORT = {"geometry": "lever geometry", "accelerometer noise": "accelerometer noise",
+          "PSD noise": "PSD noise", "leakage": "leakage"}
+
+
+def _dip_marks(a) -> tuple:
+    """``(frequency, label)`` of each named dip (its main cause), else of the modes."""
+    if not a.coherence_dips:
+        return tuple((fm, f"mode {fm:.3g} Hz") for fm, _ in a.exact_modes)
+    marks = {}
+    for d in a.coherence_dips:
+        name = "H_t" if d.channel == "x" else "Θ₂"
+        cause = _SHORT[d.causes[0][0]] if d.causes else "?"
+        key = round(d.frequency_hz, 3)
+        marks[key] = (marks[key] + "; " if key in marks else "") + f"{name}: {cause}"
+    return tuple(sorted(marks.items()))
 
 
 def _title(a, what: str) -> str:
@@ -58,9 +80,10 @@ def view_figures(a, view: str, *, phase: str = "wrapped") -> list:
                                title=_title(a, "Nyquist, real and imaginary parts"),
                                incomplete=note)]
     if view == "coherence":
-        marks = tuple((fm, f"mode {fm:.3g} Hz") for fm, _ in a.exact_modes)
         return [coherence_figure(_responses(a), fmin_hz=s.fmin_hz, fmax_hz=s.fmax_hz,
-                                 marks=marks, title=_title(a, "coherence"), incomplete=note)]
+                                 marks=_dip_marks(a), title=_title(a, "coherence, measured and "
+                                                                     "expected"),
+                                 incomplete=note)]
     raise ValueError(f"view = {view!r} is invalid: expected one of {', '.join(VIEWS[:-1])}")
 
 
