@@ -70,8 +70,9 @@ def test_eu_equals_the_calibration_applied_from_the_raw_attributes(run_file):
             d = f["entry/data"][c]
             eu = (d[()] * d.attrs["scale_factor"] + d.attrs["add_offset"]) / d.attrs["volts_per_unit"]
             np.testing.assert_allclose(ds[c].values, eu, rtol=5e-16, atol=0)
-    volts = to_xarray(read_run(run_file), units="volts")
+    volts = read_run(run_file).to_xarray(units="volts")
     assert volts.a.attrs["units"] == "V"
+    np.testing.assert_array_equal(read_run(run_file).to_xarray()["y"].values, ds["y"].values)
 
 
 def test_export_out_writes_an_eu_netcdf_that_xarray_opens(run_file, runner, tmp_path):
