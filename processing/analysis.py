@@ -113,7 +113,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import io
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -1256,28 +1255,11 @@ def bode_figures(a: Analysis, *, k: float | None = None, phase: str = "wrapped")
 
 def write_bode_png(a: Analysis, path, *, force: bool = False, dpi: int = 100,
                    phase: str = "wrapped") -> Path:
-    """Both Bode diagrams side by side in one PNG (translation left, rotation right)."""
-    import matplotlib.image
-    import matplotlib.pyplot as plt
+    """Both Bode diagrams side by side in one PNG (translation left, rotation right): the
+    ``bode`` view of :func:`processing.views.write_views`."""
+    from processing.views import write_views
 
-    path = Path(path)
-    figs = bode_figures(a, phase=phase)
-    try:
-        imgs = []
-        for fig in figs:
-            buf = io.BytesIO()
-            fig.savefig(buf, dpi=dpi, format="png")
-            buf.seek(0)
-            imgs.append(matplotlib.image.imread(buf, format="png"))
-    finally:
-        for fig in figs:
-            plt.close(fig)
-    height = max(i.shape[0] for i in imgs)
-    padded = [np.pad(i, ((0, height - i.shape[0]), (0, 0), (0, 0)), constant_values=1.0)
-              for i in imgs]
-    with atomic_output(path, force=force) as tmp:
-        matplotlib.image.imsave(tmp, np.concatenate(padded, axis=1), format="png")
-    return path
+    return write_views(a, path, "bode", phase=phase, force=force, dpi=dpi)[0]
 
 
 def write_csv(a: Analysis, path, *, force: bool = False) -> Path:

@@ -34,6 +34,16 @@ class Curve:
     style: dict = field(default_factory=dict)
 
 
+def _log_lo(fmin_hz: float, freqs_hz) -> float:
+    """The lower limit of a log frequency axis: ``fmin_hz``, or the lowest positive line if
+    ``fmin_hz`` is 0."""
+    if fmin_hz > 0:
+        return fmin_hz
+    f = np.asarray(freqs_hz, dtype=float)
+    f = f[f > 0]
+    return float(f.min()) if f.size else 1e-3
+
+
 def decade_axis(ax) -> None:
     """Label a log frequency axis's decades as plain numbers (0.1, 1, 10), minor ticks unlabelled."""
     ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
@@ -207,7 +217,7 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     ax_c.set_ylabel(f"coherence γ²{' of ' + what if what else ''}")
     ax_c.set_ylim(0, 1.05)
     ax_c.set_xlabel("frequency [Hz]")
-    ax_c.set_xlim(fmin_hz, fmax_hz)
+    ax_c.set_xlim(_log_lo(fmin_hz, fs), fmax_hz)
     for ax in (ax_g, ax_p, ax_c):
         ax.grid(True, which="both", alpha=0.3)
         decade_axis(ax)
@@ -250,7 +260,7 @@ def nyquist_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz: 
             ax_r.semilogx(cf[m], r.model.h[m].real, **style)
             ax_i.semilogx(cf[m], r.model.h[m].imag, **style)
         sc = ax_n.scatter(h.real, h.imag, c=fs, s=6, cmap="viridis",
-                          norm=matplotlib.colors.LogNorm(fmin_hz, fmax_hz),
+                          norm=matplotlib.colors.LogNorm(_log_lo(fmin_hz, fs), fmax_hz),
                           label=f"measured {r.name} ({r.measured.estimator.upper()}, "
                                 f"{r.measured.n_averages} averages)")
         cb = fig.colorbar(sc, ax=ax_n, label="frequency [Hz]")
@@ -266,7 +276,7 @@ def nyquist_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz: 
         ax_r.set_ylabel(f"Re {r.name} [{r.unit}]")
         ax_i.set_ylabel(f"Im {r.name} [{r.unit}]")
         ax_i.set_xlabel("frequency [Hz]")
-        ax_r.set_xlim(fmin_hz, fmax_hz)
+        ax_r.set_xlim(_log_lo(fmin_hz, fs), fmax_hz)
         for ax in (ax_n, ax_r, ax_i):
             ax.grid(True, which="both", alpha=0.3)
             ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 3))
@@ -302,7 +312,7 @@ def coherence_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz
             ax.axvline(fm, color="0.5", lw=0.6, ls="--")
             ax.text(fm, 1.06, label, rotation=90, ha="center", va="bottom", fontsize=7,
                     color="0.3", transform=ax.get_xaxis_transform())
-    ax.set_xlim(fmin_hz, fmax_hz)
+    ax.set_xlim(_log_lo(fmin_hz, responses[0].measured.freqs_hz), fmax_hz)
     ax.set_ylim(0, 1.05)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("coherence γ² [1]")

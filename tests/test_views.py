@@ -175,3 +175,11 @@ def test_view_paths_of_all_are_beside_the_given_path(tmp_path):
     assert [q.name for q in p.values()] == ["b-bode.png", "b-nyquist.png", "b-coherence.png"]
     with pytest.raises(ValueError, match="view = 'polar' is invalid"):
         view_paths(tmp_path / "b.png", "polar")
+
+
+def test_a_band_from_zero_hz_plots_every_view_on_its_log_axis(run_file, runner, tmp_path):
+    out = tmp_path / "z.png"
+    res = runner.invoke(main, ["analyze", str(run_file), "--fmin", "0", "--fmax", "5",
+                               "--plot", str(out), "--view", "all"])
+    assert res.exit_code == 0, res.output  # warnings are errors here: none was raised
+    assert len(list(tmp_path.glob("z-*.png"))) == 3
