@@ -881,14 +881,21 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
         except SettingsError as exc:
             notes.append(f"no expected estimate: {exc}")
     budget, dips = None, ()
-    if expected is not None:
+    grid = expected  # the coherence does not depend on the estimator: its FFT length and notch
+    if grid is None and s.estimator != "h1":
+        try:
+            grid = _expected_estimate(h, spectral, bench, n_fft=None, fmin_hz=s.fmin_hz,
+                                      fmax_hz=s.fmax_hz)
+        except SettingsError:
+            grid = None
+    if grid is not None:
         from processing.coherence_model import coherence_budget, named_dips
 
-        budget = coherence_budget(h, spectral, bench, n_fft=expected.n_fft,
+        budget = coherence_budget(h, spectral, bench, n_fft=grid.n_fft,
                                   n_averages=h_t.n_effective)
         dips = tuple(named_dips(budget, {"x": h_t.coherence, "y": theta_2.coherence},
                                 modes_hz=[fm for fm, _ in exact], antiresonances_hz=anti,
-                                input_notch_db=expected.input_notch_db, fmin_hz=s.fmin_hz,
+                                input_notch_db=grid.input_notch_db, fmin_hz=s.fmin_hz,
                                 fmax_hz=s.fmax_hz))
 
     def model_fn(name):

@@ -58,6 +58,9 @@ def test_estimator_option_gives_that_estimate(run_file, runner, tmp_path, estima
     rows = _rows(out)
     np.testing.assert_array_equal([float(r["x_re"]) for r in rows], a.h_t.h.real[m])
     assert not np.array_equal(a.h_t.h[m], h1.h_t.h[m])  # a different estimate indeed
+    # the coherence and its explanation do not depend on the estimator
+    np.testing.assert_array_equal(a.h_t.coherence, h1.h_t.coherence)
+    assert [d.text for d in a.coherence_dips] == [d.text for d in h1.coherence_dips]
 
 
 def test_band_options_set_the_lines_written(run_file, runner, tmp_path):
