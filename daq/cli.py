@@ -68,15 +68,32 @@ def scene_list():
 @click.argument("scene_name", metavar="SCENE")
 @_set_option
 @click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
+@click.option("--toml", "as_toml", is_flag=True,
+              help="Print a complete scene file (every key, documented) to edit and load back.")
 @_library_errors
-def scene_show(scene_name, overrides, as_json):
+def scene_show(scene_name, overrides, as_json, as_toml):
     """Show SCENE fully resolved: every physical parameter in SI units, the derived design
-    parameters and the natural frequencies."""
+    parameters and the natural frequencies (--toml: the scene as an editable file)."""
     from rig.summary import scene_summary
 
     from rig.scene import load_scene
 
-    summary = scene_summary(load_scene(scene_name, overrides))
+    if as_json and as_toml:
+        raise click.UsageError("give --json or --toml, not both")
+    sc = load_scene(scene_name, overrides)
+    if as_toml:
+        from importlib.metadata import version
+
+        from rig.scene_toml import scene_toml
+
+        sets = "".join(f" --set {o}" for o in overrides)
+        click.echo(scene_toml(sc, header=(
+            f"scene {sc.name} resolved from {sc.source}{sets} by pendulum-daq "
+            f"{version('pendulum-daq')}: every key, as loaded.\n"
+            "Edit and load it as a scene file (or start a new file with base = \"NAME\" and "
+            "only the keys that differ).")), nl=False)
+        return
+    summary = scene_summary(sc)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     else:
@@ -100,9 +117,13 @@ def _format_summary(s: dict, indent: int = 0) -> str:
 
 
 def _fmt(v) -> str:
+    """A value as a person reads it: numbers to 6 digits, booleans and nothing as in JSON/TOML
+    (true, false, null), lists in brackets."""
+    if isinstance(v, bool) or v is None:
+        return json.dumps(v)
     if isinstance(v, float):
         return f"{v:.6g}"
-    if isinstance(v, list):
+    if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_fmt(x) for x in v) + "]"
     return str(v)
 
@@ -151,7 +172,8 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     if plot_path is not None:
         from processing.plots import model_bode_figure
 
-        fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model")
+        fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model",
+                                paper_figures=sc.settings["pendulum"]["kind"] == "ishizaki")
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
         click.echo(f"wrote {plot_path}")
@@ -325,6 +347,8 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     if traj.error_estimate_rad is not None:
         click.echo(f"estimated max angle error: {traj.max_error_rad:.3g} rad "
                    f"({traj.error_method})")
+    for text in traj.warnings:
+        click.echo(f"WARNING: {text}", err=True)
 
 
 # -- live view: replay a run file (rerun) -------------------------------------------------
@@ -378,18 +402,34 @@ def view(run, rrd, connect, screenshot_path, size, magnify, force):
 
 class _ProgressBar:
     """``progress(simulated_s, total_s)`` for :func:`daq.acquisition.acquire` as a click bar on
-    stderr (created on the first call, when the total is known)."""
+    stderr (created on the first call, when the total is known), with the analyzer's averaging
+    display: "settling" and then "average n of N" (records finished), and the time left."""
 
-    def __init__(self, label: str):
+    def __init__(self, label: str, *, records: int = 0, record_s: float = 0.0,
+                 settle_s: float = 0.0):
         self.label, self.bar, self.last = label, None, 0
+        self.records, self.record_s, self.settle_s = records, record_s, settle_s
+        self.done_s = 0.0
+
+    def status(self, done_s: float) -> str:
+        """What the display shows after ``done_s`` simulated seconds."""
+        if self.records <= 0 or self.record_s <= 0:
+            return ""
+        if done_s < self.settle_s:
+            return f"settling, average 0 of {self.records}"
+        n = min(self.records, int((done_s - self.settle_s + 1e-9) // self.record_s))
+        return f"average {n} of {self.records}"
 
     def __call__(self, done_s: float, total_s: float) -> None:
+        self.done_s = done_s
         if self.bar is None:
             self.bar = click.progressbar(length=max(1, round(total_s * 1000)), file=sys.stderr,
-                                         label=f"{self.label} ({total_s:g} s simulated)")
+                                         label=f"{self.label} ({total_s:g} s simulated)",
+                                         show_eta=True,
+                                         item_show_func=lambda _: self.status(self.done_s))
             self.bar.__enter__()
         n = round(done_s * 1000)
-        self.bar.update(n - self.last)
+        self.bar.update(n - self.last, current_item=done_s)
         self.last = n
 
     def close(self) -> None:
@@ -421,8 +461,9 @@ def _model_lines(info: dict) -> list[str]:
 
 
 @main.command()
-@click.option("--scene", "scene_name", required=True, metavar="SCENE",
-              help="Preset name or scene TOML file.")
+@click.argument("scene_arg", metavar="SCENE", required=False)
+@click.option("--scene", "scene_name", metavar="SCENE",
+              help="The same as the SCENE argument (preset name or scene TOML file).")
 @click.option("--records", type=int, help="Number of records (acquisition.records).")
 @click.option("--duration", type=float, help="Seconds per record (acquisition.record_s).")
 @click.option("--rate", type=float, help="Sample rate of every channel [Hz] (acquisition.rate_hz).")
@@ -440,8 +481,8 @@ def _model_lines(info: dict) -> list[str]:
 @click.option("--speed", type=float, default=None, metavar="K",
               help="With --realtime: K times real time (default 1).")
 @_library_errors
-def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet, live,
-            connect, rrd, magnify, realtime, speed):
+def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides, force, quiet,
+            live, connect, rrd, magnify, realtime, speed):
     """Acquire records of SCENE's bench into an HDF5 run file.
 
     --records, --duration and --rate override the scene's acquisition.records, .record_s and
@@ -454,6 +495,13 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
     from daq.acquisition import acquire as run_acquisition
     from rig.scene import load_scene
 
+    if scene_arg is not None and scene_name is not None and scene_arg != scene_name:
+        raise click.UsageError(f"two scenes given: {scene_arg!r} and --scene {scene_name!r}; "
+                               "give one (the SCENE argument, or --scene)")
+    scene_name = scene_arg if scene_arg is not None else scene_name
+    if scene_name is None:
+        raise click.UsageError("missing the scene: daq acquire SCENE ... (a preset name or a "
+                               "scene TOML file; see daq scene list)")
     extra = [f"acquisition.{key}={value!r}" for key, value in
              (("records", records), ("record_s", duration), ("rate_hz", rate))
              if value is not None]
@@ -477,7 +525,9 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
         from daq.pacing import PacingSink
 
         sinks = [PacingSink(pacer)]
-    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}")
+    a = sc.settings["acquisition"]
+    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a["records"],
+                                          record_s=a["record_s"], settle_s=a["settle_s"])
     try:
         summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar,
                                   sinks=sinks)
@@ -524,20 +574,29 @@ def _acquire_summary(s) -> str:
 def inspect(path, as_json, repair):
     """Show what the run file PATH holds: scene, seed, versions, status, channels, clipping,
     model."""
+    from daq.check import check_file
     from daq.hdf5 import clear_write_flags, run_info
 
     if repair and clear_write_flags(path) and not as_json:
         click.echo(f"cleared the open-for-writing mark of {path}")
+    fc = _run_check(path)
     info = run_info(path)
+    info["check"] = fc.to_dict()
     if as_json:
         click.echo(json.dumps(info, indent=2))
-        return
-    click.echo(_inspect_text(info))
+    else:
+        click.echo(_inspect_text(info))
+    if not fc.ok:
+        raise click.exceptions.Exit(1)
 
 
 def _inspect_text(i: dict) -> str:
     n, planned = i["records_complete"], i["records_planned"]
-    if i["complete"]:
+    check = i.get("check")
+    if check is not None and not check["ok"]:
+        status = (f"{check['status'].upper()}: {check['records_valid']} of {planned} records "
+                  f"verify; " + "; ".join(check["problems"]))
+    elif i["complete"]:
         status = f"complete, {n} of {planned} records"
     else:
         why = {"acquiring": "writer killed or still running", "interrupted": "interrupted",
@@ -622,11 +681,32 @@ def _processing_errors(fn):
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write spectra, responses, coherence, model and E[H1] to a new HDF5 file "
                    "(xarray: group 'spectra', engine h5netcdf).")
+@click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write H_t and Theta_2 with their coherence as UFF 58 (.uff/.unv) for modal "
+                   "software (processing.uff).")
+@click.option("--estimator", type=click.Choice(["h1", "h2", "hv"]), default="h1",
+              show_default=True, help="FRF estimator: H1 = G_ax/G_aa (noise on the output), "
+                   "H2 = G_xx/G_xa (noise on the input), Hv (total least squares).")
+@click.option("--fmin", "fmin_hz", type=float, default=0.1, show_default=True,
+              help="Lowest frequency of the display band [Hz] (CSV, UFF, plots, statistics).")
+@click.option("--fmax", "fmax_hz", type=float, default=10.0, show_default=True,
+              help="Highest frequency of the display band [Hz].")
+@click.option("--phase", type=click.Choice(["wrapped", "unwrapped"]), default="wrapped",
+              show_default=True, help="Phase display of the plots: wrapped to (-180, 180] "
+                   "(broken at each wrap) or unwrapped along frequency.")
+@click.option("--view", type=click.Choice(["bode", "nyquist", "coherence", "all"]),
+              default="bode", show_default=True, help="What --plot draws: Bode (gain, phase, "
+              "coherence over the model), Nyquist with real and imaginary parts, the coherences; "
+              "all: the three, as PLOT-bode.png, PLOT-nyquist.png, PLOT-coherence.png.")
+@click.option("--allow-incomplete", is_flag=True,
+              help="Analyse a damaged run file (records failing their checksum, or fewer rows "
+                   "than it counts) with only the records that verify, instead of refusing it.")
 @_force_option
 @_library_errors
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
-            report_path, spectra_path, force):
+            report_path, spectra_path, uff_path, estimator, fmin_hz, fmax_hz, phase, view,
+            force, allow_incomplete):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -636,29 +716,134 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     interrupted run is analysed with the records it holds). The run file is only read.
     """
     from daq.hdf5 import read_run
-    from processing.analysis import (AnalyzerSettings, write_bode_png, write_csv,
-                                     write_report)
+    from processing.analysis import AnalyzerSettings, write_csv, write_report
     from processing.analysis import analyze as run_analysis
     from processing.spectra_hdf5 import write_spectra
+    from processing.uff import write_frf_uff
+    from processing.views import view_paths, write_views
 
     settings = AnalyzerSettings(window=window, averaging=averaging, nperseg=nperseg, lines=lines,
-                                span_hz=span_hz, overlap=overlap)
-    outputs = [(p, w) for p, w in ((csv_path, write_csv), (plot_path, write_bode_png),
-                                   (report_path, write_report), (spectra_path, write_spectra))
+                                span_hz=span_hz, overlap=overlap, estimator=estimator,
+                                fmin_hz=fmin_hz, fmax_hz=fmax_hz)
+    plots = [] if plot_path is None else list(view_paths(plot_path, view).values())
+    outputs = [(p, w) for p, w in ((csv_path, write_csv), (report_path, write_report),
+                                   (spectra_path, write_spectra), (uff_path, write_frf_uff))
                if p is not None]
     seen = {run.resolve(): "the run file being analysed"}
-    for p, _ in outputs:
+    for p in [q for q, _ in outputs] + plots:
         key = p.resolve()
         if key in seen:
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
         seen[key] = "another output"
         check_writable(p, force=force)
-    analysis = run_analysis(read_run(run), settings, source=str(run))
+    records = _verified_records(run, allow_incomplete)
+    analysis = run_analysis(read_run(run, records=records), settings, source=str(run))
     click.echo(analysis.summary())
     for p, write in outputs:
         write(analysis, p, force=force)
         click.echo(f"wrote {p}")
+    if plot_path is not None:
+        for p in write_views(analysis, plot_path, view, phase=phase, force=force):
+            click.echo(f"wrote {p}")
 
+
+
+# -- export ----------------------------------------------------------------------------------
+
+@main.command()
+@click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the channels as a netCDF-4/HDF5 file (.nc, .h5, .hdf5) that xarray "
+                   "opens directly (daq.eu.to_xarray).")
+@click.option("--units", type=click.Choice(["eu", "volts", "codes"]), default="eu",
+              show_default=True, help="Units of --out: engineering units (m/s^2, m, rad), the "
+              "sensors' volts or the raw ADC codes.")
+@click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write every record of every channel in engineering units as UFF 58 time "
+                   "responses (.uff/.unv, daq.uff).")
+@_force_option
+@_library_errors
+def export(run, out_path, units, uff_path, force):
+    """Export the run file RUN's channels (finished records) in engineering units: to a netCDF
+    file (--out) and/or to UFF 58 time records (--uff). The run file is only read."""
+    from daq.eu import write_eu_file
+    from daq.hdf5 import read_run
+    from daq.uff import write_time_uff
+
+    outputs = [p for p in (out_path, uff_path) if p is not None]
+    if not outputs:
+        raise click.UsageError("nothing to export: give --out FILE.nc and/or --uff FILE.uff")
+    seen = {run.resolve()}
+    for p in outputs:
+        if p.resolve() in seen:
+            raise click.BadParameter(f"output {str(p)!r} is the run file or another output: "
+                                     "choose another path")
+        seen.add(p.resolve())
+        check_writable(p, force=force)
+    recording = read_run(run)
+    if out_path is not None:
+        write_eu_file(recording, out_path, units=units, force=force)
+        click.echo(f"wrote {out_path}: {recording.records} records of "
+                   f"{', '.join(recording.header.names)} in {units}")
+    if uff_path is not None:
+        write_time_uff(recording, uff_path, source=run.name, force=force)
+        click.echo(f"wrote {uff_path}: {recording.records * len(recording.header.names)} UFF 58 "
+                   "time records in engineering units")
+
+
+def _run_check(path: Path):
+    """:func:`daq.check.check_file` of a file that must be a run file that opens: a ConfigError
+    (not a run file, truncated, unreadable: the reader's own message) otherwise."""
+    from daq.check import check_file
+    from daq.hdf5 import open_run
+
+    fc = check_file(path)
+    if fc.kind != "run":
+        with open_run(path):  # raises the reader's message
+            pass
+        raise click.ClickException(fc.line())
+    return fc
+
+
+def _verified_records(run: Path, allow_incomplete: bool):
+    """The records of RUN to analyse: None (all it counts) for a sound file; a bad file is
+    refused, or with ``allow_incomplete`` reduced to the records that verify."""
+    fc = _run_check(run)
+    if fc.ok:
+        return None
+    if not allow_incomplete or not fc.valid_records:
+        hint = (f"; --allow-incomplete analyses the {fc.records_valid} records that verify"
+                if fc.valid_records else "; no record of it verifies")
+        raise click.ClickException(fc.line() + hint)
+    click.echo(f"warning: {fc.line()}; analysing the {len(fc.valid_records)} records that "
+               f"verify", err=True)
+    return fc.valid_records
+
+
+# -- file checks -----------------------------------------------------------------------------
+
+@main.command("check")
+@click.argument("paths", nargs=-1, required=True,
+                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON list, one object per file.")
+def check_cmd(paths, as_json):
+    """Check the files PATHS (run, spectra, trajectory files): structure and format version,
+    completeness against the file's own plan, every record's checksum, calibrations and scene.
+
+    One line per file (OK or BAD, kind, status, records that verify, format version, the first
+    problem); exit status 0 only if every file is sound (an interrupted run whose records all
+    verify is sound), 1 otherwise. The library call is daq.check.check_file.
+    """
+    from daq.check import check_file
+
+    results = [check_file(p) for p in paths]
+    if as_json:
+        click.echo(json.dumps([r.to_dict() for r in results], indent=2))
+    else:
+        for r in results:
+            click.echo(r.line())
+    if not all(r.ok for r in results):
+        raise click.exceptions.Exit(1)
 
 
 main.add_command(bench)
