@@ -179,12 +179,18 @@ class ViewerStream:
             self._warn("no rerun viewer executable found (pip install rerun-sdk installs one)")
             return None
         port = self.options.port
-        try:
-            rr.spawn(port=port, connect=False, memory_limit=self.options.memory_limit,
-                     executable_path=exe, hide_welcome_screen=True)
-        except Exception as exc:  # the viewer cannot be started
-            self._warn(f"the rerun viewer could not be started: {exc}")
-            return None
+        if not _listening("127.0.0.1", port):  # else reuse the viewer already there
+            # started here, not by rr.spawn, to bind its server to this machine only (rerun's
+            # default is every interface)
+            cmd = [exe, "--port", str(port), "--bind", "127.0.0.1", "--memory-limit",
+                   self.options.memory_limit, "--hide-welcome-screen", "--expect-data-soon"]
+            try:
+                subprocess.Popen(cmd, env=dict(os.environ, RERUN_APP_ONLY="true"),
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.DEVNULL, start_new_session=True)
+            except OSError as exc:  # the viewer cannot be started
+                self._warn(f"the rerun viewer could not be started: {exc}")
+                return None
         if not _listening("127.0.0.1", port, wait_s=10.0):
             self._warn("the rerun viewer did not start (no display? see 'rerun --help'; "
                        "--rrd FILE saves the stream instead)")
