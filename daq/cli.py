@@ -293,8 +293,11 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
     """
     import secrets
 
+    import signal
+
     from daq.acquisition import AcquisitionInterrupted
     from daq.acquisition import acquire as run_acquisition
+    from daq.signals import stop_signals_interrupt
     from rig.scene import load_scene
 
     extra = [f"acquisition.{key}={value!r}" for key, value in
@@ -305,19 +308,43 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
         seed = secrets.randbits(63)
     bar = None if quiet else _ProgressBar(f"acquiring {sc.name}")
     try:
-        summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar)
+        with stop_signals_interrupt():  # SIGTERM, SIGHUP end the run like Ctrl-C
+            summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar)
     except AcquisitionInterrupted as exc:
         if bar is not None:
             bar.close()
         s = exc.summary
+        by = s.message.split()[0] if s.message.startswith("SIG") else "SIGINT"
         where = f"{s.path} holds them (status interrupted)" if s.path else "no file was kept"
-        click.echo(f"interrupted after {s.records} of {s.records_planned} records; {where}",
-                   err=True)
-        raise click.exceptions.Exit(130) from None
+        click.echo(f"interrupted ({by}) after {s.records} of {s.records_planned} records; "
+                   f"{where}", err=True)
+        raise click.exceptions.Exit(128 + signal.Signals[by]) from None
+    except Exception as exc:
+        from daq.resources import is_disk_full
+
+        s = getattr(exc, "acquisition_summary", None)
+        if s is None or not is_disk_full(exc):
+            raise
+        raise click.ClickException(_disk_full_line(s)) from None
     finally:
         if bar is not None:
             bar.close()
     click.echo(_acquire_summary(summary))
+
+
+def _disk_full_line(s) -> str:
+    """One line for a run ended by a full disk: the partial file and what it holds."""
+    from daq.check import check_file
+
+    if s.path is None or not s.path.exists():
+        return (f"disk full after {s.records} of {s.records_planned} records; no file was kept")
+    fc = check_file(s.path)
+    held = (f"{fc.records_valid} finished records of {s.records_planned}, each verified"
+            if fc.kind == "run" else f"no readable record ({fc.status})")
+    repair = (f", then 'daq inspect --repair {s.path}' makes it plainly openable"
+              if any("marked open for writing" in n for n in fc.notes) else "")
+    return (f"disk full after {s.records} of {s.records_planned} records: {s.path} holds "
+            f"{held} (status {fc.status}); free some space{repair}")
 
 
 def _acquire_summary(s) -> str:
