@@ -479,6 +479,9 @@ def _processing_errors(fn):
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write spectra, responses, coherence, model and E[H1] to a new HDF5 file "
                    "(xarray: group 'spectra', engine h5netcdf).")
+@click.option("--follow", is_flag=True,
+              help="Follow a run that is still being acquired (SWMR): print the averaged "
+                   "estimate each time records land, then analyse the whole run once it ends.")
 @click.option("--allow-incomplete", is_flag=True,
               help="Analyse a damaged run file (records failing their checksum, or fewer rows "
                    "than it counts) with only the records that verify, instead of refusing it.")
@@ -486,7 +489,7 @@ def _processing_errors(fn):
 @_library_errors
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
-            report_path, spectra_path, force, allow_incomplete):
+            report_path, spectra_path, force, allow_incomplete, follow):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -513,6 +516,11 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
         seen[key] = "another output"
         check_writable(p, force=force)
+    if follow:
+        from processing.follow import follow_run
+
+        for update in follow_run(run, settings):
+            click.echo(update.line())
     records = _verified_records(run, allow_incomplete)
     analysis = run_analysis(read_run(run, records=records), settings, source=str(run))
     click.echo(analysis.summary())
