@@ -16,6 +16,7 @@ import click
 import numpy as np
 
 from daq.bench_cmd import bench
+from daq.cli_errors import ErrorsAsMessages
 from daq.files import atomic_output, check_writable
 from rig.errors import RigError
 
@@ -42,10 +43,18 @@ def _force_option(fn):
     return click.option("--force", is_flag=True, help="Overwrite existing output files.")(fn)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=ErrorsAsMessages, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="pendulum-daq")
-def main():
-    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer)."""
+@click.option("--debug", is_flag=True,
+              help="Let errors through with their traceback (otherwise: one line, exit 1).")
+@click.pass_context
+def main(ctx, debug):
+    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer).
+
+    Exit status: 0 done; 1 an error (one line); 2 a usage error; 3 a run not as asked (over
+    its error budget or saturated; acquire --allow-over-budget); 128+N ended by signal N.
+    """
+    ctx.meta["daq.debug"] = debug
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -283,8 +292,12 @@ def _model_lines(info: dict) -> list[str]:
 @_set_option
 @_force_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@click.option("--allow-over-budget", is_flag=True,
+              help="Exit 0 even if the run's estimated error exceeds its error budget or a "
+                   "channel clipped or saturated (otherwise a WARNING and exit status 3).")
 @_library_errors
-def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet):
+def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet,
+            allow_over_budget):
     """Acquire records of SCENE's bench into an HDF5 run file.
 
     --records, --duration and --rate override the scene's acquisition.records, .record_s and
@@ -330,6 +343,36 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
         if bar is not None:
             bar.close()
     click.echo(_acquire_summary(summary))
+    warnings = _not_as_asked(summary)
+    for w in warnings:
+        click.echo(f"WARNING: {w}", err=True)
+    if warnings and not allow_over_budget:
+        from daq.cli_errors import EXIT_NOT_AS_ASKED
+
+        raise click.exceptions.Exit(EXIT_NOT_AS_ASKED)
+
+
+def _not_as_asked(s) -> list[str]:
+    """Why a finished run is not what was asked: over its error budget, or saturated."""
+    from daq.cli_errors import SATURATION_LIMIT
+
+    out = []
+    info = s.model_info
+    if info.get("budget_met") is False:
+        est = info.get("error_estimate")
+        est = est.get("relative_rms_theta") if isinstance(est, dict) else est
+        out.append(f"the run's estimated error {_fmt(est)} (relative RMS of the angles) exceeds "
+                   f"its error budget {_fmt(info.get('error_budget'))} (acquisition."
+                   "error_budget): the data are not as accurate as asked")
+    n = max(1, s.records * s.samples_per_record)
+    for what, totals in (("clipped by the ADC", s.clip_totals()),
+                         ("beyond its sensor's range", s.saturation_totals())):
+        for c, k in totals.items():
+            if k > SATURATION_LIMIT * n:
+                out.append(f"channel {c}: {k} of {n} samples ({100 * k / n:.3g} %) {what}, "
+                           f"more than {100 * SATURATION_LIMIT:g} %: lower the drive "
+                           "(source.level_vrms) or widen the range")
+    return out
 
 
 def _disk_full_line(s) -> str:

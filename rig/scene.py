@@ -247,7 +247,13 @@ def load_scene(scene: str | Path, overrides: list[str] | tuple[str, ...] = ()) -
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise ConfigError(f"scene file {str(path)!r} does not exist")
-        text, source = path.read_text(), str(path)
+        try:
+            text, source = path.read_text(encoding="utf-8"), str(path)
+        except UnicodeDecodeError as exc:
+            raise ConfigError(f"scene file {str(path)!r} is not a TOML text file (byte "
+                              f"{exc.start} is not UTF-8)") from None
+        except OSError as exc:
+            raise ConfigError(f"scene file {str(path)!r} cannot be read: {exc.strerror}") from None
     else:
         text, source = preset_text(str(scene)), f"preset:{scene}"
     try:
