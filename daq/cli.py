@@ -189,8 +189,10 @@ def _floats(ctx, param, value):
 @click.option("--omega0", callback=_floats, metavar="A,B,...",
               help="Initial angular velocities [rad/s] (default: the scene's).")
 @click.option("--method", default="dop853", show_default=True,
-              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "linear"]),
-              help="Integrator (rig.integrators.METHODS).")
+              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "etd3", "etd3m",
+                                 "linear"]),
+              help="Integrator (rig.integrators.METHODS; etd3m steps over held input samples, "
+                   "so it needs a moving base: on this fixed base use etd3).")
 @click.option("--rtol", type=float, help="Relative tolerance of dop853 [default 1e-10].")
 @click.option("--dt", "dt_s", type=float, help="Step of the fixed-step methods [s].")
 @click.option("--output-dt", "output_dt_s", type=float,
@@ -215,6 +217,10 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
 
     if rtol is not None and dt_s is not None:
         raise click.UsageError("give --rtol (adaptive dop853) or --dt (fixed step), not both")
+    if method == "etd3m":
+        raise click.UsageError("--method etd3m steps over several held samples of a moving "
+                               "base's input; daq simulate runs the pendulum on a fixed base: "
+                               "use --method etd3 (the same exponential integrator)")
     trajectory_format(out)
     check_writable(out, force=force)
     sc = load_scene(scene_name, overrides)
