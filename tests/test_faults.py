@@ -104,17 +104,23 @@ def test_sigkill_leaves_every_finished_record_and_repair_makes_the_file_plainly_
     assert res.returncode == 0 and "OK run, acquiring" in res.stdout
     with pytest.raises(OSError):
         h5py.File(out, "r")  # HDF5's mark of an unclosed writer
+    copy = tmp_path / "copy.h5"
+    shutil.copy(out, copy)
     res = daq("inspect", out, "--repair", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert res.stdout.startswith(f"cleared the open-for-writing mark of {out}")
-    with h5py.File(out, "r") as f:
-        assert f["entry/records_complete"][()] == fc.records_valid
+    res = daq("check", "--repair", copy, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.splitlines()[0] == f"cleared the open-for-writing mark of {copy}"
+    for p in (out, copy):
+        with h5py.File(p, "r") as f:
+            assert f["entry/records_complete"][()] == fc.records_valid
     if shutil.which("h5dump"):
         assert subprocess.run(["h5dump", "-H", str(out)], capture_output=True).returncode == 0
     assert _same_as_a_fresh_run(out, tmp_path) == fc.records_valid
     record_fault("SIGKILL during daq acquire", records_lost=0,
                  outcome="every finished record readable (SWMR); check: OK acquiring; "
-                         "inspect --repair: plainly openable")
+                         "check --repair / inspect --repair: plainly openable")
 
 
 def test_a_corrupt_file_left_by_a_killed_writer_is_named_without_a_hang(tmp_path):
