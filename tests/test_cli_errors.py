@@ -88,8 +88,7 @@ def test_a_full_disk_is_one_line_for_model_and_analyze_and_loses_nothing(run_fil
     before = set(os.listdir(full_disk))
     for args in (["model", "ishizaki2009", "--csv", full_disk / "m.csv"],
                  ["model", "ishizaki2009", "--csv", full_disk / "old.csv", "--force"],
-                 ["analyze", run_file, "--spectra", full_disk / "s.h5"],
-                 ["analyze", run_file, "--plot", full_disk / "b.png"]):
+                 ["analyze", run_file, "--spectra", full_disk / "s.h5"]):
         res = daq(*args, cwd=tmp_path)
         _one_error_line(res, contains="disk full")
         assert set(os.listdir(full_disk)) == before  # no partial output left behind

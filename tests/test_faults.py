@@ -176,11 +176,10 @@ def test_a_full_disk_ends_the_run_with_one_line_naming_the_partial_file(small_di
     out = small_disk / "run.h5"
     proc = _start("acquire", *LONG, "--records", 1500, "--out", out, "-q", cwd=tmp_path)
     _wait_for_records(out, 2, proc)
-    with open(small_disk / "filler", "wb") as fh:
+    with open(small_disk / "filler", "wb", buffering=0) as fh:
         with pytest.raises(OSError):
             while True:
                 fh.write(b"\0" * 65536)
-                fh.flush()
     stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 1, stderr
     lines = stderr.strip().splitlines()
