@@ -149,7 +149,8 @@ def test_a_corrupt_file_left_by_a_killed_writer_is_named_without_a_hang(tmp_path
         if g["ok"]:
             np.testing.assert_array_equal(read_run(g["path"]).codes["a"], whole.codes["a"])
     record_fault("metadata bytes flipped in a killed writer's file (16 places)", records_lost=0,
-                 outcome="named corrupt in well under a second each, never a hang")
+                 outcome="each named corrupt, or read with the same records; all 16 in one "
+                         "daq check under 60 s, never a hang")
 
 
 @pytest.fixture
