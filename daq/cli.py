@@ -16,6 +16,7 @@ import click
 import numpy as np
 
 from daq.bench_cmd import bench
+from daq.cli_errors import ErrorsAsMessages
 from daq.files import atomic_output, check_writable
 from rig.errors import RigError
 
@@ -42,10 +43,18 @@ def _force_option(fn):
     return click.option("--force", is_flag=True, help="Overwrite existing output files.")(fn)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=ErrorsAsMessages, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="pendulum-daq")
-def main():
-    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer)."""
+@click.option("--debug", is_flag=True,
+              help="Let errors through with their traceback (otherwise: one line, exit 1).")
+@click.pass_context
+def main(ctx, debug):
+    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer).
+
+    Exit status: 0 done; 1 an error (one line); 2 a usage error; 3 a run not as asked (over
+    its error budget or saturated; acquire --allow-over-budget); 128+N ended by signal N.
+    """
+    ctx.meta["daq.debug"] = debug
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -286,8 +295,10 @@ def _floats(ctx, param, value):
 @click.option("--omega0", callback=_floats, metavar="A,B,...",
               help="Initial angular velocities [rad/s] (default: the scene's).")
 @click.option("--method", default="dop853", show_default=True,
-              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "linear"]),
-              help="Integrator (rig.integrators.METHODS).")
+              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "etd3", "etd3m",
+                                 "linear"]),
+              help="Integrator (rig.integrators.METHODS; etd3m steps over held input samples, "
+                   "so it needs a moving base: on this fixed base use etd3).")
 @click.option("--rtol", type=float, help="Relative tolerance of dop853 [default 1e-10].")
 @click.option("--dt", "dt_s", type=float, help="Step of the fixed-step methods [s].")
 @click.option("--output-dt", "output_dt_s", type=float,
@@ -316,6 +327,10 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
 
     if rtol is not None and dt_s is not None:
         raise click.UsageError("give --rtol (adaptive dop853) or --dt (fixed step), not both")
+    if method == "etd3m":
+        raise click.UsageError("--method etd3m steps over several held samples of a moving "
+                               "base's input; daq simulate runs the pendulum on a fixed base: "
+                               "use --method etd3 (the same exponential integrator)")
     if out is None and not (live or rrd):
         raise click.UsageError("give --out FILE (.csv, .h5) and/or --live / --rrd FILE.rrd")
     if out is not None:
@@ -480,9 +495,12 @@ def _model_lines(info: dict) -> list[str]:
                    "it can).")
 @click.option("--speed", type=float, default=None, metavar="K",
               help="With --realtime: K times real time (default 1).")
+@click.option("--allow-over-budget", is_flag=True,
+              help="Exit 0 even if the run's estimated error exceeds its error budget or a "
+                   "channel clipped or saturated (otherwise a WARNING and exit status 3).")
 @_library_errors
 def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides, force, quiet,
-            live, connect, rrd, magnify, realtime, speed):
+            live, connect, rrd, magnify, realtime, speed, allow_over_budget):
     """Acquire records of SCENE's bench into an HDF5 run file.
 
     --records, --duration and --rate override the scene's acquisition.records, .record_s and
@@ -491,8 +509,11 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     """
     import secrets
 
+    import signal
+
     from daq.acquisition import AcquisitionInterrupted
     from daq.acquisition import acquire as run_acquisition
+    from daq.signals import stop_signals_interrupt
     from rig.scene import load_scene
 
     if scene_arg is not None and scene_name is not None and scene_arg != scene_name:
@@ -529,16 +550,25 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a["records"],
                                           record_s=a["record_s"], settle_s=a["settle_s"])
     try:
-        summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar,
-                                  sinks=sinks)
+        with stop_signals_interrupt():  # SIGTERM, SIGHUP end the run like Ctrl-C
+            summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar,
+                                      sinks=sinks)
     except AcquisitionInterrupted as exc:
         if bar is not None:
             bar.close()
         s = exc.summary
+        by = s.message.split()[0] if s.message.startswith("SIG") else "SIGINT"
         where = f"{s.path} holds them (status interrupted)" if s.path else "no file was kept"
-        click.echo(f"interrupted after {s.records} of {s.records_planned} records; {where}",
-                   err=True)
-        raise click.exceptions.Exit(130) from None
+        click.echo(f"interrupted ({by}) after {s.records} of {s.records_planned} records; "
+                   f"{where}", err=True)
+        raise click.exceptions.Exit(128 + signal.Signals[by]) from None
+    except Exception as exc:
+        from daq.resources import is_disk_full
+
+        s = getattr(exc, "acquisition_summary", None)
+        if s is None or not is_disk_full(exc):
+            raise
+        raise click.ClickException(_disk_full_line(s)) from None
     finally:
         if bar is not None:
             bar.close()
@@ -546,6 +576,51 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     for sink in sinks:
         if getattr(sink, "path", None) is not None:
             click.echo(f"wrote {sink.path} (rerun recording)")
+    warnings = _not_as_asked(summary)
+    for w in warnings:
+        click.echo(f"WARNING: {w}", err=True)
+    if warnings and not allow_over_budget:
+        from daq.cli_errors import EXIT_NOT_AS_ASKED
+
+        raise click.exceptions.Exit(EXIT_NOT_AS_ASKED)
+
+
+def _not_as_asked(s) -> list[str]:
+    """Why a finished run is not what was asked: over its error budget, or saturated."""
+    from daq.cli_errors import SATURATION_LIMIT
+
+    out = []
+    info = s.model_info
+    if info.get("budget_met") is False:
+        est = info.get("error_estimate")
+        est = est.get("relative_rms_theta") if isinstance(est, dict) else est
+        out.append(f"the run's estimated error {_fmt(est)} (relative RMS of the angles) exceeds "
+                   f"its error budget {_fmt(info.get('error_budget'))} (acquisition."
+                   "error_budget): the data are not as accurate as asked")
+    n = max(1, s.records * s.samples_per_record)
+    for what, totals in (("clipped by the ADC", s.clip_totals()),
+                         ("beyond its sensor's range", s.saturation_totals())):
+        for c, k in totals.items():
+            if k > SATURATION_LIMIT * n:
+                out.append(f"channel {c}: {k} of {n} samples ({100 * k / n:.3g} %) {what}, "
+                           f"more than {100 * SATURATION_LIMIT:g} %: lower the drive "
+                           "(source.level_vrms) or widen the range")
+    return out
+
+
+def _disk_full_line(s) -> str:
+    """One line for a run ended by a full disk: the partial file and what it holds."""
+    from daq.check import check_file
+
+    if s.path is None or not s.path.exists():
+        return (f"disk full after {s.records} of {s.records_planned} records; no file was kept")
+    fc = check_file(s.path)
+    held = (f"{fc.records_valid} finished records of {s.records_planned}, each verified"
+            if fc.kind == "run" else f"no readable record ({fc.status})")
+    repair = (f", then 'daq inspect --repair {s.path}' makes it plainly openable"
+              if any("marked open for writing" in n for n in fc.notes) else "")
+    return (f"disk full after {s.records} of {s.records_planned} records: {s.path} holds "
+            f"{held} (status {fc.status}); free some space{repair}")
 
 
 def _acquire_summary(s) -> str:
@@ -698,6 +773,9 @@ def _processing_errors(fn):
               default="bode", show_default=True, help="What --plot draws: Bode (gain, phase, "
               "coherence over the model), Nyquist with real and imaginary parts, the coherences; "
               "all: the three, as PLOT-bode.png, PLOT-nyquist.png, PLOT-coherence.png.")
+@click.option("--follow", is_flag=True,
+              help="Follow a run that is still being acquired (SWMR): print the averaged "
+                   "estimate each time records land, then analyse the whole run once it ends.")
 @click.option("--allow-incomplete", is_flag=True,
               help="Analyse a damaged run file (records failing their checksum, or fewer rows "
                    "than it counts) with only the records that verify, instead of refusing it.")
@@ -706,7 +784,7 @@ def _processing_errors(fn):
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
             report_path, spectra_path, uff_path, estimator, fmin_hz, fmax_hz, phase, view,
-            force, allow_incomplete):
+            force, allow_incomplete, follow):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -736,6 +814,11 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
         seen[key] = "another output"
         check_writable(p, force=force)
+    if follow:
+        from processing.follow import follow_run
+
+        for update in follow_run(run, settings):
+            click.echo(update.line())
     records = _verified_records(run, allow_incomplete)
     analysis = run_analysis(read_run(run, records=records), settings, source=str(run))
     click.echo(analysis.summary())
@@ -745,7 +828,6 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     if plot_path is not None:
         for p in write_views(analysis, plot_path, view, phase=phase, force=force):
             click.echo(f"wrote {p}")
-
 
 
 # -- export ----------------------------------------------------------------------------------
@@ -826,7 +908,10 @@ def _verified_records(run: Path, allow_incomplete: bool):
 @click.argument("paths", nargs=-1, required=True,
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list, one object per file.")
-def check_cmd(paths, as_json):
+@click.option("--repair", is_flag=True,
+              help="First clear the 'open for writing' mark a killed writer left (like h5clear "
+                   "-s; never while the writer lives), so that any HDF5 reader opens the file.")
+def check_cmd(paths, as_json, repair):
     """Check the files PATHS (run, spectra, trajectory files): structure and format version,
     completeness against the file's own plan, every record's checksum, calibrations and scene.
 
@@ -834,8 +919,19 @@ def check_cmd(paths, as_json):
     problem); exit status 0 only if every file is sound (an interrupted run whose records all
     verify is sound), 1 otherwise. The library call is daq.check.check_file.
     """
-    from daq.check import check_file
+    from daq.check import check_file, superblock
+    from daq.hdf5 import clear_write_flags
+    from rig.errors import ConfigError
 
+    if repair:
+        for p in paths:
+            sb = superblock(p)
+            if sb and sb["flags"] and sb["version"] >= 2:
+                try:
+                    if clear_write_flags(p) and not as_json:
+                        click.echo(f"cleared the open-for-writing mark of {p}")
+                except ConfigError as exc:
+                    click.echo(f"not repaired: {exc}", err=True)
     results = [check_file(p) for p in paths]
     if as_json:
         click.echo(json.dumps([r.to_dict() for r in results], indent=2))
