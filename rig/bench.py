@@ -634,14 +634,11 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
 
     # sensors
     acc = model.accelerometer
-    if acc.n_states:
-        sensed = acc.sensed(accel, z_out[:, sl["accel_highpass_q_mps"]][:, 0])
-    else:
-        sensed = accel.copy()
+    q = z_out[:, sl["accel_highpass_q_mps"]][:, 0] if acc.n_states else None
     rng_a = _rng(state.rng_states["accelerometer"])
     rng_x = _rng(state.rng_states["psd_x"])
     rng_y = _rng(state.rng_states["psd_y"])
-    a_v, a_over = acc.output(sensed, fs, rng_a)
+    sensed, a_v, a_over = acc.sense_and_output(accel, q, fs, rng_a)
     mx, mz, mrot = _mirror_kinematics(model.scene, theta, exact=model.model == "nonlinear")
     reading = model.lever.measure(mx, mrot, fs, rng_x, rng_y, mirror_z_m=mz)
     rng_states = {"accelerometer": rng_a.bit_generator.state,  # fresh dicts (snapshots)
