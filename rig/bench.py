@@ -1315,6 +1315,17 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
         "probe_s": probe_s,
         "selection": sel,
     }
+    info["per_sample"] = {
+        "rate_hz": fs,
+        "what": "the bench state (one exact step per DAC sample), the optical lever's exact "
+                "geometry, the sensors' white noise (one draw per sample and channel), the "
+                "clipping at the detector edge and the accelerometer's range with their flags, "
+                "and the anti-alias filter",
+        "why": "not linear, so not lifted to the output rate: the lever's second-order "
+               "geometry is ~0.4 % of the spot's rms in u (far above round-off), clipping and "
+               "flags act on each sample, and the filter's input is the sum of those and the "
+               "noise",
+    }
     pred = sel["prediction"]
     _, q = scene.chain.modes()
     qmax = float(np.max(q)) if q.size else math.inf
