@@ -248,7 +248,6 @@ def _output_kernel(sensed, volts_per_mps2, w, sd, lim, volts, over):
         volts[k] = min(max(v, -lim), lim)
 
 
-
 @njit(cache=True, nogil=True)
 def _sense_output_kernel(accel, q, wc, volts_per_mps2, w, sd, lim, sensed, volts, over):
     """``sensed = accel - wc q``, then :func:`_output_kernel`'s arithmetic, in one pass."""
