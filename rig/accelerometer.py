@@ -157,6 +157,26 @@ class Accelerometer:
                        volts, over)
         return volts, over
 
+    def sense_and_output(self, accel_mps2, q, fs_hz: float, rng: np.random.Generator | None, *,
+                         noise: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`sensed` then :meth:`output` in one pass (the same values): the acceleration
+        [m/s^2] and the high-pass state q [m/s] at the sample instants (1-D, any strides; q is
+        ignored flat to DC). Returns (sensed [m/s^2], volts [V], overrange (N,) bool)."""
+        a = np.asarray(accel_mps2, dtype=float).reshape(-1)
+        q = np.asarray(q, dtype=float).reshape(-1) if self.n_states else np.zeros(a.shape[0])
+        if q.shape != a.shape:
+            raise ConfigError(f"q has shape {q.shape}: expected that of the acceleration, "
+                              f"{a.shape}")
+        if noise and self.noise_mps2_rthz > 0:
+            sd, w = self.noise_rms_v(fs_hz), rng.standard_normal(a.shape[0])
+        else:
+            sd, w = 0.0, np.zeros(0)
+        sensed, volts = np.empty(a.shape[0]), np.empty(a.shape[0])
+        over = np.empty(a.shape[0], dtype=np.bool_)
+        _sense_output_kernel(a, q, self.corner_rad_s, self.volts_per_mps2, w, sd,
+                             self.sensitivity_vpmps2 * self.range_mps2, sensed, volts, over)
+        return sensed, volts, over
+
     def measure(self, accel_mps2, fs_hz: float, state: AccelerometerState | None,
                 rng: np.random.Generator | None, *, noise: bool = True
                 ) -> tuple[np.ndarray, AccelerometerState, np.ndarray]:
@@ -227,3 +247,16 @@ def _output_kernel(sensed, volts_per_mps2, w, sd, lim, volts, over):
         over[k] = abs(v) > lim
         volts[k] = min(max(v, -lim), lim)
 
+
+@njit(cache=True, nogil=True)
+def _sense_output_kernel(accel, q, wc, volts_per_mps2, w, sd, lim, sensed, volts, over):
+    """``sensed = accel - wc q``, then :func:`_output_kernel`'s arithmetic, in one pass."""
+    noisy = w.shape[0] > 0
+    for k in range(accel.shape[0]):
+        s = accel[k] - wc * q[k]
+        sensed[k] = s
+        v = volts_per_mps2 * s
+        if noisy:
+            v = v + sd * w[k]
+        over[k] = abs(v) > lim
+        volts[k] = min(max(v, -lim), lim)

@@ -214,52 +214,61 @@ class OpticalLever:
         ``rng_x`` and ``rng_y``, unless ``noise`` is False), clipped at the detector edge and
         flagged there; volts = sign G (clipped spot).
         """
-        u0, v0 = self.spot_m(mirror_x_m, mirror_rot_rad, mirror_z_m)
-        u0 = np.array(u0, float, ndmin=1)
-        v0 = np.array(v0, float, ndmin=1)
-        if u0.ndim != 1:
-            raise ConfigError(f"the mirror motion has shape {u0.shape}: expected a 1-D record")
+        dx, dz, th = (np.asarray(a, float) for a in (mirror_x_m, mirror_z_m, mirror_rot_rad))
+        shape = np.broadcast_shapes(dx.shape, dz.shape, th.shape)
+        if len(shape) > 1:
+            raise ConfigError(f"the mirror motion has shape {shape}: expected a 1-D record")
+        n = shape[0] if shape else 1
+        dx, dz, th = (np.ascontiguousarray(np.broadcast_to(a, (n,))) for a in (dx, dz, th))
         if noise and self.noise_m_rthz > 0:
             sd = self.noise_rms_m(fs_hz)
-            wx, wy = rng_x.standard_normal(u0.shape[0]), rng_y.standard_normal(v0.shape[0])
+            wx, wy = rng_x.standard_normal(n), rng_y.standard_normal(n)
         else:
             sd, wx, wy = 0.0, np.zeros(0), np.zeros(0)
-        x_v, y_v = np.empty(u0.shape[0]), np.empty(v0.shape[0])
-        off = np.empty(u0.shape[0], dtype=np.bool_)
-        _volts_kernel(u0, v0, wx, wy, sd, self.half_size_m, self.sign_x * self.gain_vpm,
-                      self.sign_y * self.gain_vpm, x_v, y_v, off)
+        u0, v0, x_v, y_v = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+        off = np.empty(n, dtype=np.bool_)
+        _measure_kernel(dx, dz, th, math.cos(self.phi_rad), math.sin(self.phi_rad),
+                        self.distance_m, wx, wy, sd, self.half_size_m,
+                        self.sign_x * self.gain_vpm, self.sign_y * self.gain_vpm, u0, v0, x_v,
+                        y_v, off)
         return PsdReading(x_v=x_v, y_v=y_v, spot_u_m=u0, spot_v_m=v0, off_detector=off)
+
+
+@njit(cache=True, nogil=True)
+def _spot(dx, dz, th, cphi, sphi, dist):
+    """Exact spot (u, v) of one sample (module docstring)."""
+    c = math.cos(th)
+    s = math.sin(th)
+    t = (c * dx + s * dz) / (-cphi * c)  # q = t d, d = (-cphi, -sphi, 0)
+    qx = -cphi * t
+    qy = -sphi * t
+    rx = -cphi + 2.0 * cphi * c * c  # r = d - 2 (d.n) n, n = (c, 0, s)
+    ry = -sphi
+    rz = 2.0 * cphi * c * s
+    step = (dist - (cphi * qx - sphi * qy)) / (cphi * rx - sphi * ry)
+    return sphi * (qx + step * rx) + cphi * (qy + step * ry), step * rz
 
 
 @njit(cache=True, nogil=True)
 def spot_kernel(dx, dz, th, cphi, sphi, dist, u, v):
     """Exact spot (u, v) for each sample (module docstring; compiled, one pass)."""
     for k in range(dx.shape[0]):
-        c = math.cos(th[k])
-        s = math.sin(th[k])
-        t = (c * dx[k] + s * dz[k]) / (-cphi * c)  # q = t d, d = (-cphi, -sphi, 0)
-        qx = -cphi * t
-        qy = -sphi * t
-        rx = -cphi + 2.0 * cphi * c * c  # r = d - 2 (d.n) n, n = (c, 0, s)
-        ry = -sphi
-        rz = 2.0 * cphi * c * s
-        step = (dist - (cphi * qx - sphi * qy)) / (cphi * rx - sphi * ry)
-        u[k] = sphi * (qx + step * rx) + cphi * (qy + step * ry)
-        v[k] = step * rz
+        u[k], v[k] = _spot(dx[k], dz[k], th[k], cphi, sphi, dist)
 
 
 @njit(cache=True, nogil=True)
-def _volts_kernel(u0, v0, wx, wy, sd, h, gx, gy, x_v, y_v, off):
-    """Spot plus noise (``u0 + sd wx``; ``wx`` empty: none), clipped at the edge ``h`` and
-    flagged there, times the signed gains: one pass."""
+def _measure_kernel(dx, dz, th, cphi, sphi, dist, wx, wy, sd, h, gx, gy, u, v, x_v, y_v, off):
+    """Per sample: the exact spot (``u``, ``v``), plus noise ``sd wx``, ``sd wy`` (``wx`` empty:
+    none), clipped at the edge ``h`` and flagged there (``off``), times the signed gains
+    (``x_v``, ``y_v``); one pass."""
     noisy = wx.shape[0] > 0
-    for k in range(u0.shape[0]):
-        u = u0[k]
-        v = v0[k]
+    for k in range(dx.shape[0]):
+        uk, vk = _spot(dx[k], dz[k], th[k], cphi, sphi, dist)
+        u[k] = uk
+        v[k] = vk
         if noisy:
-            u = u + sd * wx[k]
-            v = v + sd * wy[k]
-        off[k] = (abs(u) > h) or (abs(v) > h)
-        x_v[k] = gx * min(max(u, -h), h)
-        y_v[k] = gy * min(max(v, -h), h)
-
+            uk = uk + sd * wx[k]
+            vk = vk + sd * wy[k]
+        off[k] = (abs(uk) > h) or (abs(vk) > h)
+        x_v[k] = gx * min(max(uk, -h), h)
+        y_v[k] = gy * min(max(vk, -h), h)

@@ -1,0 +1,79 @@
+#!/usr/bin/env python3
+"""The paper's linear acquisition in two source trees side by side: this tree against a baseline
+(e.g. a worktree of the commit before a change), interleaved, CPU and wall time per run.
+
+    git worktree add /tmp/base <commit>        # the code path before the change
+    .venv/bin/python benchmarks/acquire_trees.py --baseline /tmp/base --pairs 4
+
+Each pair runs ``benchmarks/acquire.py --rounds R --configs linear`` (one warm process: a warm-up
+run, then R timed runs; their median) once in each tree, in alternating order (A B, B A, ...),
+with this interpreter (the same numpy, numba, h5py). A process is the unit because the two trees'
+modules share names. Printed: each tree's per-process medians, their median and quartiles, and
+the median of the per-pair ratios this / baseline with their quartiles (a ratio within one pair
+compares runs made under nearly the same load).
+"""
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent.parent
+ROW = re.compile(r"^\| linear \| ([0-9.]+) \[[^]]*\] \| ([0-9.]+) ")
+
+
+def one_process(tree: Path, rounds: int, extra: list[str]) -> tuple[float, float]:
+    """(median CPU, median wall) [s] per run of the linear paper acquisition in ``tree``."""
+    cmd = [sys.executable, str(tree / "benchmarks" / "acquire.py"), "--rounds", str(rounds),
+           "--configs", "linear", *extra]
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=True)
+    for line in out.stdout.splitlines():
+        m = ROW.match(line)
+        if m:
+            return float(m.group(1)), float(m.group(2))
+    raise RuntimeError(f"no result row in the output of {' '.join(cmd)}:\n{out.stdout}")
+
+
+def quart(x):
+    return np.percentile(x, 25), np.median(x), np.percentile(x, 75)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--baseline", type=Path, required=True, help="the other source tree")
+    ap.add_argument("--pairs", type=int, default=4)
+    ap.add_argument("--rounds", type=int, default=3, help="timed runs per process")
+    ap.add_argument("--set", action="append", default=[], help="a scene override for every run")
+    args = ap.parse_args(argv)
+    extra = [a for s in args.set for a in ("--set", s)]
+    trees = {"this": HERE, "baseline": args.baseline.resolve()}
+    res = {k: [] for k in trees}
+    print(f"load average before: {os.getloadavg()}")
+    for p in range(args.pairs):
+        order = ["this", "baseline"] if p % 2 == 0 else ["baseline", "this"]
+        for k in order:
+            res[k].append(one_process(trees[k], args.rounds, extra))
+            print(f"pair {p}: {k} CPU {res[k][-1][0]:.2f} s, wall {res[k][-1][1]:.2f} s",
+                  flush=True)
+    print(f"\n{args.pairs} pairs of processes ({args.rounds} timed runs each), interleaved; "
+          "medians [quartiles]")
+    print("| tree | CPU per run [s] | wall per run [s] | CPU / baseline | wall / baseline |")
+    print("|---|---|---|---|---|")
+    c0 = np.array([c for c, _ in res["baseline"]])
+    w0 = np.array([w for _, w in res["baseline"]])
+    for k in trees:
+        c, w = np.array([c for c, _ in res[k]]), np.array([w for _, w in res[k]])
+        qc, qw, rc, rw = quart(c), quart(w), quart(c / c0), quart(w / w0)
+        print(f"| {k} ({trees[k]}) | {qc[1]:.2f} [{qc[0]:.2f}, {qc[2]:.2f}] | {qw[1]:.2f} "
+              f"[{qw[0]:.2f}, {qw[2]:.2f}] | {rc[1]:.3f} [{rc[0]:.3f}, {rc[2]:.3f}] | "
+              f"{rw[1]:.3f} [{rw[0]:.3f}, {rw[2]:.3f}] |")
+    print(f"load average after: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()
