@@ -300,7 +300,8 @@ def _row2(mat, i, r, z0, z1, z2, z3, acc, accv, base, g0, g1, v0, v1):
 @njit(cache=True, inline="always")
 def _n0_2(pn, i, r, a0, a1, b0, b1, c0, c1):
     """Row r of sum_j pn[i, j] @ N0_j for the three stages' N0 (a, b, c) (n = 2)."""
-    return ((pn[i, 0, r, 0] * a0 + pn[i, 0, r, 1] * a1) + (pn[i, 1, r, 0] * b0 + pn[i, 1, r, 1] * b1)
+    return ((pn[i, 0, r, 0] * a0 + pn[i, 0, r, 1] * a1)
+            + (pn[i, 1, r, 0] * b0 + pn[i, 1, r, 1] * b1)
             + (pn[i, 2, r, 0] * c0 + pn[i, 2, r, 1] * c1))
 
 

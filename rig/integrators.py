@@ -2514,8 +2514,8 @@ def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_interv
     lift : linear only: step once per output row (:func:`lift_linear`, :func:`lifted_kernel`)
         where a row spans more than one substep, and the partial last row (if any) per substep;
         ``False`` steps every substep (the same map to round-off, ~out_every times slower).
-    samples_per_step : etd3m and etd4m only: input intervals per step, m >= 1, dividing ``out_every`` and
-        ``n_intervals`` (``substeps`` must be 1).
+    samples_per_step : etd3m and etd4m only: input intervals per step, m >= 1, dividing
+        ``out_every`` and ``n_intervals`` (``substeps`` must be 1).
 
     Raises
     ------

@@ -483,8 +483,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     integrator error, and is not included); etd3m (m samples per step): Richardson against
     m / 2 samples per step where m is even, against one sample per step (ratio m, scale
     m^p/(m^p - 1)) where m is odd, against etd3 at half a sample where m = 1 (etd4m at m = 1:
-    against dop853 at rtol 1e-12; the sentence in ``error_method`` says which). The estimate costs one more run (at twice the steps for the
-    half-step ones); ``energy_error_estimate_j`` applies it to the energy.
+    against dop853 at rtol 1e-12; the sentence in ``error_method`` says which). The estimate
+    costs one more run (at twice the steps for the half-step ones); ``energy_error_estimate_j``
+    applies it to the energy.
 
     Raises
     ------
