@@ -23,6 +23,12 @@
    10 s relative to the energy above the hanging rest. Target: <= 1e-4 in <= 0.4 s per simulated
    second.
 
+``--etd4m`` compares etd4m (three Gauss nodes, quadratic stage prediction) with today's etd3m:
+etd3m at m = 5 (today's best within 1e-6) and 10, etd4m at m = 10 and 20 (20: 50 Hz output),
+timed in interleaved rounds (one run of each per round; medians and quartiles of wall and CPU),
+and ``solve_ivp`` RK45 restarted at every held sample (the cheapest ``solve_ivp`` configuration
+within 1e-6, ``daq bench --full``) on the first 5 s, extrapolated to 3000 s.
+
 ``--etd3m-sweep`` prints only etd3m at m = 1, 2, 5, 10, 20 samples per step next to etd3 and
 rk4 at 1 ms (m = 20 outputs every 0.02 s, its error taken on those rows of the reference).
 
@@ -69,6 +75,8 @@ def main(argv=None):
     ap.add_argument("--no-lsim", action="store_true", help="skip the scipy.signal.lsim run")
     ap.add_argument("--etd3m-sweep", action="store_true",
                     help="only etd3m at m = 1, 2, 5, 10, 20 samples per step, with etd3 and rk4")
+    ap.add_argument("--etd4m", action="store_true",
+                    help="only etd4m against etd3m and solve_ivp, interleaved rounds")
     args = ap.parse_args(argv)
     print(f"load average before: {os.getloadavg()}")
     chain = load_scene("ishizaki2009").chain
@@ -79,6 +87,10 @@ def main(argv=None):
     ref = ref_runs[0]
     print(f"paper's run, 3000 s: reference DOP853 2 steps/sample, its error against 4 "
           f"steps/sample: {rel_rms_error(ref_runs[1], ref):.1e}")
+    if args.etd4m:
+        etd4m_rounds(chain, base, ref, args.repeats)
+        print(f"load average after: {os.getloadavg()}")
+        return
     if args.etd3m_sweep:
         etd3m_sweep(chain, base, ref, args.repeats)
         print(f"load average after: {os.getloadavg()}")
@@ -155,6 +167,42 @@ def etd3m_sweep(chain, base, ref, repeats):
         print(f"| {method} | {dt * 1e3:g} ms | {out:g} s | {np.median(walls):.4f} | "
               f"{walls.min():.4f} | {tr.wall_time_s:.4f} | {err:.2g} | "
               f"{3000 / np.median(walls):,.0f} |", flush=True)
+
+
+def etd4m_rounds(chain, base, ref, rounds):
+    """etd3m (m = 5, 10) and etd4m (m = 10, 20) through ``simulate`` (no error estimate) in
+    ``rounds`` interleaved rounds, errors against ``ref`` (0.01 s rows); then solve_ivp RK45
+    (rtol 1e-6, atol 1e-9) restarted at every held sample on the first 5 s."""
+    from rig.benchmark import _ivp_per_sample
+
+    configs = [("etd3m", 5, 0.01), ("etd3m", 10, 0.01), ("etd4m", 10, 0.01), ("etd4m", 20, 0.02)]
+    runs = {c: functools.partial(simulate, chain, 3000.0, theta0=0.0, base=base, method=c[0],
+                                 dt_s=c[1] * 1e-3, output_dt_s=c[2], estimate_error=False)
+            for c in configs}
+    errs = {c: rel_rms_error(runs[c]().theta_rad, ref[::round(c[2] / 0.01)]) for c in configs}
+    walls = {c: [] for c in configs}
+    cpus = {c: [] for c in configs}
+    for _ in range(rounds):
+        for c in configs:
+            t, u = time.perf_counter(), time.process_time()
+            runs[c]()
+            walls[c].append(time.perf_counter() - t)
+            cpus[c].append(time.process_time() - u)
+    print(f"etd4m against etd3m, paper 3000 s, {rounds} interleaved rounds, medians [quartiles]")
+    print("| method | m (dt) | output | wall [s] | CPU [s] | error | x real time (wall) |")
+    print("|---|---|---|---|---|---|---|")
+    for c in configs:
+        w, u = np.array(walls[c]), np.array(cpus[c])
+        q = lambda a: f"{np.median(a):.4f} [{np.quantile(a, 0.25):.4f}, {np.quantile(a, 0.75):.4f}]"
+        print(f"| {c[0]} | {c[1]} ({c[1]} ms) | {c[2]:g} s | {q(w)} | {q(u)} | {errs[c]:.2g} | "
+              f"{3000 / np.median(w):,.0f} |", flush=True)
+    piece = 5000
+    rows, wall, _, cpu = _ivp_per_sample(chain, base.ax_mps2, base.dt_s, piece, 10, np.zeros(4),
+                                         "RK45", dict(rtol=1e-6, atol=1e-9))
+    err = rel_rms_error(rows[:, :2], ref[:rows.shape[0]])
+    print(f"| solve_ivp RK45 per sample, rtol 1e-6 | - | 0.01 s | {wall * 600:.0f} (5 s: "
+          f"{wall:.2f}, x 600) | {cpu * 600:.0f} | {err:.2g} (first 5 s) | "
+          f"{3000 / (wall * 600):.1f} |")
 
 
 if __name__ == "__main__":

@@ -404,9 +404,9 @@ def _warm_up(chain, run):
     if kw.get("base") is not None:
         b = kw["base"]
         kw["base"] = b.block(0, min(20, b.n_intervals))
-        # etd3m's output interval must be a whole number of its steps (of dt_s)
-        kw["output_dt_s"] = (max(b.dt_s, kw.get("dt_s") or 0.0) if kw.get("method") == "etd3m"
-                             else b.dt_s)
+        # etd3m's (etd4m's) output interval must be a whole number of its steps (of dt_s)
+        kw["output_dt_s"] = (max(b.dt_s, kw.get("dt_s") or 0.0)
+                             if kw.get("method") in ("etd3m", "etd4m") else b.dt_s)
         simulate(chain, kw["base"].duration_s, **kw)
     else:
         dt = kw.get("dt_s") or 0.01
@@ -510,7 +510,7 @@ def scene_paper(ctx: _Ctx) -> SceneResult:
     metric = _RelRms(ref)
     common = dict(theta0=0.0, base=base, output_dt_s=0.01)
     entries = []
-    for method, settings in (("etd3", [1e-3, 5e-4]), ("etd3m", [5e-3]),
+    for method, settings in (("etd3", [1e-3, 5e-4]), ("etd3m", [5e-3]), ("etd4m", [1e-2]),
                              ("rk4", [1e-3, 5e-4, 2.5e-4])):
         for dt in settings:
             entries.append(_rig_entry(ctx, "paper", chain, duration, method,

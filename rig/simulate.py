@@ -261,7 +261,7 @@ def _default_substeps(chain: Chain, h: float) -> int:
     return max(1, math.ceil(h * STEPS_PER_PERIOD * f_max - 1e-9))
 
 
-def _samples_per_step(chain, dt_s, h_in, every, n_int) -> int:
+def _samples_per_step(chain, dt_s, h_in, every, n_int, method="etd3m") -> int:
     """etd3m: input intervals per step, m (dt_s = m h_in), dividing the output interval and the
     run; default the largest such m with m h_in <= 1 / (STEPS_PER_PERIOD f_max)."""
     ok = [k for k in range(1, every + 1) if every % k == 0 and n_int % k == 0]
@@ -272,7 +272,7 @@ def _samples_per_step(chain, dt_s, h_in, every, n_int) -> int:
     m = int(round(r))
     if m < 1 or abs(r - m) > _REL * max(1.0, r) or m not in ok:
         raise ConfigError(
-            f"dt_s = {dt_s!r} s is invalid for etd3m: a step spans whole input samples, so dt_s "
+            f"dt_s = {dt_s!r} s is invalid for {method}: a step spans whole input samples, so dt_s "
             f"must be a whole multiple of base.dt_s = {h_in!r} s (the ratio is {r:.9g}) that "
             f"divides the output interval ({every} samples) and the run ({n_int} samples); "
             f"valid: {', '.join(f'{k * h_in:.6g}' for k in ok)} s")
@@ -280,11 +280,12 @@ def _samples_per_step(chain, dt_s, h_in, every, n_int) -> int:
 
 
 def _plan(chain, duration, base, kind, dt_s, output_dt_s,
-          multisample=False) -> tuple[list[_Segment], dict]:
-    """Split the run into held-input segments the kernels step through."""
+          multisample="") -> tuple[list[_Segment], dict]:
+    """Split the run into held-input segments the kernels step through (``multisample``: the
+    name of a method whose steps span whole input samples, else empty)."""
     if multisample and base is None:
-        raise ConfigError("base = None is invalid for etd3m: its steps span whole held input "
-                          "samples; give a BaseInput, or use etd3 on a fixed base")
+        raise ConfigError(f"base = None is invalid for {multisample}: its steps span whole held "
+                          "input samples; give a BaseInput, or use etd3 on a fixed base")
     if base is not None:
         h_in = base.dt_s
         n_int = _whole("duration_s", duration, "base.dt_s", h_in)
@@ -304,7 +305,8 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s,
             every = _whole("output_dt_s", output_dt_s, "base.dt_s", h_in)
         else:
             every = max(1, int(math.floor(1.0 / h_in + _REL)))
-        m = _samples_per_step(chain, dt_s, h_in, every, n_int) if multisample else 1
+        m = (_samples_per_step(chain, dt_s, h_in, every, n_int, multisample) if multisample
+             else 1)
         need = n_int + (1 if base.hold == "linear" else 0)
         ay = None if base.ay_mps2 is None else base.ay_mps2[:need]
         segs = [_Segment(base.ax_mps2[:need], ay, base.hold, h_in, n_int, every, sub, m)]
@@ -387,6 +389,13 @@ def _multisample_reference(chain, segs, method, native0, t0, p):
     samples per step (ratio 2); m odd > 1: at one sample per step (ratio m); m = 1: etd3 at half
     a sample per step (ratio 2; etd3m at m = 1 is etd3's map to round-off)."""
     m = segs[0].per_step
+    if m == 1 and method != "etd3m":
+        n2 = 2 * chain.n
+        ref, *_ = _execute(chain, segs, "dop853", np.array(native0[:n2], float), t0,
+                           float("nan"), 1e-12, 1e-14)
+        return ref, 1.0, ("|y - y_ref| against dop853 at rtol = 1e-12, atol = 1e-14 from the same "
+                          f"start state ({method} at one input interval per step cannot halve "
+                          "its step)")
     if m == 1:
         ref, *_ = _execute(chain, segs, "etd3", native0.copy(), t0, float("nan"), 0.5, 1.0,
                            sub_factor=2)
@@ -448,10 +457,10 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         for every body; ``omega0`` defaults to 0). Give these or ``start``.
     base : held base acceleration (:class:`BaseInput`); ``None`` is a fixed base.
     method : ``"dop853"`` (default), ``"rk4"``, ``"gauss4"``, ``"midpoint"``, ``"linear"`` or
-        ``"etd3"`` or ``"etd3m"`` (:data:`rig.integrators.METHODS`; etd3 for weakly nonlinear
-        runs, e.g. the paper's pendulum on a random base: the linearised chain exactly, only the
-        nonlinear remainder integrated; etd3m the same with steps spanning several held input
-        samples, for a base input only).
+        ``"etd3"``, ``"etd3m"`` or ``"etd4m"`` (:data:`rig.integrators.METHODS`; etd3 for weakly
+        nonlinear runs, e.g. the paper's pendulum on a random base: the linearised chain exactly,
+        only the nonlinear remainder integrated; etd3m the same with steps spanning several held
+        input samples, for a base input only; etd4m as etd3m with three nodes, order 4).
     rtol, atol : dop853 tolerances, rtol in (0, 1), atol > 0 [rad, rad/s per component].
     dt_s : step [s] of the fixed-step methods (rk4, gauss4, midpoint, etd3; linear substeps); must
         divide the input interval (on a fixed base: the duration). Default for those: the
@@ -461,7 +470,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         intervals; else dividing the duration); the linear method
         steps once per interval, composed into one step per output row where a row spans several
         (``settings["linear_step"]``; :func:`rig.integrators.lift_linear`). Not accepted for
-        dop853, which chooses its own steps. etd3m: a whole multiple m of the input interval
+        dop853, which chooses its own steps. etd3m, etd4m: a whole multiple m of the input interval
         dividing the output interval and the run (the step spans m held samples; default: the
         largest such m with m base.dt_s <= 1/(100 f_max); ``settings["samples_per_step"]``).
     output_dt_s : output interval [s], a whole multiple of the input interval (of ``dt_s`` for a
@@ -486,9 +495,10 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     against a run at dt_s / 2 (round-off only; the linearisation is a model error, not an
     integrator error, and is not included); etd3m (m samples per step): Richardson against
     m / 2 samples per step where m is even, against one sample per step (ratio m, scale
-    m^p/(m^p - 1)) where m is odd, against etd3 at half a sample where m = 1 (the sentence in
-    ``error_method`` says which). The estimate costs one more run (at twice the steps for the
-    half-step ones); ``energy_error_estimate_j`` applies it to the energy.
+    m^p/(m^p - 1)) where m is odd, against etd3 at half a sample where m = 1 (etd4m at m = 1:
+    against dop853 at rtol 1e-12; the sentence in ``error_method`` says which). The estimate
+    costs one more run (at twice the steps for the half-step ones); ``energy_error_estimate_j``
+    applies it to the energy.
 
     Raises
     ------
@@ -540,7 +550,8 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         native0 = to_native(chain, method, np.concatenate([th0, om0]))
         h0 = float("nan")
 
-    segs, grid = _plan(chain, duration, base, info.kind, dt_s, output_dt_s, info.multisample)
+    segs, grid = _plan(chain, duration, base, info.kind, dt_s, output_dt_s,
+                       info.name if info.multisample else "")
     tic = time.perf_counter()
     alg_name = algorithm
     rhs_algorithm(chain, alg_name)  # validate before running

@@ -63,12 +63,13 @@ def test_canonical_rhs_is_theta_dot_and_the_time_derivative_of_momentum(n):
 
 
 def test_registry_states_order_kind_and_description_of_every_method():
-    assert set(METHODS) == {"rk4", "dop853", "gauss4", "midpoint", "linear", "etd3", "etd3m"}
+    assert set(METHODS) == {"rk4", "dop853", "gauss4", "midpoint", "linear", "etd3", "etd3m",
+                            "etd4m"}
     assert {k: (v.order, v.kind) for k, v in METHODS.items()} == {
         "rk4": (4, "fixed"), "dop853": (8, "adaptive"), "gauss4": (4, "implicit"),
         "midpoint": (2, "implicit"), "linear": (None, "exact"), "etd3": (3, "exponential"),
-        "etd3m": (3, "exponential")}
-    assert [k for k, v in METHODS.items() if v.multisample] == ["etd3m"]
+        "etd3m": (3, "exponential"), "etd4m": (4, "exponential")}
+    assert [k for k, v in METHODS.items() if v.multisample] == ["etd3m", "etd4m"]
     assert all(v.description and v.name == k for k, v in METHODS.items())
     assert [k for k, v in METHODS.items() if v.symplectic] == ["gauss4", "midpoint"]
 
