@@ -13,7 +13,7 @@ them.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator
 
@@ -34,6 +34,9 @@ class FollowUpdate:
     h_t, theta_2 : (nf,) complex H1 estimates [m per m/s^2], [rad per m/s^2].
     coherence_x, coherence_y : (nf,) gamma^2 of (a, x) and (a, y).
     h_t_rms_db, theta_2_rms_db : RMS over the band of 20 log10 |estimate / exact model| [dB].
+    time_left_s : the run's time left [s] at the rate records have landed so far (the 35670A's
+        "average n of N" display with its time to go); None until two landings have been seen
+        or once every record is in.
     """
 
     records: int
@@ -46,12 +49,24 @@ class FollowUpdate:
     coherence_y: np.ndarray
     h_t_rms_db: float
     theta_2_rms_db: float
+    time_left_s: float | None = None
 
     def line(self) -> str:
-        return (f"record {self.records} of {self.records_planned}: H_t {self.h_t_rms_db:.2f} dB "
+        left = "" if self.time_left_s is None else f", {self.time_left_s:.0f} s left"
+        return (f"average {self.records} of {self.records_planned}{left}: "
+                f"H_t {self.h_t_rms_db:.2f} dB "
                 f"rms from the model, Theta_2 {self.theta_2_rms_db:.2f} dB "
                 f"({self.freqs_hz[0]:g}-{self.freqs_hz[-1]:g} Hz), mean coherence "
                 f"{np.nanmean(self.coherence_x):.3f} / {np.nanmean(self.coherence_y):.3f}")
+
+
+def _time_left(landed: list[tuple[float, int]], planned: int) -> float | None:
+    """Seconds until ``planned`` records are in, at the mean rate between the first and the
+    last landing seen (None before two landings, or when nothing is left)."""
+    (t_a, n_a), (t_b, n_b) = landed[0], landed[-1]
+    if n_b >= planned or n_b <= n_a or t_b <= t_a:
+        return None
+    return (planned - n_b) * (t_b - t_a) / (n_b - n_a)
 
 
 def _writer_alive(path: Path) -> bool:
@@ -112,6 +127,7 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
     settings = settings if settings is not None else AnalyzerSettings()
     path = Path(path)
     t0, seen = time.monotonic(), 0
+    landed: list[tuple[float, int]] = []  # (monotonic time, records in the file) at each landing
     while True:
         try:
             with open_run(path) as f:
@@ -126,7 +142,9 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
         if n > seen:
             rec = read_run(path, records=range(n))
             seen = n
-            yield _estimate(rec, settings)
+            landed.append((time.monotonic(), n))
+            update = _estimate(rec, settings)
+            yield replace(update, time_left_s=_time_left(landed, update.records_planned))
         if status != "acquiring" and n == seen:
             return
         if status == "acquiring" and not _writer_alive(path):

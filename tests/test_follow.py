@@ -28,7 +28,8 @@ def _wait_exists(path, proc, timeout=120):
 
 
 def _updates(stdout):
-    return [int(m.group(1)) for m in re.finditer(r"^record (\d+) of \d+: ", stdout, re.M)]
+    line = r"^average (\d+) of \d+(?:, \d+ s left)?: "
+    return [int(m.group(1)) for m in re.finditer(line, stdout, re.M)]
 
 
 def test_follow_prints_the_estimate_as_records_land_and_stops_when_the_run_ends(tmp_path):
@@ -74,3 +75,11 @@ def _seen_records(path):
             return int(f["entry/records_complete"][()])
     except (OSError, KeyError):
         return 0
+
+
+def test_time_left_comes_from_the_rate_records_have_landed_at():
+    from processing.follow import _time_left
+
+    assert _time_left([(10.0, 2)], 30) is None  # one landing: no rate yet
+    assert _time_left([(10.0, 2), (14.0, 4)], 30) == 52.0  # 2 s a record, 26 to go
+    assert _time_left([(10.0, 2), (14.0, 30)], 30) is None  # every record is in
