@@ -809,6 +809,10 @@ def fit_modes(frf: FrequencyResponse, band_hz: tuple[float, float], *, initial=N
         lines = np.round(kk).astype(int)
     else:
         lines = np.round(f / df).astype(int)
+    n_fit = len(initial) if initial is not None else (n_modes or 0)
+    if n_fit and 2 * f.size <= 4 * n_fit + 2 * n_residual:  # checked again below, once known
+        raise FitError(f"{f.size} lines in {band_hz} Hz for {4 * n_fit + 2 * n_residual} real "
+                       "parameters: widen the band, fit fewer modes or use finer lines")
     starts = _initial_modes(f, h, n_modes, initial, df)
     broadened = [not given for _, _, given in starts]
     starts = [(f0, q0) for f0, q0, _ in starts]
@@ -817,7 +821,7 @@ def fit_modes(frf: FrequencyResponse, band_hz: tuple[float, float], *, initial=N
     n_par = 2 * m + n_lin
     if 2 * f.size <= n_par:
         raise FitError(f"{f.size} lines in {band_hz} Hz for {n_par} real parameters: widen the "
-                       "band or fit fewer modes")
+                       "band, fit fewer modes or use finer lines")
     fc, fh = 0.5 * (f[0] + f[-1]), max(0.5 * (f[-1] - f[0]), df)
     nd = float(frf.n_effective)
     if weighting == "coherence":

@@ -224,6 +224,8 @@ def test_fit_rejects_bad_arguments(preset):
         fit_modes(hy, (2.47, 2.49), initial=[2.48], settings=SETTINGS)
     with pytest.raises(FitError, match="initial"):
         fit_modes(hy, (0.3, 6.0), settings=SETTINGS)
+    with pytest.raises(FitError, match=r"^0 lines in .* real parameters"):
+        fit_modes(hy, (2.481, 2.489), initial=[2.48], settings=SETTINGS)
     with pytest.raises(FitError, match="sample rate"):
         fit_modes(hy, (0.3, 6.0), initial=[0.83])
     with pytest.raises(ValueError):  # FitError is a ValueError
