@@ -200,7 +200,8 @@ class Sweep:
                                                                        spawn_key=(i, 0)))
                     for p in self.random:
                         params[p.key] = p.draw(rng)
-                overrides = tuple(self.overrides) + tuple(
+                keep = () if self.keep["truth"] else ("acquisition.truth=false",)
+                overrides = tuple(self.overrides) + keep + tuple(
                     f"{k}={_toml_value(v)}" for k, v in params.items())
                 seed = run_seed(self.seed, i)
                 h = hashlib.sha256(json.dumps([shared, i, seed, overrides]).encode()).hexdigest()
