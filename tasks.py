@@ -47,6 +47,37 @@ def ensure_venv() -> None:
     STAMP.write_text(want)
 
 
+COMPAT_VENV = ROOT / ".venv-compat"
+COMPAT_H5PY = "h5py==3.11.0"  # bundles HDF5 1.14: the older readers the file tests open files with
+
+
+def install_reader_tools() -> None:
+    """The readers the file-compatibility tests open the project's files with, besides those of
+    the test extra: HDF5 1.10's command-line tools (Debian ``hdf5-tools``: h5dump, h5clear; only
+    as root with apt-get) and an older h5py (HDF5 1.14) in its own environment ``.venv-compat``.
+    Best effort and done once: whatever cannot be installed, the tests that need it skip saying
+    why."""
+    import shutil
+
+    if shutil.which("h5dump") is None and shutil.which("apt-get") and os.geteuid() == 0:
+        quiet = dict(cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        install = ["apt-get", "install", "-y", "-q", "hdf5-tools"]
+        if subprocess.run(install, **quiet).returncode != 0:  # no package lists yet
+            subprocess.run(["apt-get", "update", "-q"], **quiet)
+            subprocess.run(install, **quiet)
+    stamp = COMPAT_VENV / ".installed"
+    if stamp.exists() and stamp.read_text() == COMPAT_H5PY:
+        return
+    cpy = COMPAT_VENV / "bin" / "python"
+    ok = subprocess.run([sys.executable, "-m", "venv", "--clear", COMPAT_VENV], cwd=ROOT,
+                        capture_output=True).returncode == 0
+    ok = ok and subprocess.run([str(cpy), "-m", "pip", "install", "--disable-pip-version-check",
+                                "-q", COMPAT_H5PY, "numpy<2.1"], cwd=ROOT,
+                               capture_output=True).returncode == 0
+    if ok:
+        stamp.write_text(COMPAT_H5PY)
+
+
 def compile_bytecode() -> None:
     """Byte-compile the project's packages (what a non-editable install does): with
     PYTHONDONTWRITEBYTECODE set, as on some CI machines, every ``daq`` command would otherwise
@@ -81,6 +112,8 @@ def main(argv: list[str]) -> int:
         print(f"usage: python3 tasks.py {{{','.join(jobs)}}} [extra args]", file=sys.stderr)
         return 2
     ensure_venv()
+    if argv[0] in ("test", "setup"):
+        install_reader_tools()
     compile_bytecode()
     cmds = jobs[argv[0]]
     if not cmds:

@@ -45,7 +45,10 @@ from rig.errors import ConfigError, RigError
 from rig.prefetch import prefetch
 from rig.scene import Scene
 
-FORMAT_VERSION = "1.0"
+#: 1.1: HDF5 1.10 format bounds, fletcher32 on every chunked dataset, the anti-alias sections
+#: as the dataset entry/instrument/antialias/sos (1.0: an attribute). Both are read.
+FORMAT_VERSION = "1.1"
+READABLE_FORMAT_VERSIONS = ("1.0", "1.1")
 
 
 class StreamError(RigError, RuntimeError):

@@ -346,20 +346,29 @@ def _acquire_summary(s) -> str:
 def inspect(path, as_json, repair):
     """Show what the run file PATH holds: scene, seed, versions, status, channels, clipping,
     model."""
+    from daq.check import check_file
     from daq.hdf5 import clear_write_flags, run_info
 
     if repair and clear_write_flags(path) and not as_json:
         click.echo(f"cleared the open-for-writing mark of {path}")
+    fc = _run_check(path)
     info = run_info(path)
+    info["check"] = fc.to_dict()
     if as_json:
         click.echo(json.dumps(info, indent=2))
-        return
-    click.echo(_inspect_text(info))
+    else:
+        click.echo(_inspect_text(info))
+    if not fc.ok:
+        raise click.exceptions.Exit(1)
 
 
 def _inspect_text(i: dict) -> str:
     n, planned = i["records_complete"], i["records_planned"]
-    if i["complete"]:
+    check = i.get("check")
+    if check is not None and not check["ok"]:
+        status = (f"{check['status'].upper()}: {check['records_valid']} of {planned} records "
+                  f"verify; " + "; ".join(check["problems"]))
+    elif i["complete"]:
         status = f"complete, {n} of {planned} records"
     else:
         why = {"acquiring": "writer killed or still running", "interrupted": "interrupted",
@@ -444,11 +453,14 @@ def _processing_errors(fn):
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write spectra, responses, coherence, model and E[H1] to a new HDF5 file "
                    "(xarray: group 'spectra', engine h5netcdf).")
+@click.option("--allow-incomplete", is_flag=True,
+              help="Analyse a damaged run file (records failing their checksum, or fewer rows "
+                   "than it counts) with only the records that verify, instead of refusing it.")
 @_force_option
 @_library_errors
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
-            report_path, spectra_path, force):
+            report_path, spectra_path, force, allow_incomplete):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -475,7 +487,8 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
         seen[key] = "another output"
         check_writable(p, force=force)
-    analysis = run_analysis(read_run(run), settings, source=str(run))
+    records = _verified_records(run, allow_incomplete)
+    analysis = run_analysis(read_run(run, records=records), settings, source=str(run))
     click.echo(analysis.summary())
     for p, write in outputs:
         write(analysis, p, force=force)
@@ -562,6 +575,59 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
     click.echo(f"wrote {result.manifest} (xarray.open_dataset(..., engine=\"h5netcdf\")) and "
                f"{result.table}")
 
+def _run_check(path: Path):
+    """:func:`daq.check.check_file` of a file that must be a run file that opens: a ConfigError
+    (not a run file, truncated, unreadable: the reader's own message) otherwise."""
+    from daq.check import check_file
+    from daq.hdf5 import open_run
+
+    fc = check_file(path)
+    if fc.kind != "run":
+        with open_run(path):  # raises the reader's message
+            pass
+        raise click.ClickException(fc.line())
+    return fc
+
+
+def _verified_records(run: Path, allow_incomplete: bool):
+    """The records of RUN to analyse: None (all it counts) for a sound file; a bad file is
+    refused, or with ``allow_incomplete`` reduced to the records that verify."""
+    fc = _run_check(run)
+    if fc.ok:
+        return None
+    if not allow_incomplete or not fc.valid_records:
+        hint = (f"; --allow-incomplete analyses the {fc.records_valid} records that verify"
+                if fc.valid_records else "; no record of it verifies")
+        raise click.ClickException(fc.line() + hint)
+    click.echo(f"warning: {fc.line()}; analysing the {len(fc.valid_records)} records that "
+               f"verify", err=True)
+    return fc.valid_records
+
+
+# -- file checks -----------------------------------------------------------------------------
+
+@main.command("check")
+@click.argument("paths", nargs=-1, required=True,
+                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON list, one object per file.")
+def check_cmd(paths, as_json):
+    """Check the files PATHS (run, spectra, trajectory files): structure and format version,
+    completeness against the file's own plan, every record's checksum, calibrations and scene.
+
+    One line per file (OK or BAD, kind, status, records that verify, format version, the first
+    problem); exit status 0 only if every file is sound (an interrupted run whose records all
+    verify is sound), 1 otherwise. The library call is daq.check.check_file.
+    """
+    from daq.check import check_file
+
+    results = [check_file(p) for p in paths]
+    if as_json:
+        click.echo(json.dumps([r.to_dict() for r in results], indent=2))
+    else:
+        for r in results:
+            click.echo(r.line())
+    if not all(r.ok for r in results):
+        raise click.exceptions.Exit(1)
 
 
 main.add_command(bench)

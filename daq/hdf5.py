@@ -51,14 +51,18 @@ engine="h5netcdf")`` returns labelled arrays (also for ``entry/truth``, ``entry/
                             antialias [1]. NaN where undefined (0 Hz ratios).
       instrument/           NXinstrument
         antialias/          NXcollection @kind @order @fs_hz @rate_hz @decimation @passband_hz
-                            @stopband_hz @ripple_db @attenuation_db @sos (sections, 6)
+                            @stopband_hz @ripple_db @attenuation_db
+          sos (section, coefficient) float64: the second-order sections b0 b1 b2 a0 a1 a2
+                            (format 1.0: an attribute @sos, which netCDF readers reject)
         acquisition/        NXcollection: the plan @rate_hz @records @samples_per_record ...
       scene/                NXcollection @name @source @description
         settings_json       str scalar: Scene.settings (rig.scene.scene_from_settings rebuilds it)
 
 Writing
 -------
-The file is created with ``libver="latest"``; after every dataset and attribute exists it switches
+The file is created with the HDF5 1.10 format bounds (:data:`LIBVER`: SWMR, readable by HDF5
+1.10, 1.14 and 2.0); every chunked dataset carries a fletcher32 checksum per chunk (a record of a
+channel is one chunk), verified whenever it is read (:func:`daq.check.check_file`); after every dataset and attribute exists it switches
 to SWMR mode, so a reader can follow it while it grows (``h5py.File(path, "r", swmr=True)``,
 ``refresh()`` the datasets). Each finished record is appended (datasets resized by one row) and
 flushed, then ``records_complete`` is updated and flushed: a follower reads ``records_complete``
@@ -99,7 +103,12 @@ except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
 FORMAT = "pendulum-daq run"
+#: HDF5 format bounds of every file the project writes: the oldest that has SWMR (superblock
+#: v3, HDF5 1.10), so HDF5 1.10 and 1.14 read the files too ("latest" under HDF5 2.0 writes a
+#: layout message 1.x cannot read).
+LIBVER = ("v110", "v110")
 _STATUS_LEN, _MESSAGE_LEN = 16, 512
+_SOS_COEFFICIENTS = ("b0", "b1", "b2", "a0", "a1", "a2")
 _STR = h5py.string_dtype()
 
 
@@ -198,9 +207,9 @@ class HDF5Sink(Sink):
                                        dir=target.parent)
             os.close(fd)
             self._tmp = Path(tmp)
-            self._f = h5py.File(self._tmp, "w", libver="latest")
+            self._f = h5py.File(self._tmp, "w", libver=LIBVER)
         else:
-            self._f = h5py.File(target, "x", libver="latest")
+            self._f = h5py.File(target, "x", libver=LIBVER)
         self.path = self._tmp or target
         self._header = header
         try:
@@ -226,7 +235,8 @@ class HDF5Sink(Sink):
         chan.make_scale("channel")
         chan.attrs["long_name"] = "channel name"
         count = g.create_dataset("count", shape=(0, len(names)), maxshape=(None, len(names)),
-                                 dtype=np.int64, chunks=(64, len(names)), track_times=False)
+                                 dtype=np.int64, chunks=(64, len(names)), fletcher32=True,
+                                 track_times=False)
         count.dims[0].attach_scale(grec)
         count.dims[1].attach_scale(chan)
         _set_attrs(count, {"long_name": count_name, "units": "1"})
@@ -386,7 +396,20 @@ class HDF5Sink(Sink):
         # instrument
         inst = _group(entry, "instrument", "NXinstrument")
         aa = _group(inst, "antialias", "NXcollection", **h.antialias.describe())
-        aa.attrs["sos"] = np.asarray(h.antialias.sos)
+        sos_v = np.asarray(h.antialias.sos, dtype=np.float64)
+        sec = aa.create_dataset("section", data=np.arange(1, sos_v.shape[0] + 1, dtype=np.int64),
+                                track_times=False)
+        sec.make_scale("section")
+        sec.attrs["long_name"] = "second-order section (1-based, applied in order)"
+        coef = aa.create_dataset("coefficient", data=np.array(_SOS_COEFFICIENTS, dtype=_STR),
+                                 track_times=False)
+        coef.make_scale("coefficient")
+        coef.attrs["long_name"] = "coefficient of a section"
+        sos = aa.create_dataset("sos", data=sos_v, track_times=False)
+        sos.dims[0].attach_scale(sec)
+        sos.dims[1].attach_scale(coef)
+        _set_attrs(sos, {"units": "1", "long_name": "second-order sections of the anti-alias "
+                                                    "filter at fs_hz"})
         aa.attrs["description"] = ("digital elliptic low-pass in second-order sections at the "
                                    "simulation rate, then decimation; H(f) = prod_k (b0 + b1 z^-1 "
                                    "+ b2 z^-2) / (1 + a1 z^-1 + a2 z^-2), z = exp(2 pi i f / fs)")
@@ -400,7 +423,7 @@ class HDF5Sink(Sink):
 
     def _scales(self, g, n: int):
         rec = g.create_dataset("record", shape=(0,), maxshape=(None,), dtype=np.int64,
-                               chunks=(256,), track_times=False)
+                               chunks=(256,), fletcher32=True, track_times=False)
         rec.make_scale("record")
         _set_attrs(rec, {"long_name": "record index", "units": "1"})
         tim = g.create_dataset("time", data=self._header.plan.times_s(), track_times=False)
@@ -414,7 +437,8 @@ class HDF5Sink(Sink):
         shape = tuple(row_shape)
         kw = dict(compression="gzip", compression_opts=level, shuffle=True) if level else {}
         ds = g.create_dataset(name, shape=(0,) + shape, maxshape=(None,) + shape, dtype=dtype,
-                              chunks=(1,) + shape if shape else (256,), track_times=False, **kw)
+                              chunks=(1,) + shape if shape else (256,), fletcher32=True,
+                              track_times=False, **kw)
         ds.dims[0].attach_scale(rec)
         if shape:
             ds.dims[1].attach_scale(tim)
@@ -430,17 +454,14 @@ class HDF5Sink(Sink):
 @contextlib.contextmanager
 def open_run(path: str | Path):
     """Open a run file read-only; a file still marked open for writing (a live or killed writer)
-    is opened as a SWMR reader."""
+    is opened as a SWMR reader. A truncated or unreadable file is a ConfigError at once
+    (:func:`daq.check.open_hdf5`: never a retry in SWMR mode, which can wait for minutes)."""
+    from daq.check import open_hdf5
+
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"run file {str(path)!r} does not exist")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        try:
-            f = h5py.File(path, "r", swmr=True)
-        except OSError:
-            raise ConfigError(f"{str(path)!r} is not a readable HDF5 file: {exc}") from None
+    f, _ = open_hdf5(path)
     try:
         if f.attrs.get("file_format") != FORMAT:
             raise ConfigError(f"{str(path)!r} is not a pendulum-daq run file (no "
@@ -520,21 +541,33 @@ def _channel(name: str, attrs) -> Channel:
     return Channel.from_description({**a, "name": name, "unit": a["engineering_unit"]})
 
 
-def read_run(path: str | Path) -> Recording:
-    """Read a run file back into a :class:`daq.records.Recording` (finished records only)."""
+def read_run(path: str | Path, records=None) -> Recording:
+    """Read a run file back into a :class:`daq.records.Recording` (finished records only).
+
+    ``records``: the indices of the finished records to read (default all), e.g.
+    :attr:`daq.check.FileCheck.valid_records` to leave out records that fail their checksum.
+    """
     from rig.scene import scene_from_settings
 
     with open_run(path) as f:
         e = f["entry"]
         status, n = _status(f)
+        rows = slice(0, n)
+        if records is not None:
+            rows = np.unique(np.asarray(list(records), dtype=np.int64))
+            if rows.size and not (0 <= rows[0] and rows[-1] < n):
+                raise ConfigError(f"records {rows.tolist()} outside the {n} finished records "
+                                  f"(0..{n - 1})")
+            rows = rows if rows.size else slice(0, 0)
         settings = json.loads(_s(e["scene/settings_json"][()]))
         scene = scene_from_settings(settings, source=_s(e["scene"].attrs["source"]))
         plan = RecordPlan.from_settings(settings["acquisition"])
         data = e["data"]
         names = [_s(data.attrs["signal"])] + [_s(s) for s in data.attrs["auxiliary_signals"]]
         channels = tuple(_channel(c, data[c].attrs) for c in names)
-        a = e["instrument/antialias"].attrs
-        sos = np.array(a["sos"], dtype=float)
+        ag = e["instrument/antialias"]
+        a = ag.attrs
+        sos = np.array(ag["sos"][()] if "sos" in ag else a["sos"], dtype=float)  # 1.1 / 1.0
         sos.setflags(write=False)
         aa = AntiAliasFilter(fs_hz=float(a["fs_hz"]), rate_hz=float(a["rate_hz"]),
                              kind=_s(a["kind"]), passband_hz=float(a["passband_hz"]),
@@ -553,7 +586,7 @@ def read_run(path: str | Path) -> Recording:
                              for i in range(len(shape)))
                 truth_fields.append(TruthField(k, _s(ds.attrs.get("units", "")),
                                                _s(ds.attrs.get("long_name", k)), shape, dims))
-                truth[k] = ds[:n]
+                truth[k] = ds[rows]
         m = e["model"]
         values = {k[:-5]: m[k][()] + 1j * m[k[:-5] + "_imag"][()] for k in m
                   if k.endswith("_real")}
@@ -567,9 +600,9 @@ def read_run(path: str | Path) -> Recording:
                         model_info=json.loads(_s(m.attrs["model_info_json"])),
                         response=response, software_version=_s(e.attrs["software_version"]),
                         start_time=_s(e.attrs["start_time"]))
-        codes = {c: data[c][:n] for c in names}
-        clipped = {c: e["clipping"][c][:n].astype(bool) for c in names}
-        saturated = ({c: e["saturation"][c][:n].astype(bool) for c in names}
+        codes = {c: data[c][rows] for c in names}
+        clipped = {c: e["clipping"][c][rows].astype(bool) for c in names}
+        saturated = ({c: e["saturation"][c][rows].astype(bool) for c in names}
                      if "saturation" in e else {})
     return Recording(header=header, codes=codes, clipped=clipped, truth=truth, status=status,
                      saturated=saturated)

@@ -8,7 +8,9 @@ HDF5 (``.h5``/``.hdf5``): an NXentry ``trajectory`` with datasets ``t`` [s] (dim
 ``body`` (scale), ``theta`` (t, body) [rad], ``omega`` (t, body) [rad/s], ``energy`` (t,) [J] and,
 when estimated, ``theta_error_estimate`` (t, body) [rad]; the method, its settings, the error
 estimate's description and the resolved scene are attributes. ``xarray.open_dataset(path,
-group="trajectory", engine="h5netcdf")`` opens it.
+group="trajectory", engine="h5netcdf")`` opens it. The root has ``@file_format`` (:data:`FORMAT`)
+and ``@file_format_version``; HDF5 1.10 format bounds (readable by HDF5 1.10 to 2.0); every
+array carries a fletcher32 checksum.
 """
 
 from __future__ import annotations
@@ -27,6 +29,10 @@ from rig.scene import Scene
 from rig.simulate import Trajectory
 
 HDF5_SUFFIXES = (".h5", ".hdf5")
+FORMAT = "pendulum-daq trajectory"
+#: 1.1: root attributes file_format and file_format_version, HDF5 1.10 format bounds, a
+#: fletcher32 checksum on every array (1.0 files have no file_format attribute).
+FORMAT_VERSION = "1.1"
 CSV_SUFFIXES = (".csv",)
 
 
@@ -85,8 +91,12 @@ def _write_csv(path: Path, traj: Trajectory, meta: dict) -> None:
 
 
 def _write_hdf5(path: Path, traj: Trajectory, meta: dict, scene: Scene) -> None:
-    with h5py.File(path, "w") as f:
+    from daq.hdf5 import LIBVER
+
+    with h5py.File(path, "w", libver=LIBVER) as f:
         f.attrs["NX_class"] = "NXroot"
+        f.attrs["file_format"] = FORMAT
+        f.attrs["file_format_version"] = FORMAT_VERSION
         f.attrs["default"] = "trajectory"
         g = f.create_group("trajectory")
         g.attrs["NX_class"] = "NXdata"
@@ -95,7 +105,7 @@ def _write_hdf5(path: Path, traj: Trajectory, meta: dict, scene: Scene) -> None:
         for key, value in meta.items():
             g.attrs[key] = json.dumps(value) if isinstance(value, (dict, list)) else value
         g.attrs["scene_settings_json"] = json.dumps(scene.settings)
-        t = g.create_dataset("t", data=traj.t_s)
+        t = g.create_dataset("t", data=traj.t_s, fletcher32=True)
         t.attrs.update(units="s", long_name="time")
         t.make_scale("t")
         body = g.create_dataset("body", data=np.arange(1, traj.theta_rad.shape[1] + 1))
@@ -103,7 +113,7 @@ def _write_hdf5(path: Path, traj: Trajectory, meta: dict, scene: Scene) -> None:
         body.make_scale("body")
 
         def put(name, data, units, long_name, dims):
-            d = g.create_dataset(name, data=data)
+            d = g.create_dataset(name, data=data, fletcher32=True)
             d.attrs.update(units=units, long_name=long_name)
             for i, scale in enumerate(dims):
                 d.dims[i].attach_scale(scale)

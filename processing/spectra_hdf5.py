@@ -23,7 +23,8 @@ the run file), one group (:data:`GROUP`, ``"spectra"``) laid out as netCDF-4 wou
 
 Complex quantities are pairs of ``_real``/``_imag`` variables (netCDF has no complex type); NaN
 marks undefined lines (0 Hz after the detrend). The file is written under a temporary name and
-renamed when complete; an existing file is replaced only with ``force``.
+renamed when complete; an existing file is replaced only with ``force``. HDF5 1.10 format bounds
+(readable by HDF5 1.10 to 2.0); every variable carries a fletcher32 checksum.
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ __all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "write_spectra"]
 
 GROUP = "spectra"
 FORMAT = "pendulum-daq spectra"
-FORMAT_VERSION = "1.0"
+#: 1.1: HDF5 1.10 format bounds (daq.hdf5.LIBVER), a fletcher32 checksum on every variable.
+FORMAT_VERSION = "1.1"
 _STR = h5py.string_dtype()
 
 
@@ -60,7 +62,8 @@ def _attr(value):
 
 
 def _variable(g, name: str, data, scale, *, units: str, long_name: str) -> None:
-    ds = g.create_dataset(name, data=np.asarray(data, dtype=float), track_times=False)
+    ds = g.create_dataset(name, data=np.asarray(data, dtype=float), fletcher32=True,
+                          track_times=False)
     ds.dims[0].attach_scale(scale)
     ds.attrs["units"] = units
     ds.attrs["long_name"] = long_name
@@ -89,13 +92,14 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
     Path : ``path``.
     """
     from daq.acquisition import software_version
+    from daq.hdf5 import LIBVER
 
     a = analysis
     path = Path(path)
     sp = a.spectral
     f = a.freqs_hz
     with atomic_output(path, force=force) as tmp:
-        with h5py.File(tmp, "w", track_order=True) as fh:
+        with h5py.File(tmp, "w", track_order=True, libver=LIBVER) as fh:
             run = a.run
             for k, v in {"file_format": FORMAT, "file_format_version": FORMAT_VERSION,
                          "creator": f"pendulum-daq {software_version()}",

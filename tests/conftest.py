@@ -15,3 +15,10 @@ def _design_cache(tmp_path_factory):
         os.environ.pop("PENDULUM_DAQ_CACHE", None)
     else:
         os.environ["PENDULUM_DAQ_CACHE"] = old
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Write the reliability tests' record (tests/faults.py) for the README's table."""
+    from faults import write_report
+
+    write_report()

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -168,47 +167,41 @@ class RunFileCheck:
 
 def check_run_file(path: str | Path, *, sha256: str | None = None,
                    spec_hash: str | None = None) -> RunFileCheck:
-    """Open ``path`` and check it: a pendulum-daq run file, status complete, every planned record
-    written, the analysis outputs present, the plan's ``spec_hash`` (if given) and the file's
-    sha256 against ``sha256`` (if given; computed either way).
+    """Check ``path``: a whole run file (:func:`daq.check.check_file`: every record and chunk
+    verifies), status complete with every planned record, the analysis outputs present, the
+    plan's ``spec_hash`` (if given) and the file's sha256 against ``sha256`` (if given; computed
+    either way when the rest is ok). Never raises for a bad file: ``problems`` say why."""
+    from daq.check import check_file
 
-    This is the single call site of run-file validation for the sweep (to be switched to
-    ``daq.check.check_file`` when that exists); it never raises for a bad file, it says why.
-    """
     path = Path(path)
-    problems, status, n, planned, h = [], "missing", 0, 0, ""
     if not path.is_file():
-        return RunFileCheck(path, False, status, 0, 0, "", "", ("file does not exist",))
-    digest = ""
-    try:
-        with h5py.File(path, "r") as f:
-            if f.attrs.get("file_format") != "pendulum-daq run":
-                problems.append("not a pendulum-daq run file")
-            e = f["entry"]
-            status = e["status"][()].decode("utf-8", "replace").strip("\x00 ")
-            n, planned = int(e["records_complete"][()]), int(e["records_planned"][()])
-            if status != "complete":
-                problems.append(f"status {status!r}, expected 'complete'")
-            if n != planned:
-                problems.append(f"{n} of {planned} records")
-            for c in ("a", "x", "y"):
-                if e["data"][c].shape[0] != n:
-                    problems.append(f"entry/data/{c} has {e['data'][c].shape[0]} rows, "
-                                    f"records_complete = {n}")
-            if "analysis" not in e or "dataset" not in e:
-                problems.append("no analysis outputs (entry/analysis, entry/dataset)")
-            else:
-                h = str(e["dataset"].attrs["spec_hash"])
-    except (OSError, KeyError, ValueError) as exc:
-        problems.append(f"unreadable: {type(exc).__name__}: {exc}")
+        return RunFileCheck(path, False, "missing", 0, 0, "", "", ("file does not exist",))
+    fc = check_file(path)
+    problems = list(fc.problems)
+    n, planned = fc.records_valid or 0, fc.records_planned or 0
+    if fc.kind != "run":
+        problems.append(f"not a pendulum-daq run file ({fc.kind})")
+    if fc.status != "complete":
+        problems.append(f"status {fc.status!r}, expected 'complete'")
+    if n != planned:
+        problems.append(f"{n} of {planned} records verify")
+    h = ""
+    if not problems:
+        try:
+            with h5py.File(path, "r") as f:
+                e = f["entry"]
+                if "analysis" not in e or "dataset" not in e:
+                    problems.append("no analysis outputs (entry/analysis, entry/dataset)")
+                else:
+                    h = str(e["dataset"].attrs["spec_hash"])
+        except (OSError, KeyError) as exc:
+            problems.append(f"unreadable: {type(exc).__name__}: {exc}")
     if spec_hash is not None and h and h != spec_hash:
         problems.append("written by another sweep plan (spec_hash differs)")
+    digest = ""
     if not problems:
         digest = sha256_file(path)
         if sha256 is not None and digest != sha256:
             problems.append(f"sha256 {digest[:12]}... differs from the manifest's "
                             f"{sha256[:12]}...")
-    return RunFileCheck(path, not problems, status, n, planned, h, digest, tuple(problems))
-
-
-
+    return RunFileCheck(path, not problems, fc.status, n, planned, h, digest, tuple(problems))

@@ -1,0 +1,453 @@
+"""Checking a file the project wrote: is it whole, and which of its records verify?
+
+:func:`check_file` is the one check behind ``daq check``, ``daq inspect`` and ``daq analyze`` (and
+any reader of many run files): it never raises for a bad file -- a bad file is a result, a
+:class:`FileCheck` -- and it never hangs on one:
+
+- the HDF5 superblock is read by hand first: a file shorter than the end-of-file address its
+  superblock records is *truncated* (no HDF5 reader opens it), named as such without calling
+  HDF5; only a file still marked "open for writing" (a live or killed writer) is opened as a
+  SWMR reader, and never after another open failed (HDF5's SWMR reader retries unreadable
+  metadata for minutes);
+- every object and attribute is read; every chunk's fletcher32 checksum is verified by reading
+  it (a record of a run-file channel is one chunk), so a corrupt record is named with its index;
+- a run file is checked against its own plan: format version, status, ``records_complete``
+  against ``records_planned`` and the rows of every per-record dataset, the record plan of the
+  stored scene against the datasets' shapes, the channels' calibrations (scale factor = LSB,
+  volts per unit x units per volt = 1) and the scene rebuilt from its stored settings.
+
+A file is ``ok`` when nothing in it is damaged or inconsistent; a run cut short by Ctrl-C, a
+signal or a killed writer is ``ok`` (its status says so and :attr:`FileCheck.notes` explain) as
+long as every record it counts verifies.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rig.errors import ConfigError
+
+__all__ = ["FileCheck", "MissingFile", "UnreadableFile", "check_file", "open_hdf5",
+           "superblock"]
+
+_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: Statuses of a file that is not whole (besides a run's own: complete, interrupted, failed,
+#: acquiring).
+BAD_STATUSES = ("not hdf5", "truncated", "corrupt", "unreadable", "invalid")
+_KINDS = {"pendulum-daq run": "run", "pendulum-daq spectra": "spectra",
+          "pendulum-daq trajectory": "trajectory", "pendulum-daq dataset": "dataset"}
+
+
+class MissingFile(ConfigError, FileNotFoundError):
+    """The path to check does not exist (or is not a file)."""
+
+
+@dataclass(frozen=True)
+class FileCheck:
+    """What :func:`check_file` found.
+
+    Attributes
+    ----------
+    path : the file checked.
+    kind : "run", "spectra", "trajectory", "dataset" (the project's files, from the root's
+        ``file_format``), "hdf5" (another HDF5 file) or "unknown" (not HDF5).
+    ok : True if nothing is damaged or inconsistent (an incomplete run can be ok).
+    status : a run's own status ("complete", "interrupted", "failed", "acquiring": writer
+        killed or still running), "complete" for other whole files, or one of
+        :data:`BAD_STATUSES` ("truncated", "corrupt": a checksum failed, "unreadable": HDF5
+        cannot open it, "invalid": structure or plan inconsistent, "not hdf5").
+    records_valid : records that verify (run files; None for other kinds).
+    records_planned : records the run planned (run files; None for other kinds).
+    format_version : the file's ``file_format_version`` (None if unknown).
+    problems : one sentence per problem found (empty if ``ok``).
+    notes : remarks that do not make the file bad (incomplete run, writer mark set ...).
+    bad_records : indices (0-based) of counted records that fail to verify.
+    """
+
+    path: str
+    kind: str
+    ok: bool
+    status: str
+    records_valid: int | None
+    records_planned: int | None
+    format_version: str | None
+    problems: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+    bad_records: tuple[int, ...] = ()
+    records_complete: int | None = None
+
+    @property
+    def valid_records(self) -> tuple[int, ...]:
+        """Indices of the counted records that verify (run files)."""
+        if self.records_complete is None:
+            return ()
+        bad = set(self.bad_records)
+        return tuple(k for k in range(self.records_complete) if k not in bad)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        for k in ("problems", "notes", "bad_records"):
+            d[k] = list(d[k])
+        return d
+
+    def line(self) -> str:
+        """One line: ``PATH: OK|BAD kind status, records ..., version; first problem``."""
+        head = f"{self.path}: {'OK' if self.ok else 'BAD'} {self.kind}, {self.status}"
+        if self.records_planned is not None:
+            head += f", {self.records_valid} of {self.records_planned} records verify"
+        if self.format_version is not None:
+            head += f", format {self.format_version}"
+        extra = self.problems or self.notes
+        if extra:
+            more = f" (+{len(extra) - 1} more)" if len(extra) > 1 else ""
+            head += f"; {extra[0]}{more}"
+        return head
+
+
+def superblock(path: str | Path) -> dict | None:
+    """The HDF5 superblock's version, file-consistency flags and end-of-file address, read
+    directly from the file (no HDF5 call); None if the file does not start with the HDF5
+    signature (user blocks are not searched: the project writes none)."""
+    with open(path, "rb") as fh:
+        head = fh.read(96)
+    if len(head) < 9 or head[:8] != _SIGNATURE:
+        return None
+    version = head[8]
+    try:
+        if version >= 2:  # signature, version, offsets size, lengths size, flags, 4 addresses
+            so = head[9]
+            flags = head[11]
+            first = 12
+        else:  # v0/v1: versions of free space, root symbol table, shared header; sizes; ks; flags
+            so = head[13]
+            flags = struct.unpack_from("<I", head, 20)[0]
+            first = 24 if version == 0 else 28
+        fmt = {4: "<I", 8: "<Q"}[so]
+        eof = struct.unpack_from(fmt, head, first + 2 * so)[0]
+    except (KeyError, struct.error):
+        return {"version": version, "flags": None, "eof": None}
+    return {"version": version, "flags": flags, "eof": eof}
+
+
+class UnreadableFile(ConfigError):
+    """HDF5 cannot open the file: ``status`` is "not hdf5", "truncated" or "unreadable",
+    ``reason`` the sentence saying why."""
+
+    def __init__(self, path: Path, status: str, reason: str):
+        super().__init__(f"{str(path)!r} is truncated: {reason}" if status == "truncated"
+                         else f"{str(path)!r} is not a readable HDF5 file: {reason}")
+        self.status, self.reason = status, reason
+
+
+def open_hdf5(path: str | Path):
+    """Open an HDF5 file read-only without ever hanging: ``(h5py.File, marked)``.
+
+    A file shorter than its superblock's end-of-file address is refused as truncated before
+    HDF5 sees it; a file marked "open for writing" (``marked``: a live or killed SWMR writer) is
+    opened as a SWMR reader, any other in the plain mode, and a failed open is never retried in
+    SWMR mode. Raises :class:`UnreadableFile` (a ConfigError) if it cannot be opened.
+    """
+    import h5py
+
+    path = Path(path)
+    size = path.stat().st_size
+    sb = superblock(path)
+    if sb is None:
+        raise UnreadableFile(path, "not hdf5", f"not an HDF5 file ({size} bytes, no HDF5 "
+                                               "signature)")
+    if sb["eof"] is not None and size < sb["eof"]:
+        raise UnreadableFile(path, "truncated", f"{size} of the {sb['eof']} bytes its "
+                                                f"HDF5 superblock records ({sb['eof'] - size} "
+                                                "missing); no HDF5 reader opens it")
+    marked = bool(sb["flags"]) and sb["version"] >= 3
+    try:
+        f = h5py.File(path, "r", swmr=True) if marked else h5py.File(path, "r")
+    except OSError as exc:
+        raise UnreadableFile(path, "unreadable", f"HDF5 cannot open it "
+                                                 f"({_first_line(exc)})") from None
+    return f, marked
+
+
+def check_file(path: str | Path) -> FileCheck:
+    """Check ``path`` (see the module docstring). Never raises for a bad file; raises
+    :class:`MissingFile` if ``path`` does not exist or is not a file."""
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFile(f"{str(path)!r} does not exist" if not path.exists()
+                          else f"{str(path)!r} is not a file")
+    c = _Checker(path)
+    try:
+        c.run()
+    except Exception as exc:  # noqa: BLE001 - whatever breaks on a bad file is a finding
+        c.problem("invalid", f"unexpected structure ({type(exc).__name__}: "
+                             f"{_first_line(exc)})")
+    return c.result()
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+class _Checker:
+    def __init__(self, path: Path):
+        self.path = path
+        self.kind = "unknown"
+        self.status = None
+        self.run_status = None
+        self.version = None
+        self.problems: list[str] = []
+        self.notes: list[str] = []
+        self.bad: set[int] = set()
+        self.n = None
+        self.planned = None
+        self._severity = None
+
+    def problem(self, status: str, text: str) -> None:
+        order = BAD_STATUSES
+        if self._severity is None or order.index(status) < order.index(self._severity):
+            self._severity = status
+        self.problems.append(text)
+
+    def result(self) -> FileCheck:
+        ok = not self.problems
+        status = self._severity if not ok else (self.run_status or "complete")
+        valid = None
+        if self.kind == "run":
+            valid = max(0, (self.n or 0) - len(self.bad))
+        return FileCheck(path=str(self.path), kind=self.kind, ok=ok, status=status,
+                         records_valid=valid,
+                         records_planned=self.planned if self.kind == "run" else None,
+                         format_version=self.version, problems=tuple(self.problems),
+                         notes=tuple(self.notes), bad_records=tuple(sorted(self.bad)),
+                         records_complete=self.n if self.kind == "run" else None)
+
+    # -- opening ------------------------------------------------------------------------------
+    def run(self) -> None:
+        try:
+            f, marked = open_hdf5(self.path)
+        except UnreadableFile as exc:
+            if exc.status != "not hdf5":
+                self.kind = "hdf5"
+            self.problem(exc.status, ("truncated: " if exc.status == "truncated" else "")
+                         + exc.reason)
+            return
+        with f:
+            fmt = _text(f.attrs.get("file_format", ""))
+            self.kind = _KINDS.get(fmt, "hdf5")
+            if "file_format_version" in f.attrs:
+                self.version = _text(f.attrs["file_format_version"])
+            if self.kind == "hdf5" and "trajectory" in f:  # trajectory files before 1.1
+                self.kind = "trajectory"
+            skip = set()
+            if self.kind == "run":
+                skip = self._run(f)
+            self._everything(f, skip)
+            if marked:
+                self.notes.append("still marked open for writing (writer running or killed): "
+                                  "read as SWMR; 'daq inspect --repair' clears the mark")
+
+    # -- every object -------------------------------------------------------------------------
+    def _everything(self, f, skip: set) -> None:
+        """Read every attribute and every dataset not verified per record already."""
+        import h5py
+
+        names = []
+
+        def visit(name, obj):
+            names.append(name)
+            try:
+                for k in obj.attrs:
+                    obj.attrs[k]
+            except (OSError, TypeError, ValueError) as exc:
+                self.problem("corrupt", f"{name}: an attribute cannot be read "
+                                        f"({_first_line(exc)})")
+            if isinstance(obj, h5py.Dataset) and name not in skip:
+                try:
+                    obj[()]
+                except (OSError, TypeError, ValueError) as exc:
+                    what = ("fails its checksum" if "filter" in str(exc) else "cannot be read")
+                    self.problem("corrupt", f"{name} {what} ({_first_line(exc)})")
+
+        try:
+            for k in f.attrs:
+                f.attrs[k]
+            f.visititems(visit)
+        except (OSError, RuntimeError, KeyError) as exc:
+            self.problem("corrupt", f"its object tree cannot be walked ({_first_line(exc)})")
+
+    # -- run files ----------------------------------------------------------------------------
+    def _run(self, f) -> set:
+        """The run-file checks; returns the per-record datasets it verified itself."""
+        from daq.acquisition import READABLE_FORMAT_VERSIONS
+        from daq.records import STATUSES
+
+        if self.version not in READABLE_FORMAT_VERSIONS:
+            self.problem("invalid", f"format version {self.version!r} is not one this reader "
+                                    f"knows ({', '.join(READABLE_FORMAT_VERSIONS)})")
+        need = ("entry/status", "entry/records_complete", "entry/records_planned",
+                "entry/data", "entry/data/record", "entry/data/time", "entry/clipping/count",
+                "entry/instrument/acquisition", "entry/instrument/antialias",
+                "entry/scene/settings_json", "entry/model/frequency")
+        missing = [k for k in need if k not in f]
+        if missing:
+            self.problem("invalid", f"not a whole run file: missing {', '.join(missing)}")
+            return set()
+        e = f["entry"]
+        status = _text(e["status"][()]).strip("\x00 ")
+        n, planned = int(e["records_complete"][()]), int(e["records_planned"][()])
+        self.n, self.planned = n, planned
+        if status not in STATUSES:
+            self.problem("invalid", f"status {status!r} is not one of {', '.join(STATUSES)}")
+        self.run_status = status
+        if not 0 <= n <= planned:
+            self.problem("invalid", f"records_complete = {n} outside 0..{planned} "
+                                    "(records_planned)")
+        if status == "complete" and n != planned:
+            self.problem("invalid", f"status complete but {n} of {planned} records written")
+        if status != "complete":
+            msg = _text(e["message"][()]).strip("\x00 ") if "message" in e else ""
+            self.notes.append(f"incomplete ({status}): {n} of {planned} records"
+                              + (f" ({msg})" if msg else ""))
+
+        data = e["data"]
+        names = [_text(data.attrs["signal"])] + [_text(s) for s in
+                                                  data.attrs.get("auxiliary_signals", [])]
+        for c in names:
+            if c not in data:
+                self.problem("invalid", f"channel {c!r} named by entry/data@signal is missing")
+        samples = int(data["time"].shape[0])
+        self._plan(e, planned, samples)
+        self._calibrations(data, names)
+
+        # per-record datasets: every dataset whose first axis grows with the records
+        grow = []
+
+        def visit(name, obj):
+            import h5py
+
+            if isinstance(obj, h5py.Dataset) and obj.maxshape and obj.maxshape[0] is None:
+                grow.append((f"entry/{name}", obj))
+
+        e.visititems(visit)
+        for name, ds in grow:
+            rows = ds.shape[0]
+            if rows < n:
+                self.problem("truncated", f"{name} holds {rows} rows but records_complete = {n}")
+                self.bad.update(range(rows, n))
+            elif rows > n and status != "acquiring":
+                self.problem("invalid", f"{name} holds {rows} rows but records_complete = {n}")
+            if ds.ndim >= 2 and name.rsplit("/", 1)[-1] != "count" and ds.shape[1] != samples:
+                self.problem("invalid", f"{name} has {ds.shape[1]} samples per record, "
+                                        f"entry/data/time {samples}")
+            self._verify_rows(name, ds, min(rows, n))
+        if not grow:
+            self.problem("invalid", "no per-record datasets")
+        return {name for name, _ in grow}
+
+    def _verify_rows(self, name: str, ds, n: int) -> None:
+        """Read rows 0..n-1 of ``ds`` (all at once, then row by row if that fails), which
+        verifies each chunk's fletcher32 checksum."""
+        if n == 0:
+            return
+        if ds.fletcher32 is False and self.version not in (None, "1.0"):
+            self.problem("invalid", f"{name} has no fletcher32 checksum")
+        try:
+            ds[:n]
+            return
+        except OSError:
+            pass
+        bad = []
+        for k in range(n):
+            try:
+                ds[k]
+            except OSError:
+                bad.append(k)
+        self.bad.update(bad)
+        if bad:
+            self.problem("corrupt", f"{name}: record{'s' if len(bad) > 1 else ''} "
+                                    f"{_ranges(bad)} fail{'' if len(bad) > 1 else 's'} "
+                                    "the checksum (corrupt data)")
+
+    def _plan(self, e, planned: int, samples: int) -> None:
+        from daq.records import RecordPlan
+        from rig.errors import RigError
+        from rig.scene import scene_from_settings
+
+        try:
+            settings = json.loads(_text(e["scene/settings_json"][()]))
+        except ValueError as exc:
+            self.problem("invalid", f"entry/scene/settings_json is not JSON ({exc})")
+            return
+        try:
+            plan = RecordPlan.from_settings(settings["acquisition"])
+            scene_from_settings(settings, source=_text(e["scene"].attrs.get("source", "")))
+        except (RigError, KeyError, TypeError, ValueError) as exc:
+            self.problem("invalid", f"the stored scene does not rebuild: {_first_line(exc)}")
+            return
+        if plan.records != planned:
+            self.problem("invalid", f"the stored scene plans {plan.records} records, "
+                                    f"records_planned = {planned}")
+        if plan.samples != samples:
+            self.problem("invalid", f"the stored scene plans {plan.samples} samples per record, "
+                                    f"the file has {samples}")
+
+    def _calibrations(self, data, names) -> None:
+        from daq.hdf5 import _channel
+
+        for c in names:
+            if c not in data:
+                continue
+            a = data[c].attrs
+            try:
+                ch = _channel(c, a)
+            except Exception as exc:  # noqa: BLE001 - any failure is an inconsistent file
+                self.problem("invalid", f"channel {c}: calibration does not rebuild "
+                                        f"({_first_line(exc)})")
+                continue
+            lsb = float(a.get("scale_factor", np.nan))
+            vpu, upv = float(a.get("volts_per_unit", np.nan)), float(a.get("units_per_volt",
+                                                                             np.nan))
+            if not np.isclose(lsb, ch.adc.lsb_v, rtol=1e-12, atol=0):
+                self.problem("invalid", f"channel {c}: scale_factor {lsb!r} != lsb_v "
+                                        f"{ch.adc.lsb_v!r}")
+            if not np.isclose(vpu * upv, 1.0, rtol=1e-9, atol=0):
+                self.problem("invalid", f"channel {c}: volts_per_unit {vpu!r} x units_per_volt "
+                                        f"{upv!r} != 1")
+
+
+def _ranges(ks) -> str:
+    out, start, prev = [], None, None
+    for k in sorted(ks):
+        if start is None:
+            start = prev = k
+        elif k == prev + 1:
+            prev = k
+        else:
+            out.append(f"{start}" if start == prev else f"{start}-{prev}")
+            start = prev = k
+    out.append(f"{start}" if start == prev else f"{start}-{prev}")
+    return ", ".join(out)
+
+
+def _text(v) -> str:
+    if isinstance(v, bytes):
+        return v.decode("utf-8", "replace")
+    if isinstance(v, np.ndarray) and v.shape == ():
+        return _text(v[()])
+    return str(v)
+
+
+def check_ok_or_raise(path: str | Path) -> FileCheck:
+    """:func:`check_file`, raising :class:`rig.errors.ConfigError` with its line if the file is
+    not ok (for commands that need a whole file)."""
+    fc = check_file(path)
+    if not fc.ok:
+        raise ConfigError(fc.line())
+    return fc
+
