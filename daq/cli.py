@@ -518,6 +518,26 @@ class _SweepProgressLine:
             click.echo("", err=True)
 
 
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM (``kill PID``) stops a sweep like Ctrl-C: finished runs stay, the manifest is
+    written."""
+    import signal
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        old = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 @main.command()
 @click.argument("sweep_file", metavar="SWEEP.toml",
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
@@ -555,6 +575,7 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
         if dry_run:
             return
         bar = _SweepProgressLine()
+        stack.enter_context(_sigterm_as_interrupt())
         try:
             result = run_sweep(sweep, out_dir, executor=executor, workers=slots, force=force,
                                progress=bar, planned=planned)

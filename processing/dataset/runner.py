@@ -52,8 +52,9 @@ __all__ = ["PlannedRun", "SweepProgress", "SweepResult", "SweepInterrupted", "pl
            "describe_plan", "run_sweep", "JOURNAL", "PLAN"]
 
 JOURNAL, PLAN, RUNS = "journal.jsonl", "sweep.json", "runs"
-#: Measured cost of the linear model on this project's reference machine (BENCHMARKS.md,
-#: "Datasets"): seconds of one worker per simulated second, and per run.
+#: Cost of a run of the linear model in a warm worker, for the dry run's estimate: seconds per
+#: simulated second and per run (fitted to the paper's run: 2.4 s acquisition + 0.3 s analysis
+#: for 3300 s simulated, BENCHMARKS.md "Datasets").
 _S_PER_SIM_S, _S_PER_RUN = 6.3e-4, 0.6
 
 
@@ -320,6 +321,7 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
     SweepInterrupted : on KeyboardInterrupt, after the manifest is written.
     """
     from processing.dataset.engines import default_workers, local_pool
+    from processing.dataset.task import run_task
 
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
@@ -405,8 +407,6 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
             while todo or inflight:
                 while todo and len(inflight) < window:
                     job = todo.popleft()
-                    from processing.dataset.task import run_task
-
                     inflight[ex.submit(run_task, job)] = job
                 done, _ = wait(list(inflight), timeout=1.0, return_when=FIRST_COMPLETED)
                 broken = []
@@ -471,5 +471,3 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
         raise SweepInterrupted(result)
     return result
 
-
-__all__ += ["MANIFEST", "TABLE"]

@@ -63,16 +63,17 @@ def _publish(tmp: Path, final: Path, replace: bool) -> None:
 
 
 def run_task(job: dict) -> dict:
-    """Run one job of :meth:`processing.dataset.runner.SweepPlan.job` and return its result.
+    """Run one job (made by :func:`processing.dataset.runner.run_sweep`) and return its result.
 
     Returns ``{"index", "status": "complete" | "failed", "error", "file", "sha256", "model",
-    "wall_s"}``; "complete" means the final file exists, valid, with that sha256.
+    "wall_s", "cpu_s", "host"}`` (``cpu_s``: the worker's CPU time for the run); "complete"
+    means the final file exists, valid, with that sha256.
     """
     global _BUSY
     from processing.dataset.runfile import check_run_file, sha256_file
 
     _BUSY = True
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     final = Path(job["runs_dir"]) / job["file"]
     out = {"index": job["index"], "status": "failed", "error": "", "file": job["file"],
            "sha256": "", "model": "", "wall_s": 0.0, "host": socket.gethostname()}
@@ -101,6 +102,7 @@ def run_task(job: dict) -> dict:
         if tmp.exists():
             tmp.unlink()
         out["wall_s"] = time.perf_counter() - t0
+        out["cpu_s"] = time.process_time() - c0
     return out
 
 
