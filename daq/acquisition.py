@@ -154,11 +154,13 @@ class FunctionBench:
         return dict(self._info)
 
 
-def rig_bench(scene: Scene, seed: int) -> Bench:
-    """The emulated rig of ``scene`` (:class:`rig.bench.BenchSimulation`) as a :class:`Bench`."""
+def rig_bench(scene: Scene, seed: int, **bench_kw) -> Bench:
+    """The emulated rig of ``scene`` (:class:`rig.bench.BenchSimulation`) as a :class:`Bench`;
+    ``bench_kw`` (e.g. ``method="lawson4"``) go to the simulation (``functools.partial`` of this
+    is an ``acquire(bench=...)``)."""
     from rig import bench as rb
 
-    return _RigBench(rb, scene, seed)
+    return _RigBench(rb, scene, seed, **bench_kw)
 
 
 #: Units of the responses of :func:`rig.bench.expected_response` (per source volt unless stated).
@@ -205,7 +207,7 @@ class _RigBench:
     truth_keys = RIG_TRUTH
     saturation_keys = {"a": "a_overrange", "x": "psd_off_detector", "y": "psd_off_detector"}
 
-    def __init__(self, rb, scene: Scene, seed: int):
+    def __init__(self, rb, scene: Scene, seed: int, **bench_kw):
         self._rb, self._scene = rb, scene
         acq = scene.settings["acquisition"]
         n = min(round(BLOCK_S * acq["rate_hz"]), round(acq["record_s"] * acq["rate_hz"]))
@@ -214,7 +216,8 @@ class _RigBench:
         plan = RecordPlan.from_settings(acq)
         self._duration_s = plan.simulation_samples / plan.simulation_rate_hz
         # the source is made from now on, while the model is chosen and the kernels load
-        self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s))
+        self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s),
+                                       **bench_kw)
         self.fs_hz = float(self._sim.fs_hz)
 
     def blocks(self) -> Iterator[AnalogBlock]:

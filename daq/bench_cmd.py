@@ -114,6 +114,16 @@ def to_markdown(report, command: str = "") -> str:
     return "\n".join(out)
 
 
+#: Markers cycled with matplotlib's ten colours: 11 markers against 10 colours (coprime), so the
+#: first 110 curves of a plot each get their own colour and marker pair.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">", "h")
+
+
+def curve_style(i: int) -> dict:
+    """Colour and marker of the ``i``-th curve of a plot (distinct pairs for i < 110)."""
+    return {"color": f"C{i % 10}", "marker": MARKERS[i % len(MARKERS)]}
+
+
 def plot_scene(scene):
     """Log-log wall time against error, one curve per method (solve_ivp dashed; extrapolated
     points hollow). For ``chains``: cost per simulated second and energy drift against n.
@@ -131,12 +141,12 @@ def plot_scene(scene):
             continue
         key = (e.scene.split("/", 1)[1] + ": " if "/" in e.scene else "") + e.label
         groups.setdefault(key, []).append(e)
-    fig, ax = plt.subplots(figsize=(8.5, 6))
-    for key, es in sorted(groups.items()):
+    fig, ax = plt.subplots(figsize=(8.5, 7.5), layout="constrained")
+    for i, (key, es) in enumerate(sorted(groups.items())):
         es = sorted(es, key=lambda e: e.error)
         ivp = es[0].solver == "solve_ivp"
         line, = ax.loglog([e.wall_s for e in es], [e.error for e in es],
-                          "--" if ivp else "-", marker="s" if ivp else "o", label=key)
+                          "--" if ivp else "-", label=key, **curve_style(i))
         for e in es:
             if e.extrapolated:
                 ax.plot(e.wall_s, e.error, marker="o", ms=11, mfc="none", mec=line.get_color())
@@ -144,35 +154,37 @@ def plot_scene(scene):
     ax.set_ylabel("error: " + scene.error_metric.split(" (")[0])
     ax.set_title(scene.title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    fig.text(0.01, 0.01, "circled: extrapolated from a partial run (error of that part)",
-             fontsize=7)
-    fig.tight_layout()
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", fontsize=7,
+               ncols=2, frameon=False,
+               title="solve_ivp dashed; circled: extrapolated from a partial run (error of "
+                     "that part)", title_fontsize=7)
     return fig
 
 
 def _plot_chains(scene, plt):
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.8))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 5.8), layout="constrained")
     groups = {}
     for e in scene.entries:
         if not e.scene.startswith("chains/n=") or not math.isfinite(e.wall_s):
             continue
         n = int(e.scene.split("=")[1])
         groups.setdefault(f"{e.label} {e.setting}", []).append((n, e))
-    for key, pts in sorted(groups.items()):
+    for i, (key, pts) in enumerate(sorted(groups.items())):
         pts.sort(key=lambda p: p[0])
         ns = [p[0] for p in pts]
-        a1.loglog(ns, [p[1].wall_s / scene.duration_s for p in pts], marker="o", label=key)
-        a2.loglog(ns, [max(p[1].error, 1e-17) for p in pts], marker="o", label=key)
+        ls = "--" if key.startswith("solve_ivp") else "-"
+        a1.loglog(ns, [p[1].wall_s / scene.duration_s for p in pts], ls, label=key,
+                  **curve_style(i))
+        a2.loglog(ns, [max(p[1].error, 1e-17) for p in pts], ls, **curve_style(i))
     a1.set_xlabel("bodies n")
     a1.set_ylabel("wall time per simulated second [s]")
     a2.set_xlabel("bodies n")
     a2.set_ylabel("energy drift / (E0 - E_rest) over 10 s")
     for a in (a1, a2):
         a.grid(True, which="both", alpha=0.3)
-    a1.legend(fontsize=7)
+    fig.legend(*a1.get_legend_handles_labels(), loc="outside lower center", fontsize=7,
+               ncols=4, frameon=False)
     fig.suptitle(scene.title, fontsize=10)
-    fig.tight_layout()
     return fig
 
 

@@ -69,15 +69,32 @@ def scene_list():
 @click.argument("scene_name", metavar="SCENE")
 @_set_option
 @click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
+@click.option("--toml", "as_toml", is_flag=True,
+              help="Print a complete scene file (every key, documented) to edit and load back.")
 @_library_errors
-def scene_show(scene_name, overrides, as_json):
+def scene_show(scene_name, overrides, as_json, as_toml):
     """Show SCENE fully resolved: every physical parameter in SI units, the derived design
-    parameters and the natural frequencies."""
+    parameters and the natural frequencies (--toml: the scene as an editable file)."""
     from rig.summary import scene_summary
 
     from rig.scene import load_scene
 
-    summary = scene_summary(load_scene(scene_name, overrides))
+    if as_json and as_toml:
+        raise click.UsageError("give --json or --toml, not both")
+    sc = load_scene(scene_name, overrides)
+    if as_toml:
+        from importlib.metadata import version
+
+        from rig.scene_toml import scene_toml
+
+        sets = "".join(f" --set {o}" for o in overrides)
+        click.echo(scene_toml(sc, header=(
+            f"scene {sc.name} resolved from {sc.source}{sets} by pendulum-daq "
+            f"{version('pendulum-daq')}: every key, as loaded.\n"
+            "Edit and load it as a scene file (or start a new file with base = \"NAME\" and "
+            "only the keys that differ).")), nl=False)
+        return
+    summary = scene_summary(sc)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     else:
@@ -101,9 +118,13 @@ def _format_summary(s: dict, indent: int = 0) -> str:
 
 
 def _fmt(v) -> str:
+    """A value as a person reads it: numbers to 6 digits, booleans and nothing as in JSON/TOML
+    (true, false, null), lists in brackets."""
+    if isinstance(v, bool) or v is None:
+        return json.dumps(v)
     if isinstance(v, float):
         return f"{v:.6g}"
-    if isinstance(v, list):
+    if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_fmt(x) for x in v) + "]"
     return str(v)
 
@@ -152,7 +173,8 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     if plot_path is not None:
         from processing.plots import model_bode_figure
 
-        fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model")
+        fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model",
+                                paper_figures=sc.settings["pendulum"]["kind"] == "ishizaki")
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
         click.echo(f"wrote {plot_path}")
@@ -223,24 +245,42 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     if traj.error_estimate_rad is not None:
         click.echo(f"estimated max angle error: {traj.max_error_rad:.3g} rad "
                    f"({traj.error_method})")
+    for text in traj.warnings:
+        click.echo(f"WARNING: {text}", err=True)
 
 
 # -- acquisition -----------------------------------------------------------------------------
 
 class _ProgressBar:
     """``progress(simulated_s, total_s)`` for :func:`daq.acquisition.acquire` as a click bar on
-    stderr (created on the first call, when the total is known)."""
+    stderr (created on the first call, when the total is known), with the analyzer's averaging
+    display: "settling" and then "average n of N" (records finished), and the time left."""
 
-    def __init__(self, label: str):
+    def __init__(self, label: str, *, records: int = 0, record_s: float = 0.0,
+                 settle_s: float = 0.0):
         self.label, self.bar, self.last = label, None, 0
+        self.records, self.record_s, self.settle_s = records, record_s, settle_s
+        self.done_s = 0.0
+
+    def status(self, done_s: float) -> str:
+        """What the display shows after ``done_s`` simulated seconds."""
+        if self.records <= 0 or self.record_s <= 0:
+            return ""
+        if done_s < self.settle_s:
+            return f"settling, average 0 of {self.records}"
+        n = min(self.records, int((done_s - self.settle_s + 1e-9) // self.record_s))
+        return f"average {n} of {self.records}"
 
     def __call__(self, done_s: float, total_s: float) -> None:
+        self.done_s = done_s
         if self.bar is None:
             self.bar = click.progressbar(length=max(1, round(total_s * 1000)), file=sys.stderr,
-                                         label=f"{self.label} ({total_s:g} s simulated)")
+                                         label=f"{self.label} ({total_s:g} s simulated)",
+                                         show_eta=True,
+                                         item_show_func=lambda _: self.status(self.done_s))
             self.bar.__enter__()
         n = round(done_s * 1000)
-        self.bar.update(n - self.last)
+        self.bar.update(n - self.last, current_item=done_s)
         self.last = n
 
     def close(self) -> None:
@@ -272,8 +312,9 @@ def _model_lines(info: dict) -> list[str]:
 
 
 @main.command()
-@click.option("--scene", "scene_name", required=True, metavar="SCENE",
-              help="Preset name or scene TOML file.")
+@click.argument("scene_arg", metavar="SCENE", required=False)
+@click.option("--scene", "scene_name", metavar="SCENE",
+              help="The same as the SCENE argument (preset name or scene TOML file).")
 @click.option("--records", type=int, help="Number of records (acquisition.records).")
 @click.option("--duration", type=float, help="Seconds per record (acquisition.record_s).")
 @click.option("--rate", type=float, help="Sample rate of every channel [Hz] (acquisition.rate_hz).")
@@ -285,7 +326,7 @@ def _model_lines(info: dict) -> list[str]:
 @_force_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 @_library_errors
-def acquire(scene_name, records, duration, rate, seed, out, overrides, force, quiet):
+def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides, force, quiet):
     """Acquire records of SCENE's bench into an HDF5 run file.
 
     --records, --duration and --rate override the scene's acquisition.records, .record_s and
@@ -298,13 +339,22 @@ def acquire(scene_name, records, duration, rate, seed, out, overrides, force, qu
     from daq.acquisition import acquire as run_acquisition
     from rig.scene import load_scene
 
+    if scene_arg is not None and scene_name is not None and scene_arg != scene_name:
+        raise click.UsageError(f"two scenes given: {scene_arg!r} and --scene {scene_name!r}; "
+                               "give one (the SCENE argument, or --scene)")
+    scene_name = scene_arg if scene_arg is not None else scene_name
+    if scene_name is None:
+        raise click.UsageError("missing the scene: daq acquire SCENE ... (a preset name or a "
+                               "scene TOML file; see daq scene list)")
     extra = [f"acquisition.{key}={value!r}" for key, value in
              (("records", records), ("record_s", duration), ("rate_hz", rate))
              if value is not None]
     sc = load_scene(scene_name, [*overrides, *extra])
     if seed is None:
         seed = secrets.randbits(63)
-    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}")
+    a = sc.settings["acquisition"]
+    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a["records"],
+                                          record_s=a["record_s"], settle_s=a["settle_s"])
     try:
         summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar)
     except AcquisitionInterrupted as exc:
@@ -453,6 +503,23 @@ def _processing_errors(fn):
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write spectra, responses, coherence, model and E[H1] to a new HDF5 file "
                    "(xarray: group 'spectra', engine h5netcdf).")
+@click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write H_t and Theta_2 with their coherence as UFF 58 (.uff/.unv) for modal "
+                   "software (processing.uff).")
+@click.option("--estimator", type=click.Choice(["h1", "h2", "hv"]), default="h1",
+              show_default=True, help="FRF estimator: H1 = G_ax/G_aa (noise on the output), "
+                   "H2 = G_xx/G_xa (noise on the input), Hv (total least squares).")
+@click.option("--fmin", "fmin_hz", type=float, default=0.1, show_default=True,
+              help="Lowest frequency of the display band [Hz] (CSV, UFF, plots, statistics).")
+@click.option("--fmax", "fmax_hz", type=float, default=10.0, show_default=True,
+              help="Highest frequency of the display band [Hz].")
+@click.option("--phase", type=click.Choice(["wrapped", "unwrapped"]), default="wrapped",
+              show_default=True, help="Phase display of the plots: wrapped to (-180, 180] "
+                   "(broken at each wrap) or unwrapped along frequency.")
+@click.option("--view", type=click.Choice(["bode", "nyquist", "coherence", "all"]),
+              default="bode", show_default=True, help="What --plot draws: Bode (gain, phase, "
+              "coherence over the model), Nyquist with real and imaginary parts, the coherences; "
+              "all: the three, as PLOT-bode.png, PLOT-nyquist.png, PLOT-coherence.png.")
 @click.option("--allow-incomplete", is_flag=True,
               help="Analyse a damaged run file (records failing their checksum, or fewer rows "
                    "than it counts) with only the records that verify, instead of refusing it.")
@@ -460,7 +527,8 @@ def _processing_errors(fn):
 @_library_errors
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
-            report_path, spectra_path, force, allow_incomplete):
+            report_path, spectra_path, uff_path, estimator, fmin_hz, fmax_hz, phase, view,
+            force, allow_incomplete):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -470,18 +538,21 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     interrupted run is analysed with the records it holds). The run file is only read.
     """
     from daq.hdf5 import read_run
-    from processing.analysis import (AnalyzerSettings, write_bode_png, write_csv,
-                                     write_report)
+    from processing.analysis import AnalyzerSettings, write_csv, write_report
     from processing.analysis import analyze as run_analysis
     from processing.spectra_hdf5 import write_spectra
+    from processing.uff import write_frf_uff
+    from processing.views import view_paths, write_views
 
     settings = AnalyzerSettings(window=window, averaging=averaging, nperseg=nperseg, lines=lines,
-                                span_hz=span_hz, overlap=overlap)
-    outputs = [(p, w) for p, w in ((csv_path, write_csv), (plot_path, write_bode_png),
-                                   (report_path, write_report), (spectra_path, write_spectra))
+                                span_hz=span_hz, overlap=overlap, estimator=estimator,
+                                fmin_hz=fmin_hz, fmax_hz=fmax_hz)
+    plots = [] if plot_path is None else list(view_paths(plot_path, view).values())
+    outputs = [(p, w) for p, w in ((csv_path, write_csv), (report_path, write_report),
+                                   (spectra_path, write_spectra), (uff_path, write_frf_uff))
                if p is not None]
     seen = {run.resolve(): "the run file being analysed"}
-    for p, _ in outputs:
+    for p in [q for q, _ in outputs] + plots:
         key = p.resolve()
         if key in seen:
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
@@ -493,6 +564,9 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     for p, write in outputs:
         write(analysis, p, force=force)
         click.echo(f"wrote {p}")
+    if plot_path is not None:
+        for p in write_views(analysis, plot_path, view, phase=phase, force=force):
+            click.echo(f"wrote {p}")
 
 
 
@@ -595,6 +669,48 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
             click.echo(f"  run {r['index']} failed: {r['error']}")
     click.echo(f"wrote {result.manifest} (xarray.open_dataset(..., engine=\"h5netcdf\")) and "
                f"{result.table}")
+# -- export ----------------------------------------------------------------------------------
+
+@main.command()
+@click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the channels as a netCDF-4/HDF5 file (.nc, .h5, .hdf5) that xarray "
+                   "opens directly (daq.eu.to_xarray).")
+@click.option("--units", type=click.Choice(["eu", "volts", "codes"]), default="eu",
+              show_default=True, help="Units of --out: engineering units (m/s^2, m, rad), the "
+              "sensors' volts or the raw ADC codes.")
+@click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write every record of every channel in engineering units as UFF 58 time "
+                   "responses (.uff/.unv, daq.uff).")
+@_force_option
+@_library_errors
+def export(run, out_path, units, uff_path, force):
+    """Export the run file RUN's channels (finished records) in engineering units: to a netCDF
+    file (--out) and/or to UFF 58 time records (--uff). The run file is only read."""
+    from daq.eu import write_eu_file
+    from daq.hdf5 import read_run
+    from daq.uff import write_time_uff
+
+    outputs = [p for p in (out_path, uff_path) if p is not None]
+    if not outputs:
+        raise click.UsageError("nothing to export: give --out FILE.nc and/or --uff FILE.uff")
+    seen = {run.resolve()}
+    for p in outputs:
+        if p.resolve() in seen:
+            raise click.BadParameter(f"output {str(p)!r} is the run file or another output: "
+                                     "choose another path")
+        seen.add(p.resolve())
+        check_writable(p, force=force)
+    recording = read_run(run)
+    if out_path is not None:
+        write_eu_file(recording, out_path, units=units, force=force)
+        click.echo(f"wrote {out_path}: {recording.records} records of "
+                   f"{', '.join(recording.header.names)} in {units}")
+    if uff_path is not None:
+        write_time_uff(recording, uff_path, source=run.name, force=force)
+        click.echo(f"wrote {uff_path}: {recording.records * len(recording.header.names)} UFF 58 "
+                   "time records in engineering units")
+
 
 def _run_check(path: Path):
     """:func:`daq.check.check_file` of a file that must be a run file that opens: a ConfigError

@@ -350,6 +350,14 @@ class Recording:
         """Channel ``name`` in its engineering unit (calibration and its sign undone)."""
         return self.volts(name) / self.header.channel(name).volts_per_unit
 
+    def to_xarray(self, units: str = "eu"):
+        """The channels as an ``xarray.Dataset`` in ``units`` ("eu": m/s^2, m, rad, the arrays
+        the analyzer transforms; "volts"; "codes"), units on every variable
+        (:func:`daq.eu.to_xarray`)."""
+        from daq.eu import to_xarray
+
+        return to_xarray(self, units=units)
+
     def clip_counts(self) -> np.ndarray:
         """Clipped samples, (records, channels)."""
         return np.array([[np.count_nonzero(self.clipped[c][r]) for c in self.header.names]

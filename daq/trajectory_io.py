@@ -60,6 +60,7 @@ def _metadata(traj: Trajectory, scene: Scene) -> dict:
         "wall_time_s": traj.wall_time_s,
         "max_error_estimate_rad": traj.max_error_rad,
         "error_method": traj.error_method,
+        "warnings": list(traj.warnings),
     }
 
 

@@ -113,7 +113,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import io
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -713,6 +712,11 @@ class Analysis:
     antiresonances_hz : {"x": (...), "y": (...)}.
     highpass_at_fmin : (dB, deg) of the whole chain against the pendulum alone at ``fmin_hz``.
     notes : tuple of str: what the reader must know (incomplete run, clipping, skipped parts).
+    coherence_budget : processing.coherence_model.CoherenceBudget or None (with E[H1]): the
+        expected coherence with the optical lever's second-order geometry, the noise floors and
+        leakage, and without each.
+    coherence_dips : tuple of processing.coherence_model.Dip: the predicted dips over the display
+        band, named by mechanism, with the measured coherence there.
     """
 
     settings: AnalyzerSettings
@@ -732,6 +736,8 @@ class Analysis:
     antiresonances_hz: Mapping
     highpass_at_fmin: tuple
     notes: tuple
+    coherence_budget: object = None
+    coherence_dips: tuple = ()
 
     @property
     def freqs_hz(self) -> np.ndarray:
@@ -874,6 +880,23 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
                                           fmax_hz=s.fmax_hz)
         except SettingsError as exc:
             notes.append(f"no expected estimate: {exc}")
+    budget, dips = None, ()
+    grid = expected  # the coherence does not depend on the estimator: its FFT length and notch
+    if grid is None and s.estimator != "h1":
+        try:
+            grid = _expected_estimate(h, spectral, bench, n_fft=None, fmin_hz=s.fmin_hz,
+                                      fmax_hz=s.fmax_hz)
+        except SettingsError:
+            grid = None
+    if grid is not None:
+        from processing.coherence_model import coherence_budget, named_dips
+
+        budget = coherence_budget(h, spectral, bench, n_fft=grid.n_fft,
+                                  n_averages=h_t.n_effective)
+        dips = tuple(named_dips(budget, {"x": h_t.coherence, "y": theta_2.coherence},
+                                modes_hz=[fm for fm, _ in exact], antiresonances_hz=anti,
+                                input_notch_db=grid.input_notch_db, fmin_hz=s.fmin_hz,
+                                fmax_hz=s.fmax_hz))
 
     def model_fn(name):
         stored = getattr(model, name)
@@ -944,7 +967,7 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
                     comparisons=MappingProxyType(comparisons), fits=MappingProxyType(fits),
                     fit_checks=MappingProxyType(checks), rotation=rotation, exact_modes=exact,
                     antiresonances_hz=MappingProxyType(anti), highpass_at_fmin=highpass_at_fmin,
-                    notes=tuple(notes))
+                    notes=tuple(notes), coherence_budget=budget, coherence_dips=dips)
 
 
 def _rotation(scene, h_t, theta_2, model, spectral, band) -> RotationReading:
@@ -1019,6 +1042,10 @@ def _summary(a: Analysis) -> str:
         co.append(f"{label.split()[0]} median {np.nanmedian(g):.4f}, min {g[j]:.3g} at "
                   f"{c.freqs_hz[j]:.4g} Hz")
     out.append(f"coherence {a.settings.fmin_hz:g}-{a.settings.fmax_hz:g} Hz: " + "; ".join(co))
+    if a.coherence_dips:
+        out.append("coherence dips predicted by the bench's model (expected gamma^2 with the "
+                   "optical lever's second-order geometry, noise floors and leakage):")
+        out += [f"  {d.text}" for d in a.coherence_dips]
     ok = []
     for label, c in a.comparisons.items():
         b = c.bands[0]
@@ -1101,10 +1128,31 @@ def _report(a: Analysis) -> str:
             "misstate the bias at the peaks.")
     head.append("")
     out = title + "\n" + "\n".join(head) + rest
+    if a.coherence_budget is not None:
+        out = _insert_before(out, "## Modal fit", _dips_section(a))
     if a.fit_checks:
         out = _insert_before(out, "## Leakage bias and random error at the peaks",
                              _checks_section(a))
     return out
+
+
+def _dips_section(a: Analysis) -> str:
+    """The report's "Coherence dips explained" section (processing.coherence_model)."""
+    b = a.coherence_budget
+    out = ["## Coherence dips explained", "",
+           "The expected coherence comes from the bench's exact spectra tapered by the window "
+           "(as E[H1]) with every mechanism that lowers it: the optical lever's second-order "
+           f"geometry (calibrated x reads dx - {b.coefficients['x']:.4g} m/rad² θ², y reads "
+           f"θ - {b.coefficients['y']:.4g} /m dx θ: products of Gaussian signals, uncorrelated "
+           "with the input, at the sums and doubles of the frequencies in the motion), the "
+           "accelerometer's and the PSD's noise floors, ADC quantisation and leakage, plus the "
+           f"estimator's own bias (1 - γ²)²/n_d for n_d = {b.n_averages:g}. Each dip's causes "
+           "are the shares of the lost coherence that each mechanism alone removes.", ""]
+    if not a.coherence_dips:
+        out.append(f"- no dip deeper than 1 - γ² = 0.05 is predicted over "
+                   f"{a.settings.fmin_hz:g}-{a.settings.fmax_hz:g} Hz.")
+    out += [f"- {d.text}" for d in a.coherence_dips]
+    return "\n".join(out) + "\n"
 
 
 def _insert_before(text: str, marker: str, section: str) -> str:
@@ -1157,12 +1205,26 @@ def _fine_grid(a: Analysis) -> np.ndarray:
     return f[(f >= max(lo, 1e-3)) & (f <= hi)]
 
 
-def bode_figures(a: Analysis, *, k: float | None = None):
+def incomplete_note(a: Analysis) -> str:
+    """"" for a complete run, else what the figures must say: "4 of 30 records (interrupted)"."""
+    if a.run.complete:
+        return ""
+    return f"{a.run.records} of {a.run.records_planned} records ({a.run.status})"
+
+
+def paper_figures(scene) -> bool:
+    """Whether the paper's Figs. 9 and 10 show this kind of pendulum (an Ishizaki design)."""
+    return scene.settings["pendulum"]["kind"] == "ishizaki"
+
+
+def bode_figures(a: Analysis, *, k: float | None = None, phase: str = "wrapped"):
     """The measured Bode diagrams (:func:`processing.plots.measured_bode_figure`): translation
-    H_t like the paper's Fig. 9 and rotation Theta_2 like Fig. 10, measured lines with their
-    Bendat-Piersol band over the exact whole-chain model, stage 1 dotted (body 1's centre of
-    mass, resp. theta_1, per unit stage acceleration as the analyzer reads it), E[H1] dashed, and
-    the coherence. Returns ``(fig_translation, fig_rotation)``; the caller closes them."""
+    H_t (cf. the paper's Fig. 9 for an Ishizaki pendulum) and rotation Theta_2 (cf. Fig. 10),
+    measured lines with their Bendat-Piersol band over the exact whole-chain model, stage 1
+    dotted (body 1's centre of mass, resp. theta_1, per unit stage acceleration as the analyzer
+    reads it), E[H1] dashed, and the coherence; titled from the scene, an incomplete run marked.
+    ``phase``: "wrapped" or "unwrapped". Returns ``(fig_translation, fig_rotation)``; the caller
+    closes them."""
     from processing.plots import Curve, measured_bode_figure
 
     scene = a.scene
@@ -1174,45 +1236,37 @@ def bode_figures(a: Analysis, *, k: float | None = None):
         theta1 = r["theta"][:, 0] / a_eng
     g1 = theta1 * chain.point_weights(0, chain.com_m[0])[0]
     kk = a.settings.k if k is None else k
+    paper = paper_figures(scene)
     figs = []
     lines = a.freqs_hz
-    for frf, model, stage1, e, title, unit in (
-            (a.h_t, r["h_t"], g1, None if a.expected is None else a.expected.h_t,
-             "H_t = W_ax/W_aa: mirror translation (like Fig. 9)", "m/(m/s^2)"),
+    est = a.settings.estimator.upper()
+    for frf, model, stage1, e, what, title, s1, unit in (
+            (a.h_t, r["h_t"], g1, None if a.expected is None else a.expected.h_t, "H_t",
+             "mirror translation H_t = W_ax/W_aa" + (" (cf. the paper's Fig. 9)" if paper else ""),
+             "stage 1: translation of its centre of mass G1 (model)", "m/(m/s^2)"),
             (a.theta_2, r["theta_2"], theta1, None if a.expected is None else a.expected.theta_2,
-             "Θ₂ = W_ay/W_aa: mirror rotation (like Fig. 10)", "rad/(m/s^2)")):
+             "Θ₂", "mirror rotation Θ₂ = W_ay/W_aa" + (" (cf. the paper's Fig. 10)" if paper
+                                                       else ""),
+             "stage 1: rotation θ₁ (model)", "rad/(m/s^2)")):
         figs.append(measured_bode_figure(
-            frf, model=Curve("exact model (whole chain)", f, model),
-            stage1=Curve("stage 1 (model)", f, stage1),
-            expected=None if e is None else Curve("E[H1] (expected estimate)", lines, e),
-            k=kk, title=f"{title}\n{a.run.scene}, seed {a.run.seed}, {a.h_t.n_averages} averages",
-            unit=unit, fmin_hz=a.settings.fmin_hz, fmax_hz=a.settings.fmax_hz))
+            frf, model=Curve(f"exact model of {what} (whole chain)", f, model),
+            stage1=Curve(s1, f, stage1),
+            expected=None if e is None else Curve(f"E[H1] of {what} (expected estimate)", lines,
+                                                  e),
+            k=kk, title=f"{a.run.scene}: {title}\nseed {a.run.seed}, {est}, "
+                        f"{a.settings.window} window, {frf.n_averages} averages",
+            unit=unit, fmin_hz=a.settings.fmin_hz, fmax_hz=a.settings.fmax_hz, what=what,
+            phase=phase, incomplete=incomplete_note(a)))
     return tuple(figs)
 
 
-def write_bode_png(a: Analysis, path, *, force: bool = False, dpi: int = 100) -> Path:
-    """Both Bode diagrams side by side in one PNG (translation left, rotation right)."""
-    import matplotlib.image
-    import matplotlib.pyplot as plt
+def write_bode_png(a: Analysis, path, *, force: bool = False, dpi: int = 100,
+                   phase: str = "wrapped") -> Path:
+    """Both Bode diagrams side by side in one PNG (translation left, rotation right): the
+    ``bode`` view of :func:`processing.views.write_views`."""
+    from processing.views import write_views
 
-    path = Path(path)
-    figs = bode_figures(a)
-    try:
-        imgs = []
-        for fig in figs:
-            buf = io.BytesIO()
-            fig.savefig(buf, dpi=dpi, format="png")
-            buf.seek(0)
-            imgs.append(matplotlib.image.imread(buf, format="png"))
-    finally:
-        for fig in figs:
-            plt.close(fig)
-    height = max(i.shape[0] for i in imgs)
-    padded = [np.pad(i, ((0, height - i.shape[0]), (0, 0), (0, 0)), constant_values=1.0)
-              for i in imgs]
-    with atomic_output(path, force=force) as tmp:
-        matplotlib.image.imsave(tmp, np.concatenate(padded, axis=1), format="png")
-    return path
+    return write_views(a, path, "bode", phase=phase, force=force, dpi=dpi)[0]
 
 
 def write_csv(a: Analysis, path, *, force: bool = False) -> Path:

@@ -1,6 +1,10 @@
-"""Bode diagrams in the style of the paper's Figs. 9 and 10 (gain and phase on a 0.1-10 Hz log axis).
+"""Bode diagrams in the style of the paper's Figs. 9 and 10 (gain and phase on a 0.1-10 Hz log axis),
+and the analyzer's other views: Nyquist with real and imaginary parts, coherence.
 
 Plot functions only render result data and return the matplotlib figure; they never show it.
+Every figure is drawn the way a paper prints it: the legend outside the data, decade ticks
+labelled 0.1 / 1 / 10 Hz, the wrapped phase broken at each wrap (no vertical lines) or unwrapped,
+axis labels naming the quantity, and an incomplete run marked in red in the title.
 """
 
 from __future__ import annotations
@@ -13,7 +17,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from matplotlib.ticker import FuncFormatter, MultipleLocator, NullFormatter  # noqa: E402
+
 from rig.response import MirrorResponse, gain_db, phase_deg  # noqa: E402
+
+PHASES = ("wrapped", "unwrapped")
 
 
 @dataclass(frozen=True)
@@ -26,53 +34,129 @@ class Curve:
     style: dict = field(default_factory=dict)
 
 
-def bode_axes(fig, col: int, ncols: int, title: str, unit: str, curves: list[Curve]):
-    """Draw gain [dB re unit] and phase [deg] panels of ``curves`` in column ``col`` of ``fig``."""
+def _log_lo(fmin_hz: float, freqs_hz) -> float:
+    """The lower limit of a log frequency axis: ``fmin_hz``, or the lowest positive line if
+    ``fmin_hz`` is 0."""
+    if fmin_hz > 0:
+        return fmin_hz
+    f = np.asarray(freqs_hz, dtype=float)
+    f = f[f > 0]
+    return float(f.min()) if f.size else 1e-3
+
+
+def decade_axis(ax) -> None:
+    """Label a log frequency axis's decades as plain numbers (0.1, 1, 10), minor ticks unlabelled."""
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+
+
+def phase_curve(f, h, phase: str = "wrapped") -> tuple[np.ndarray, np.ndarray]:
+    """``(f, phase [deg])`` ready to draw as a line: ``"wrapped"`` to (-180, 180] with a NaN
+    inserted at every wrap (a break, not a vertical line), or ``"unwrapped"`` along frequency."""
+    f, h = np.asarray(f, dtype=float), np.asarray(h)
+    if phase not in PHASES:
+        raise ValueError(f"phase = {phase!r} is invalid: expected one of {', '.join(PHASES)}")
+    if phase == "unwrapped":
+        out = np.full(h.shape, np.nan)
+        ok = np.isfinite(h)
+        out[ok] = np.degrees(np.unwrap(np.angle(h[ok])))
+        return f, out
+    p = phase_deg(h)
+    return wrap_breaks(f, p)
+
+
+def wrap_breaks(f, p, *others):
+    """Insert NaN into ``f``, ``p`` (and ``others``) between neighbours whose phases ``p`` differ
+    by more than 180 deg, so a line drawn through them breaks at the wrap."""
+    jump = np.nonzero(np.abs(np.diff(p)) > 180.0)[0] + 1
+    return tuple(np.insert(np.asarray(a, dtype=float), jump, np.nan) for a in (f, p, *others))
+
+
+def _phase_axis(ax, phase: str, what: str = "") -> None:
+    ax.set_ylabel(f"phase{' of ' + what if what else ''} [deg]")
+    if phase == "wrapped":
+        ax.set_ylim(-190, 190)
+        ax.set_yticks([-180, -90, 0, 90, 180])
+    else:
+        lo, hi = ax.get_ylim()
+        ax.yaxis.set_major_locator(MultipleLocator(90 if hi - lo <= 900 else 180))
+
+
+def outside_legend(fig, ax, ncols: int = 2) -> None:
+    """The legend of ``ax``'s labelled artists below the figure's panels, outside the data."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize=8,
+                   frameon=False)
+
+
+def title_with_status(fig, title: str, incomplete: str = "") -> None:
+    """``title`` as the figure's title; an incomplete run's note first, in red and bold."""
+    if incomplete:
+        fig.suptitle(f"INCOMPLETE RUN: {incomplete}\n{title}", color="tab:red",
+                     fontweight="bold")
+    elif title:
+        fig.suptitle(title)
+
+
+def bode_axes(fig, col: int, ncols: int, title: str, unit: str, curves: list[Curve], *,
+              what: str = "", phase: str = "wrapped"):
+    """Draw gain [dB re unit] and phase [deg] panels of ``curves`` in column ``col`` of ``fig``
+    (``what``: the quantity's symbol for the axis labels); the caller places the legend
+    (:func:`outside_legend`)."""
     ax_g = fig.add_subplot(2, ncols, col + 1)
     ax_p = fig.add_subplot(2, ncols, ncols + col + 1, sharex=ax_g)
     for c in curves:
         ax_g.semilogx(c.freqs_hz, gain_db(c.h), label=c.label, **c.style)
-        ax_p.semilogx(c.freqs_hz, phase_deg(c.h), **c.style)
+        ax_p.semilogx(*phase_curve(c.freqs_hz, c.h, phase), **c.style)
     ax_g.set_title(title)
-    ax_g.set_ylabel(f"gain [dB re 1 {unit}]")
-    ax_p.set_ylabel("phase [deg]")
+    ax_g.set_ylabel(f"gain{' |' + what + '|' if what else ''} [dB re 1 {unit}]")
+    _phase_axis(ax_p, phase, what)
     ax_p.set_xlabel("frequency [Hz]")
-    ax_p.set_ylim(-190, 190)
-    ax_p.set_yticks([-180, -90, 0, 90, 180])
     for ax in (ax_g, ax_p):
         ax.grid(True, which="both", alpha=0.3)
-    ax_g.legend(fontsize=8, loc="lower left")
+        decade_axis(ax)
     return ax_g, ax_p
 
 
-def model_bode_figure(resp: MirrorResponse, *, title: str = ""):
-    """Translation (x, like Fig. 9) and rotation (y, like Fig. 10) of the model, stage 1 dotted."""
+def model_bode_figure(resp: MirrorResponse, *, title: str = "", paper_figures: bool = False,
+                      phase: str = "wrapped"):
+    """Translation x and rotation y of the mirror per unit stage acceleration (the model), with
+    stage 1 dotted; ``paper_figures`` names the paper's Figs. 9 and 10 (for its pendulum)."""
     f = resp.freqs_hz
-    fig = plt.figure(figsize=(12, 7), layout="constrained")
-    bode_axes(fig, 0, 2, "translation x (mirror centre, like Fig. 9)", "m/(m/s^2)", [
-        Curve("mirror x (model)", f, resp.x, {"color": "k", "lw": 1.5}),
-        Curve("stage 1, G1 (model)", f, resp.stage1_x, {"color": "tab:blue", "ls": ":", "lw": 1.5}),
-    ])
-    bode_axes(fig, 1, 2, "rotation y (mirror body, like Fig. 10)", "rad/(m/s^2)", [
-        Curve("mirror rotation (model)", f, resp.y, {"color": "k", "lw": 1.5}),
-        Curve("stage 1, theta_1 (model)", f, resp.stage1_theta,
-              {"color": "tab:blue", "ls": ":", "lw": 1.5}),
-    ])
-    if title:
-        fig.suptitle(title)
+    fig = plt.figure(figsize=(12, 7.5), layout="constrained")
+    fig9, fig10 = (" (cf. the paper's Fig. 9)", " (cf. Fig. 10)") if paper_figures else ("", "")
+    blue = {"color": "tab:blue", "ls": ":", "lw": 1.5}
+    ax1, _ = bode_axes(fig, 0, 2, f"mirror translation x per stage acceleration{fig9}",
+                       "m/(m/s^2)", [
+                           Curve("mirror translation x (model)", f, resp.x,
+                                 {"color": "k", "lw": 1.5}),
+                           Curve("stage 1: translation of its centre of mass G1 (model)", f,
+                                 resp.stage1_x, blue)], what="x/a", phase=phase)
+    ax2, _ = bode_axes(fig, 1, 2, f"mirror rotation y per stage acceleration{fig10}",
+                       "rad/(m/s^2)", [
+                           Curve("mirror rotation y (model)", f, resp.y,
+                                 {"color": "k", "lw": 1.5}),
+                           Curve("stage 1: rotation θ₁ (model)", f, resp.stage1_theta, blue)],
+                       what="y/a", phase=phase)
+    h1, l1 = ax1.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    fig.legend(h1 + h2, l1 + l2, loc="outside lower center", ncols=2, fontsize=8, frameon=False)
+    title_with_status(fig, title)
     return fig
 
 
 def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve | None = None,
                          expected: Curve | None = None, k: float = 2.0, title: str = "",
-                         unit: str = "", fmin_hz: float = 0.1, fmax_hz: float = 10.0):
+                         unit: str = "", fmin_hz: float = 0.1, fmax_hz: float = 10.0,
+                         what: str = "", phase: str = "wrapped", incomplete: str = ""):
     """Measured Bode diagram in the style of the paper's Figs. 9 and 10, plus coherence.
 
     Gain [dB] and phase [deg] panels on a log frequency axis from ``fmin_hz`` to ``fmax_hz``:
     the measured lines as markers with their ``k``-sigma Bendat-Piersol band
     (:meth:`FrequencyResponse.gain_band_db`, :meth:`~FrequencyResponse.phase_band_deg`) shaded,
     the model as a line, stage 1 dotted, and optionally ``E[H1]`` dashed; a third panel shows
-    the coherence gamma^2.
+    the coherence gamma^2. The legend is below the panels.
 
     Parameters
     ----------
@@ -82,8 +166,10 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
         Default styles apply unless the Curve's ``style`` sets them.
     k : band width in sigma (default 2).
     title : figure title; unit : unit of the response for the gain label (default
-        ``measured.units``).
+        ``measured.units``); what : the response's symbol for the axis labels (e.g. "H_t").
     fmin_hz, fmax_hz : x range [Hz].
+    phase : "wrapped" (to (-180, 180], lines broken at the wraps) or "unwrapped".
+    incomplete : if not empty, the run is incomplete: this note heads the title in red.
 
     Returns
     -------
@@ -92,21 +178,28 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     f = np.asarray(measured.freqs_hz)
     sel = (f >= fmin_hz) & (f <= fmax_hz) & np.isfinite(measured.h)
     fs = f[sel]
-    fig = plt.figure(figsize=(8, 9), layout="constrained")
+    fig = plt.figure(figsize=(8, 9.5), layout="constrained")
     ax_g = fig.add_subplot(3, 1, 1)
     ax_p = fig.add_subplot(3, 1, 2, sharex=ax_g)
     ax_c = fig.add_subplot(3, 1, 3, sharex=ax_g)
+    unwrapped = phase == "unwrapped"
+    if phase not in PHASES:
+        raise ValueError(f"phase = {phase!r} is invalid: expected one of {', '.join(PHASES)}")
     g_lo, g_hi = (b[sel] for b in measured.gain_band_db(k))
-    p_lo, p_hi = (b[sel] for b in measured.phase_band_deg(k))
+    p_lo, p_hi = (b[sel] for b in measured.phase_band_deg(k, unwrapped=unwrapped))
+    p_meas = (measured.phase_unwrapped_deg if unwrapped else measured.phase_deg)[sel]
     band_style = {"color": "tab:red", "alpha": 0.25, "lw": 0}
     ax_g.fill_between(fs, np.where(np.isfinite(g_lo), g_lo, np.nan), g_hi,
                       label=f"±{k:g}σ (Bendat-Piersol)", **band_style)
-    ax_p.fill_between(fs, p_lo, p_hi, **band_style)
+    bf, _, blo, bhi = wrap_breaks(fs, p_meas, p_lo, p_hi) if not unwrapped else (fs, p_meas,
+                                                                                   p_lo, p_hi)
+    ax_p.fill_between(bf, blo, bhi, **band_style)
     marker = {"ls": "none", "marker": "o", "ms": 2.0, "color": "tab:red", "mfc": "none",
               "mew": 0.6}
-    ax_g.semilogx(fs, measured.magnitude_db[sel], label=f"measured ({measured.estimator.upper()}, "
-                  f"{measured.n_averages} averages)", **marker)
-    ax_p.semilogx(fs, measured.phase_deg[sel], **marker)
+    name = f"{what} " if what else ""
+    ax_g.semilogx(fs, measured.magnitude_db[sel], label=f"measured {name}"
+                  f"({measured.estimator.upper()}, {measured.n_averages} averages)", **marker)
+    ax_p.semilogx(fs, p_meas, **marker)
     defaults = ((model, {"color": "k", "lw": 1.2}), (stage1, {"color": "tab:blue", "ls": ":",
                                                               "lw": 1.5}),
                 (expected, {"color": "tab:green", "ls": "--", "lw": 1.0}))
@@ -117,19 +210,114 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
         m = (cf >= fmin_hz) & (cf <= fmax_hz)
         st = {**style, **curve.style}
         ax_g.semilogx(cf[m], gain_db(curve.h[m]), label=curve.label, **st)
-        ax_p.semilogx(cf[m], phase_deg(curve.h[m]), **st)
+        ax_p.semilogx(*phase_curve(cf[m], curve.h[m], phase), **st)
     ax_c.semilogx(fs, measured.coherence[sel], color="tab:red", lw=0.8)
-    ax_g.set_ylabel(f"gain [dB re 1 {unit or measured.units}]")
-    ax_p.set_ylabel("phase [deg]")
-    ax_p.set_ylim(-190, 190)
-    ax_p.set_yticks([-180, -90, 0, 90, 180])
-    ax_c.set_ylabel("coherence γ²")
+    ax_g.set_ylabel(f"gain{' |' + what + '|' if what else ''} [dB re 1 {unit or measured.units}]")
+    _phase_axis(ax_p, phase, what)
+    ax_c.set_ylabel(f"coherence γ²{' of ' + what if what else ''}")
     ax_c.set_ylim(0, 1.05)
     ax_c.set_xlabel("frequency [Hz]")
-    ax_c.set_xlim(fmin_hz, fmax_hz)
+    ax_c.set_xlim(_log_lo(fmin_hz, fs), fmax_hz)
     for ax in (ax_g, ax_p, ax_c):
         ax.grid(True, which="both", alpha=0.3)
-    ax_g.legend(fontsize=8, loc="lower left")
-    if title:
-        fig.suptitle(title)
+        decade_axis(ax)
+    outside_legend(fig, ax_g)
+    title_with_status(fig, title, incomplete)
+    return fig
+
+
+@dataclass(frozen=True)
+class Response:
+    """One measured response for the Nyquist and coherence views: its symbol, the
+    :class:`processing.frf.FrequencyResponse`, its unit and the model :class:`Curve` (or None)."""
+
+    name: str
+    measured: object
+    unit: str
+    model: Curve | None = None
+    expected_coherence: np.ndarray | None = None
+
+
+def nyquist_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz: float = 10.0,
+                   title: str = "", incomplete: str = ""):
+    """The Nyquist view and the real and imaginary parts against frequency, one column per
+    response: measured lines as markers (coloured by frequency in the Nyquist panel), the model
+    as a line. Returns the figure."""
+    n = len(responses)
+    fig = plt.figure(figsize=(6.5 * n, 11), layout="constrained")
+    for col, r in enumerate(responses):
+        f = np.asarray(r.measured.freqs_hz)
+        sel = (f >= fmin_hz) & (f <= fmax_hz) & np.isfinite(r.measured.h)
+        fs, h = f[sel], r.measured.h[sel]
+        ax_n = fig.add_subplot(3, n, col + 1)
+        ax_r = fig.add_subplot(3, n, n + col + 1)
+        ax_i = fig.add_subplot(3, n, 2 * n + col + 1, sharex=ax_r)
+        if r.model is not None:
+            cf = np.asarray(r.model.freqs_hz)
+            m = (cf >= fmin_hz) & (cf <= fmax_hz)
+            style = {"color": "k", "lw": 1.0, **r.model.style}
+            ax_n.plot(r.model.h[m].real, r.model.h[m].imag, label=r.model.label, **style)
+            ax_r.semilogx(cf[m], r.model.h[m].real, **style)
+            ax_i.semilogx(cf[m], r.model.h[m].imag, **style)
+        sc = ax_n.scatter(h.real, h.imag, c=fs, s=6, cmap="viridis",
+                          norm=matplotlib.colors.LogNorm(_log_lo(fmin_hz, fs), fmax_hz),
+                          label=f"measured {r.name} ({r.measured.estimator.upper()}, "
+                                f"{r.measured.n_averages} averages)")
+        cb = fig.colorbar(sc, ax=ax_n, label="frequency [Hz]")
+        cb.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        marker = {"ls": "none", "marker": "o", "ms": 2.0, "color": "tab:red", "mfc": "none",
+                  "mew": 0.6}
+        ax_r.semilogx(fs, h.real, **marker)
+        ax_i.semilogx(fs, h.imag, **marker)
+        ax_n.set_aspect("equal", adjustable="datalim")
+        ax_n.set_title(f"{r.name}: Nyquist")
+        ax_n.set_xlabel(f"Re {r.name} [{r.unit}]")
+        ax_n.set_ylabel(f"Im {r.name} [{r.unit}]")
+        ax_r.set_ylabel(f"Re {r.name} [{r.unit}]")
+        ax_i.set_ylabel(f"Im {r.name} [{r.unit}]")
+        ax_i.set_xlabel("frequency [Hz]")
+        ax_r.set_xlim(_log_lo(fmin_hz, fs), fmax_hz)
+        for ax in (ax_n, ax_r, ax_i):
+            ax.grid(True, which="both", alpha=0.3)
+            ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 3))
+        ax_n.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3))
+        decade_axis(ax_r)
+        decade_axis(ax_i)
+        if col == 0:
+            outside_legend(fig, ax_n)
+    title_with_status(fig, title, incomplete)
+    return fig
+
+
+def coherence_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz: float = 10.0,
+                     marks: tuple = (), title: str = "", incomplete: str = ""):
+    """The coherence gamma^2 of every response on one log frequency axis, with optional
+    ``marks`` ``(frequency_hz, label)`` (e.g. the frequencies where a known mechanism lowers
+    it) as thin vertical lines labelled at the top. Returns the figure."""
+    fig = plt.figure(figsize=(9, 6), layout="constrained")
+    ax = fig.add_subplot(1, 1, 1)
+    styles = ({"color": "tab:red", "marker": "o"}, {"color": "tab:blue", "marker": "s"},
+              {"color": "tab:green", "marker": "^"})
+    for r, st in zip(responses, styles):
+        f = np.asarray(r.measured.freqs_hz)
+        sel = (f >= fmin_hz) & (f <= fmax_hz) & np.isfinite(r.measured.h)
+        ax.semilogx(f[sel], r.measured.coherence[sel], lw=0.7, ms=2.0, mfc="none", mew=0.6,
+                    label=f"γ² of {r.name} ({r.measured.n_averages} averages)", **st)
+        if r.expected_coherence is not None:
+            ax.semilogx(f[sel], np.asarray(r.expected_coherence)[sel], color="k",
+                        ls="--" if st["marker"] == "o" else ":", lw=0.9,
+                        label=f"expected γ² of {r.name} (model: lever geometry, noise, leakage)")
+    for fm, label in marks:
+        if fmin_hz <= fm <= fmax_hz:
+            ax.axvline(fm, color="0.5", lw=0.6, ls="--")
+            ax.text(fm, 1.06, label, rotation=90, ha="center", va="bottom", fontsize=7,
+                    color="0.3", transform=ax.get_xaxis_transform())
+    ax.set_xlim(_log_lo(fmin_hz, responses[0].measured.freqs_hz), fmax_hz)
+    ax.set_ylim(0, 1.05)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("coherence γ² [1]")
+    ax.grid(True, which="both", alpha=0.3)
+    decade_axis(ax)
+    outside_legend(fig, ax)
+    title_with_status(fig, title, incomplete)
     return fig

@@ -23,14 +23,20 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     per sample for the Ishizaki pendulum. The sensors read the states at the instants. Its error
     is the linearisation (a model error, predicted by :func:`predict_linearisation_error`).
 ``nonlinear``
-    ``method="lawson4"`` (default): the whole bench, nonlinear pendulum *and* its reaction on
-    the stage (or without it), integrated as one system by :mod:`rig.coupled`: the linear bench
-    is propagated exactly (the same matrix exponentials) and only the nonlinear remainder
-    (relative size ~theta^2) is integrated by Lawson's RK4, ``substeps`` steps per DAC interval.
-    Error estimate: Richardson (x 16/15) against twice the steps on a probe run of the scene's
-    drive. For ``ishizaki2009`` with one step per DAC sample: 4e-12 relative RMS at the default
+    ``method="etdab"`` (default): the whole bench, nonlinear pendulum *and* its reaction on the
+    stage (or without it), integrated as one system by :mod:`rig.coupled`: the linear bench is
+    propagated exactly (the matrix exponential of the exact linear model) and only the nonlinear
+    remainder (relative size ~theta^2) is integrated, by exponential Adams-Bashforth of order 4
+    (:func:`rig.coupled.etd_ab_kernel`: the remainder's integral over a step from the
+    polynomial through its values at the last 4 steps; one evaluation per step, at the step's
+    own state), ``substeps`` steps per DAC interval. Error estimate: Richardson (x 16/15)
+    against twice the steps on a probe run of the scene's drive. The per-sample cost is the
+    exact linear step plus one remainder evaluation and its weights (docs: BENCHMARKS.md).
+    Where the motion is far from linear (a double rod swinging at 1 rad) its error constant is
+    larger than lawson4's at the same step (the estimate says so).
+    ``method="lawson4"``: the same split, the remainder by Lawson's RK4 (four evaluations per
+    step). For ``ishizaki2009`` with one step per DAC sample: 4e-12 relative RMS at the default
     drive (round-off), 1e-10 at 1 V (theta1 ~ 0.06 rad); halving the step divides it by 25-50.
-    Cost ~3 us per DAC sample on a shared two-core machine (the paper's run ~10 s).
     ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the stage is
     discretised exactly at ``h / oversample`` and the pendulum's nonlinear equations are
     integrated through :func:`rig.integrators.integrate` on that prescribed stage acceleration,
@@ -148,7 +154,10 @@ from rig.source import NOISE_TYPES, Source, SourceState, generate, start_source
 from rig.stage import Stage
 
 MODELS = ("auto", "linear", "nonlinear")  # acquisition.model; "auto" resolves to one of the others
-NONLINEAR_METHODS = ("lawson4", "rk4", "gauss4", "dop853")
+NONLINEAR_METHODS = ("lawson4", "etdab", "rk4", "gauss4", "dop853")
+COUPLED_METHODS = ("lawson4", "etdab")  # rig.coupled: the whole bench as one system
+DEFAULT_METHOD = "etdab"
+ETDAB_ORDER = 4  # past remainder values per etdab step (the order of the method)
 PRESCRIBED_STAGE_METHODS = ("rk4", "gauss4", "dop853")  # rig.integrators on a given stage motion
 PREDICTOR_ENTROPY = 20090005  # the predictor's own random stream (the choice is the scene's)
 PREDICTOR_BATCHES = 8
@@ -182,8 +191,11 @@ class BenchModel:
     accel_row : x0'' = accel_row . z.  slices : named slices of z.
     stage_phi, stage_gamma, stage_accel_row : prescribed-stage nonlinear path only: the stage +
         accelerometer (z_s = (i, x0, v0, q)) stepped exactly at 1 / (fs oversample).
-    coupled, lawson : lawson4 path only: the kernels' parameters (:class:`rig.coupled.
-        CoupledParams`) and (E_h, E_h/2, G_h, G_h/2) at h = 1 / (fs substeps).
+    coupled, lawson : lawson4 and etdab paths: the kernels' parameters (:class:`rig.coupled.
+        CoupledParams`); lawson4: (E_h, E_h/2, G_h, G_h/2) at h = 1 / (fs substeps).
+    etdab : etdab path only: (Phi^T, Gamma, W) at h = 1 / (fs substeps)
+        (:func:`rig.coupled.etd_ab_weights`) and their sparsity (:func:`rig.coupled.
+        etd_ab_sparsity`): the kernel's arguments after ``coupled``'s.
     """
 
     scene: Scene
@@ -211,6 +223,7 @@ class BenchModel:
     coupled: rcoupled.CoupledParams | None = None
     lawson: tuple | None = None
     selection: dict | None = None
+    etdab: tuple | None = None
 
     @property
     def chain(self) -> Chain:
@@ -298,7 +311,7 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
     """Validate the scene's bench sections and build the :class:`BenchModel`.
 
     ``acquisition.model = "auto"`` runs :func:`select_model` (or takes ``selection``, its
-    result for this scene). ``method`` (default ``"lawson4"``), ``oversample``, ``substeps``,
+    result for this scene). ``method`` (default ``"etdab"``), ``oversample``, ``substeps``,
     ``rtol``, ``atol`` matter for the nonlinear model only (module docstring): ``substeps``
     Lawson steps per DAC interval, or for the prescribed-stage methods ``oversample`` exact
     stage-acceleration instants per DAC interval (the pendulum sees them linearly interpolated)
@@ -325,7 +338,7 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
                           f"{', '.join(MODELS)}")
     _error_budget(acq)
     if method is None:
-        method = "lawson4"
+        method = DEFAULT_METHOD
     if method not in NONLINEAR_METHODS:
         raise ConfigError(f"method = {method!r} is invalid: expected one of "
                           f"{', '.join(NONLINEAR_METHODS)}")
@@ -350,11 +363,19 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
     h = 1.0 / fs
     phi, g0, _ = discretise(a, b, h, "zoh")
     kw = {}
-    if model == "nonlinear" and method == "lawson4":
+    if model == "nonlinear" and method in COUPLED_METHODS:
         q_idx = slices["accel_highpass_q_mps"].start if acc.n_states else -1
-        kw = dict(coupled=rcoupled.coupled_params(chain, stage, a, q_idx=q_idx,
-                                                 wc=acc.corner_rad_s if acc.n_states else 0.0),
-                  lawson=rcoupled.lawson_matrices(a, b, h / substeps))
+        prm = rcoupled.coupled_params(chain, stage, a, q_idx=q_idx,
+                                      wc=acc.corner_rad_s if acc.n_states else 0.0)
+        if method == "lawson4":
+            kw = dict(coupled=prm, lawson=rcoupled.lawson_matrices(a, b, h / substeps))
+        else:
+            hs = h / substeps
+            phi_s, g_s, _ = discretise(a, b, hs, "zoh")
+            phi_t = np.ascontiguousarray(phi_s.T)
+            w = rcoupled.etd_ab_weights(a, prm.rows, hs, ETDAB_ORDER)
+            kw = dict(coupled=prm, etdab=(phi_t, np.ascontiguousarray(g_s[:, 0]), w)
+                      + rcoupled.etd_ab_sparsity(w, prm.a_rows))
     elif model == "nonlinear":
         sa, sb, srow, _ = _bench_state_space(stage, chain, acc, with_chain=False, source=source)
         sphi, sg0, _ = discretise(sa, sb, h / oversample, "zoh")
@@ -427,7 +448,7 @@ def start(model: BenchModel, seed=0) -> BenchState:
     rngs = {name: np.random.PCG64(child).state  # a fresh dict of ints, owned by the state
             for name, child in zip(STREAMS[1:], children[1:])}
     native = None
-    if model.model == "nonlinear" and model.method != "lawson4":
+    if model.model == "nonlinear" and model.method not in COUPLED_METHODS:
         native = to_native(model.chain, model.method,
                            np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
     entropy = root.entropy if isinstance(root.entropy, int) else None
@@ -569,6 +590,17 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
         e_h, e_2, g_h, g_2 = model.lawson
         rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
                                1.0 / (fs * model.substeps), model.substeps, v, z, z_out, accel)
+        _check_finite(model, state, z_out, z, t0, n)
+        theta = z_out[:, sl["theta_rad"]]
+        omega = z_out[:, sl["omega_rad_s"]]
+    elif model.method == "etdab":
+        z_out = np.empty((n, z.size))
+        accel = np.empty(n)
+        hist = (np.zeros((ETDAB_ORDER, model.coupled.rows.size)) if native is None
+                else np.array(native, dtype=float))
+        rcoupled.etd_ab_kernel(*model.coupled.args(), *model.etdab, model.substeps,
+                               native is not None, hist, v, z, z_out, accel)
+        native = hist
         _check_finite(model, state, z_out, z, t0, n)
         theta = z_out[:, sl["theta_rad"]]
         omega = z_out[:, sl["omega_rad_s"]]
@@ -1238,11 +1270,15 @@ def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
 
 
 def _kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarray:
-    """Angles at the DAC instants of the linear or lawson4 kernel alone (no sensors)."""
+    """Angles at the DAC instants of the linear, lawson4 or etdab kernel alone (no sensors)."""
     z = z0.copy()
     z_out = np.empty((v.size, z.size))
     if model.model == "linear":
         linear_bench_kernel(np.ascontiguousarray(model.phi.T), model.gamma, v, z, z_out)
+    elif model.method == "etdab":
+        rcoupled.etd_ab_kernel(*model.coupled.args(), *model.etdab, model.substeps, False,
+                               np.zeros((ETDAB_ORDER, model.coupled.rows.size)), v, z, z_out,
+                               np.empty(v.size))
     else:
         e_h, e_2, g_h, g_2 = model.lawson
         rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
@@ -1324,6 +1360,34 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
             "selection.prediction.how; discretisation: |theta_h - theta_h/2| over a "
             f"{probe_s:g} s probe of the scene's drive from rest against the same exact "
             "discretisation with two half steps per DAC sample (round-off only)")
+    elif model.method == "etdab":
+        loads = " that it loads (reaction)" if model.stage.reaction else ""
+        info["method"] = (
+            f"nonlinear pendulum on the stage{loads}, the whole bench as one system "
+            "(rig.coupled): the linear bench propagated exactly (matrix exponential, zero-order "
+            "hold), the nonlinear remainder by exponential Adams-Bashforth of order "
+            f"{ETDAB_ORDER} (its integral over a step from the polynomial through its last "
+            f"{ETDAB_ORDER} values, one evaluation per step), {model.substeps} step(s) per DAC "
+            "sample")
+        theta = _kernel_theta(model, v, z0)
+        fine = build_model(scene, method="etdab", substeps=2 * model.substeps,
+                           selection=model.selection)
+        theta_f = _kernel_theta(fine, v, z0)
+        factor = 2.0**ETDAB_ORDER / (2.0**ETDAB_ORDER - 1.0)
+        diff = (theta - theta_f) * factor
+        lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
+        info["error_estimate"] = {
+            "max_abs_theta_rad": float(np.max(np.abs(diff))),
+            "relative_rms_theta": _rel_rms(diff, theta),
+            "integrator_max_abs_theta_rad": float(np.max(np.abs(diff))),
+            "probe_nonlinear_minus_linear_relative_rms_theta": _rel_rms(theta - lin, theta),
+        }
+        info["error_method"] = (
+            f"Richardson on a {probe_s:g} s probe of the scene's drive from rest: |theta - "
+            f"theta(2x steps)| 2^{ETDAB_ORDER}/(2^{ETDAB_ORDER} - 1) (the error is that of the "
+            "small nonlinear remainder: the linear part is exact). "
+            "'probe_nonlinear_minus_linear' is the model difference on the probe (the run's is "
+            "predicted in 'selection')")
     elif model.method == "lawson4":
         loads = " that it loads (reaction)" if model.stage.reaction else ""
         info["method"] = (f"nonlinear pendulum on the stage{loads}, the whole bench as one "

@@ -17,6 +17,10 @@ is the key's suffix). ``daq scene show NAME`` prints a scene fully resolved.
                  horizontal displacement of that point relative to the base, the rotation channel y
                  is the angle of that body (SPEC section 5).
 ``[initial]``    theta0_rad, omega0_rad_s: one number for every body or a list of n.
+
+A top-level ``base = "PRESET"`` (or a TOML file path, relative to the file) inherits every key not
+given (:func:`load_scene`); :func:`rig.scene_toml.scene_toml` writes a resolved scene back as a
+complete file.
 """
 
 from __future__ import annotations
@@ -239,24 +243,67 @@ def preset_text(name: str) -> str:
 def load_scene(scene: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
     """Load a scene from a preset name or a TOML file path and apply ``key=value`` overrides.
 
+    A scene may start from another: a top-level ``base = "PRESET"`` (or a path to a TOML file,
+    relative to the file that names it) inherits every key the scene does not give, section by
+    section; bases may chain (a cycle is an error). A scene that gives a different
+    ``pendulum.kind`` than its base inherits none of the base's pendulum keys.
+
     Overrides use dotted keys (``pendulum.q1=300``), an index for one list element
     (``initial.theta0_rad[2]=0.1``, 1-based like the bodies) and TOML values (a bare word is
-    taken as a string: ``pendulum.damping_mode=relative``).
+    taken as a string: ``pendulum.damping_mode=relative``). They apply after the inheritance.
     """
+    data, source = read_scene_data(scene)
+    for item in overrides:
+        apply_override(data, item)
+    return resolve_scene(data, source=source)
+
+
+def read_scene_data(scene: str | Path, *, relative_to: Path | None = None,
+                    _chain: tuple[str, ...] = ()) -> tuple[dict, str]:
+    """The raw data of a scene (a preset name or a TOML file) with its ``base`` chain merged in,
+    and a description of where it came from (``"file.toml (base preset:ishizaki2009)"``)."""
     path = Path(scene)
+    if relative_to is not None and not path.is_absolute():
+        path = relative_to / path
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise ConfigError(f"scene file {str(path)!r} does not exist")
-        text, source = path.read_text(), str(path)
+        text, source, key = path.read_text(), str(path), str(path.resolve())
     else:
         text, source = preset_text(str(scene)), f"preset:{scene}"
+        key = source
+    if key in _chain:
+        raise ConfigError(f"scene {source}: its base chain comes back to itself "
+                          f"({' -> '.join((*_chain, key))})")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"scene {source}: invalid TOML: {exc}") from None
-    for item in overrides:
-        apply_override(data, item)
-    return resolve_scene(data, source=source)
+    base = data.pop("base", None)
+    if base is None:
+        return data, source
+    if not isinstance(base, str) or not base:
+        raise ConfigError(f"scene {source}: base = {base!r} is invalid: expected a preset name "
+                          f"({', '.join(preset_names())}) or a .toml file path in quotes")
+    folder = path.parent if source != f"preset:{scene}" else None
+    base_data, base_source = read_scene_data(base, relative_to=folder, _chain=(*_chain, key))
+    return merge_scene_data(base_data, data), f"{source} (base {base_source})"
+
+
+def merge_scene_data(base: dict, child: dict) -> dict:
+    """``child`` over ``base``: each section's keys of the child replace the base's, the rest
+    are inherited; a child naming another ``pendulum.kind`` replaces the whole pendulum section."""
+    out = copy.deepcopy(base)
+    for section, table in child.items():
+        inherited = out.get(section)
+        if not isinstance(table, dict) or not isinstance(inherited, dict):
+            out[section] = copy.deepcopy(table)
+            continue
+        if section == "pendulum" and "kind" in table and table["kind"] != inherited.get("kind"):
+            out[section] = copy.deepcopy(table)
+            continue
+        inherited.update(copy.deepcopy(table))
+    return out
 
 
 def scene_from_settings(settings: dict, source: str = "settings") -> Scene:

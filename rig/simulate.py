@@ -17,6 +17,7 @@ Public API: :class:`BaseInput`, :class:`SimState`, :class:`Trajectory`, :func:`s
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import time
@@ -192,6 +193,8 @@ class Trajectory:
     error_method : a sentence saying how the estimate was obtained.
     estimate_wall_time_s : wall-clock time spent on the estimate [s].
     final_state : :class:`SimState` at the end, to continue with.
+    warnings : sentences saying why the result should not be trusted as it is
+        (:func:`rig.sim_checks.simulation_warnings`; empty if none).
     """
 
     t_s: np.ndarray
@@ -211,6 +214,7 @@ class Trajectory:
     error_method: str
     estimate_wall_time_s: float
     final_state: SimState = field(repr=False)
+    warnings: tuple = ()
 
     @functools.cached_property
     def energy_j(self) -> np.ndarray:
@@ -312,8 +316,15 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s,
 
     if kind in ("fixed", "implicit", "exponential") or (kind == "exact" and dt_s is not None):
         if dt_s is None:
-            dt = duration / math.ceil(duration * STEPS_PER_PERIOD *
-                                      float(np.max(chain.natural_frequencies_hz())) - 1e-9)
+            per_s = STEPS_PER_PERIOD * float(np.max(chain.natural_frequencies_hz()))
+            out = 1.0 if output_dt_s is None else output_dt_s
+            rows = round(duration / out)
+            if rows >= 1 and abs(duration - rows * out) <= _REL * duration:
+                # the output interval (default 1 s) split into equal steps: a sample lands on
+                # every output instant (every whole second)
+                dt = out / math.ceil(out * per_s - 1e-9)
+            else:
+                dt = duration / math.ceil(duration * per_s - 1e-9)
         else:
             dt = dt_s
         total = _divides("dt_s", dt, "duration_s", duration)
@@ -445,7 +456,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     dt_s : step [s] of the fixed-step methods (rk4, gauss4, midpoint, etd3; linear substeps); must
         divide the input interval (on a fixed base: the duration). Default for those: the
         input interval split into equal steps of at most 1/(100 f_max), f_max the fastest linear
-        mode (on a fixed base: the longest such step dividing the duration); the linear method
+        mode (on a fixed base: the longest such step dividing the output interval, so a
+        sample lands on every output instant, where the run is a whole number of output
+        intervals; else dividing the duration); the linear method
         steps once per interval, composed into one step per output row where a row spans several
         (``settings["linear_step"]``; :func:`rig.integrators.lift_linear`). Not accepted for
         dop853, which chooses its own steps. etd3m: a whole multiple m of the input interval
@@ -589,9 +602,13 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
                     atol=atol_f if info.kind == "adaptive" else None, rhs=rhs_name, **grid)
     if method == "linear":
         settings["linear_step"] = _linear_step(segs, lifted)
-    return Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
+    traj = Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
                       method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
                       n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
                       error_estimate_rad_s=err_om, energy_error_estimate_j=err_e,
                       error_method=error_method,
                       estimate_wall_time_s=est_wall, final_state=final)
+    from rig.sim_checks import simulation_warnings
+
+    found = simulation_warnings(traj, fixed_base=base is None)
+    return dataclasses.replace(traj, warnings=found) if found else traj

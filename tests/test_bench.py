@@ -365,7 +365,12 @@ def test_coupled_bench_difference_from_linear_is_the_first_order_perturbation():
     np.testing.assert_allclose(measured, predicted, rtol=0.02)
 
 
-def test_free_stage_conserves_momentum_and_energy_within_the_estimate():
+@pytest.mark.parametrize("method, drift_bound", [
+    ("lawson4", 1e-7),
+    # etdab (the default): order 4 too, but its remainder is not small on a 1 rad swing, so its
+    # error constant is larger (measured 8.5e-7 relative energy drift over 10 s)
+    ("etdab", 2e-6)])
+def test_free_stage_conserves_momentum_and_energy_within_the_estimate(method, drift_bound):
     # no spring, no guide damping, a (practically) disconnected coil, no drive, undamped chain:
     # the stage recoils as the double rod swings; horizontal momentum and total energy are
     # conserved by the equations, so their drift is the integrator's (Richardson at 2x steps)
@@ -377,7 +382,7 @@ def test_free_stage_conserves_momentum_and_energy_within_the_estimate():
     sc = load_scene("double-rod", over)
     runs = {}
     for sub in (1, 2):
-        b = BenchSimulation(sc, seed=0, substeps=sub).run(10.0)
+        b = BenchSimulation(sc, seed=0, method=method, substeps=sub).run(10.0)
         t = b.truth
         runs[sub] = (horizontal_momentum(sc.chain, Stage.from_settings(sc.settings["stage"]),
                                          t["theta_rad"], t["omega_rad_s"], t["stage_vel_mps"]),
@@ -391,7 +396,7 @@ def test_free_stage_conserves_momentum_and_energy_within_the_estimate():
         drift = np.max(np.abs(q1 - q1[0]))
         estimate = np.max(np.abs(q1 - q2)) * 16 / 15
         assert drift <= 1.5 * estimate + 1e-12 * np.max(np.abs(q1)), (drift, estimate)
-    assert np.max(np.abs(e1 - e1[0])) < 1e-7 * abs(e1[0])
+    assert np.max(np.abs(e1 - e1[0])) < drift_bound * abs(e1[0])
 
 
 def test_blocks_have_the_documented_contents():

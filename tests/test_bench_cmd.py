@@ -96,7 +96,8 @@ def test_markdown_has_every_entry_its_error_and_marks_extrapolation():
 
 def test_plots_have_a_curve_per_method():
     figs = [plot_scene(s) for s in _report().scenes]
-    assert len(figs[0].axes[0].get_legend().get_texts()) == 3  # etd3, rk4, solve_ivp DOP853
+    # the legend is the figure's, outside the data: etd3, rk4, solve_ivp DOP853
+    assert len(figs[0].legends[0].get_texts()) == 3
     assert len(figs[1].axes) == 2
     import matplotlib.pyplot as plt
     for f in figs:
@@ -140,3 +141,25 @@ def test_bench_command_writes_its_outputs_and_refuses_to_overwrite(tmp_path, mon
 def test_entry_label_names_the_solver():
     e = rb.Entry("paper", "solve_ivp", "LSODA", "rtol=1e-8", 1.0, (1.0,), 1e-6, 1.0)
     assert e.label == "solve_ivp LSODA" and math.isfinite(e.wall_s)
+
+
+def test_every_curve_of_the_stored_benchmark_plots_has_its_own_colour_and_marker():
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    from daq.bench_cmd import plot_scene
+    from rig.benchmark import BenchmarkReport
+
+    stored = Path(__file__).resolve().parents[1] / "docs" / "bench" / "bench.json"
+    report = BenchmarkReport.from_json(stored.read_text())
+    for scene in report.scenes:
+        fig = plot_scene(scene)
+        try:
+            lines = [ln for ax in fig.axes[:1] for ln in ax.get_lines()
+                     if not ln.get_label().startswith("_")]
+            pairs = [(ln.get_color(), ln.get_marker()) for ln in lines]
+            assert len(pairs) >= 2 and len(set(pairs)) == len(pairs), scene.name
+            assert len(fig.legends) == 1 and fig.axes[0].get_legend() is None
+        finally:
+            plt.close(fig)

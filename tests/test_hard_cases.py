@@ -271,7 +271,7 @@ def test_float64_throughout():
         for arr in (m.a, m.b, m.phi, m.gamma, m.accel_row, start(m, 0).z):
             assert arr.dtype == np.float64
         if model == "nonlinear":
-            assert all(x.dtype == np.float64 for x in m.lawson)
+            assert all(x.dtype == np.float64 for x in m.etdab[:3])  # the default method
             assert all(getattr(m.coupled, k).dtype == np.float64
                        for k in ("mass", "length", "com", "inertia", "gamma", "hc", "s", "cm",
                                  "a_rows"))

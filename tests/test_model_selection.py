@@ -74,7 +74,7 @@ def test_large_drive_runs_the_nonlinear_model_and_the_linear_one_would_have_exce
     assert sel["chosen"] == "nonlinear" and not sel["linear_meets_budget"]
     assert "over the error budget 0.01" in sel["reason"]
     sim = BenchSimulation(sc)
-    assert sim.model.model == "nonlinear" and sim.model.method == "lawson4"
+    assert sim.model.model == "nonlinear" and sim.model.method == "etdab"  # the default
     info = sim.model_info(probe_s=5.0)
     assert info["budget_met"] and info["error_estimate"]["relative_rms_theta"] < 1e-6
     measured = measured_linear_error(sc, seed=22)

@@ -118,7 +118,8 @@ def test_measured_bode_figure(results):
         ax_g, ax_p, ax_c = axes
         assert ax_g.get_xscale() == "log" and ax_g.get_xlim() == pytest.approx((0.1, 10.0))
         assert "coherence" in ax_c.get_ylabel()
-        labels = [t.get_text() for t in ax_g.get_legend().get_texts()]
+        assert ax_g.get_legend() is None and len(fig.legends) == 1  # outside the data
+        labels = [t.get_text() for t in fig.legends[0].get_texts()]
         assert any("measured" in t for t in labels) and "model" in labels
         assert any("2σ" in t for t in labels)
         styles = {ln.get_label(): ln.get_linestyle() for ln in ax_g.get_lines()}

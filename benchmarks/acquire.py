@@ -1,0 +1,91 @@
+#!/usr/bin/env python3
+"""The paper's acquisition (30 x 100 s at 100 Hz from the 1 kHz bench, seed 2009, written to a run
+file) in one warm process: the linear model, the nonlinear model with its default method and
+with the earlier one (lawson4), interleaved, CPU and wall time.
+
+    .venv/bin/python benchmarks/acquire.py                 # 7 rounds (~2 minutes)
+    .venv/bin/python benchmarks/acquire.py --rounds 11 --configs linear,etdab
+
+Every round runs each configuration once, in a rotating order (A B C, B C A, ...), after one
+warm-up run each (numba's cache loaded, the filter design memoised). Printed per configuration:
+the median and quartiles of CPU (``time.process_time``: every thread of the process) and wall
+time, and the median of the per-round ratios to the first configuration with their quartiles
+(a ratio within one round compares runs made under the same load). "Runs per minute on 2 cores"
+is 2 x 60 s / median CPU: what two such processes side by side sustain if CPU-bound.
+"""
+
+import argparse
+import functools
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from daq.acquisition import acquire, rig_bench  # noqa: E402
+from rig.scene import load_scene  # noqa: E402
+
+CONFIGS = {
+    "linear": ("acquisition.model=linear", {}),
+    "etdab": ("acquisition.model=nonlinear", {"method": "etdab"}),
+    "lawson4": ("acquisition.model=nonlinear", {"method": "lawson4"}),
+}
+
+
+def one_run(name, out, extra=()):
+    override, kw = CONFIGS[name]
+    scene = load_scene("ishizaki2009", [override, *extra])
+    t, c = time.perf_counter(), time.process_time()
+    summary = acquire(scene, seed=2009, out=out, force=True,
+                      bench=functools.partial(rig_bench, **kw))
+    return time.perf_counter() - t, time.process_time() - c, summary
+
+
+def quart(x):
+    return np.percentile(x, 25), np.median(x), np.percentile(x, 75)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--configs", default="linear,etdab,lawson4")
+    ap.add_argument("--set", action="append", default=[], help="a scene override for every run")
+    args = ap.parse_args(argv)
+    names = args.configs.split(",")
+    print(f"load average before: {os.getloadavg()}")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "paper.h5"
+        for n in names:
+            w, c, s = one_run(n, out, args.set)
+            info = s.model_info
+            est = info.get("error_estimate", {}).get("relative_rms_theta")
+            print(f"warm-up {n}: model {info['model']}, method {info['method'][:60]}..., "
+                  f"error estimate {est:.2g}; wall {w:.2f} s, CPU {c:.2f} s", flush=True)
+        walls = {n: [] for n in names}
+        cpus = {n: [] for n in names}
+        for r in range(args.rounds):
+            order = names[r % len(names):] + names[:r % len(names)]
+            for n in order:
+                w, c, _ = one_run(n, out, args.set)
+                walls[n].append(w)
+                cpus[n].append(c)
+    print(f"\n{args.rounds} rounds, interleaved; medians [quartiles]")
+    print("| configuration | CPU [s] | wall [s] | CPU / first | wall / first | runs/min on 2 "
+          "cores |")
+    print("|---|---|---|---|---|---|")
+    c0, w0 = np.array(cpus[names[0]]), np.array(walls[names[0]])
+    for n in names:
+        c, w = np.array(cpus[n]), np.array(walls[n])
+        qc, qw, rc, rw = quart(c), quart(w), quart(c / c0), quart(w / w0)
+        print(f"| {n} | {qc[1]:.2f} [{qc[0]:.2f}, {qc[2]:.2f}] | {qw[1]:.2f} [{qw[0]:.2f}, "
+              f"{qw[2]:.2f}] | {rc[1]:.2f} [{rc[0]:.2f}, {rc[2]:.2f}] | {rw[1]:.2f} "
+              f"[{rw[0]:.2f}, {rw[2]:.2f}] | {120 / qc[1]:.0f} |")
+    print(f"load average after: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,58 @@
+"""The paper's run, shortened (tests/golden.py), gives exactly the stored arrays: any change of
+the acquisition's output shows here. After an understood change, rewrite the golden files with
+``python -m tests.golden`` in a commit of its own that states the bound of the change."""
+
+import numpy as np
+import pytest
+
+from tests import golden
+
+
+@pytest.mark.parametrize("name", list(golden.RUNS))
+def test_a_golden_run_gives_the_stored_arrays_bit_for_bit(name):
+    stored = golden.load(name)
+    fresh = golden.run_arrays(name)
+    assert sorted(fresh) == sorted(stored)
+    for k, v in stored.items():
+        assert fresh[k].dtype == v.dtype and fresh[k].shape == v.shape, k
+        assert np.array_equal(fresh[k], v), k
+
+
+def test_golden_runs_are_distinct_runs_of_the_paper_scene():
+    lin, nl, strong = (golden.load(n) for n in ("linear", "nonlinear_lawson4",
+                                                  "nonlinear_1v_lawson4"))
+    for arrays in (lin, nl, strong):
+        assert arrays["codes/a"].shape == (3, 400)
+        assert arrays["truth/theta_rad"].shape == (3, 400, 2)
+    # the same drive: nonlinear and linear angles differ, but only by the small nonlinearity
+    th_l, th_n = lin["truth/theta_rad"], nl["truth/theta_rad"]
+    rel = np.sqrt(np.mean((th_n - th_l) ** 2)) / np.sqrt(np.mean(th_l ** 2))
+    assert 0 < rel < 1e-2
+    # ten times the drive: ten times the angles (within the nonlinearity)
+    ratio = np.sqrt(np.mean(strong["truth/theta_rad"] ** 2) / np.mean(th_n ** 2))
+    assert 9 < ratio < 11
+
+
+#: relative RMS of the truth, default path (etdab) against the earlier one (lawson4): 20 times
+#: etdab's own error estimate on these drives (6.7e-12 at 0.1 V, 6.7e-10 at 1 V, 20 s probe;
+#: lawson4's is 16 times smaller)
+TRUTH_BOUND = {"nonlinear": 1.4e-10, "nonlinear_1v": 1.4e-8}
+
+
+@pytest.mark.parametrize("name", list(TRUTH_BOUND))
+def test_the_default_nonlinear_path_equals_the_earlier_one_within_its_error(name):
+    # the angles' error propagates to every truth series; an ADC code can change only where its
+    # sample lies within that error of a rounding edge: a fraction ~2 err |x| / LSB (< 1e-4
+    # here), so at most 1 LSB in at most 1e-3 of the samples
+    new, old = golden.load(name), golden.load(name + "_lawson4")
+    assert sorted(new) == sorted(old)
+    for k, v in old.items():
+        if k.startswith("truth/"):
+            rel = np.sqrt(np.mean((new[k] - v) ** 2) / max(np.mean(v ** 2), 1e-300))
+            assert rel <= TRUTH_BOUND[name], (k, rel)
+        elif k.startswith("codes/"):
+            d = np.abs(new[k].astype(np.int64) - v.astype(np.int64))
+            assert d.max() <= 1 and np.mean(d > 0) <= 1e-3, k
+        else:  # flags and the model response: unchanged
+            assert np.array_equal(new[k], v), k
+    assert not np.array_equal(new["truth/theta_rad"], old["truth/theta_rad"])  # another path
