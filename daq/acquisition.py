@@ -336,20 +336,31 @@ class _Fanout:
 
 @contextlib.contextmanager
 def _sigint_deferred():
-    """Hold a SIGINT (Ctrl-C) until the block exits, then raise KeyboardInterrupt."""
+    """Hold a SIGINT (Ctrl-C) until the block exits, then raise KeyboardInterrupt; likewise a
+    stop signal (SIGTERM, SIGHUP) whose handler is a Python function (daq.signals), which is
+    then called."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    caught = []
+    from daq.signals import STOP_SIGNALS
+
+    caught, old = [], {}
     try:
-        old = signal.signal(signal.SIGINT, lambda sig, frame: caught.append(sig))
+        old[signal.SIGINT] = signal.signal(signal.SIGINT, lambda sig, frame: caught.append(sig))
+        for s in STOP_SIGNALS:
+            if callable(signal.getsignal(s)):
+                old[s] = signal.signal(s, lambda sig, frame: caught.append(sig))
     except ValueError:  # pragma: no cover - no signals here
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, old)
+        for s, h in old.items():
+            signal.signal(s, h)
+    for s in caught:
+        if s != signal.SIGINT:
+            old[s](s, None)  # raises (daq.signals.Stopped)
     if caught:
         raise KeyboardInterrupt
 
@@ -443,9 +454,14 @@ def acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bo
 
     Raises
     ------
-    rig.errors.ConfigError : invalid settings, seed or output path; raised before anything is
-        simulated or written.
-    AcquisitionInterrupted : on KeyboardInterrupt (a KeyboardInterrupt), after closing the sinks.
+    rig.errors.ConfigError : invalid settings, seed or output path, or a run whose file could
+        exceed the free space or whose records exceed the machine's memory
+        (:func:`daq.resources.preflight`); raised before anything is simulated or written.
+    AcquisitionInterrupted : on KeyboardInterrupt (a KeyboardInterrupt; also SIGTERM and SIGHUP
+        within :func:`daq.signals.stop_signals_interrupt`), after closing the sinks.
+    Any other exception that ends the run is re-raised after the sinks are closed, carrying the
+    :class:`AcquisitionSummary` so far as ``acquisition_summary`` (e.g. a full disk: what the
+    file holds).
     """
     # One BLAS thread throughout: the model's and the bench's matrix products are thin and gain
     # nothing from more, and OpenBLAS's spinning threads take the core that the pipeline's other
@@ -467,8 +483,12 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
     seed = check_seed(seed)
     sinks = list(sinks)
     file_sink = None
+    from daq.resources import preflight
+
     if out is not None:
         check_writable(Path(out), force=force)
+    preflight(plan, scene, out)  # file size and memory, before anything is simulated
+    if out is not None:
         from daq.hdf5 import HDF5Sink
 
         file_sink = HDF5Sink(out, force=force)
@@ -493,7 +513,7 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
     fan = _Fanout(sinks)
     clips: list[list[int]] = []
     sats: list[list[int]] = []
-    status, message = "failed", ""
+    status, message, failure = "failed", "", None
     try:
         fan.send("start", header)
         # the bench simulates the next blocks on one core while this thread filters, digitises
@@ -501,11 +521,13 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
         _run(header, _chain(first, prefetch(blocks, 2)), fan, progress, clips, sats,
              dict(getattr(the_bench, "saturation_keys", None) or {}))
         status = "complete"
-    except KeyboardInterrupt:
-        status, message = "interrupted", "KeyboardInterrupt"
+    except KeyboardInterrupt as exc:
+        status = "interrupted"
+        message = f"{exc} received" if str(exc).startswith("SIG") else "KeyboardInterrupt"
         raise
     except BaseException as exc:
-        message = f"{type(exc).__name__}: {exc}"
+        first = (str(exc).strip().splitlines() or [""])[0]
+        message, failure = f"{type(exc).__name__}: {first}", exc
         raise
     finally:
         clip_counts = np.array(clips, dtype=np.int64).reshape(len(clips), len(channels))
@@ -524,6 +546,9 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
             wall_s=time.perf_counter() - t_start, path=path,
             file_bytes=path.stat().st_size if path is not None and path.exists() else None,
             message=message)
+        if failure is not None:  # what the run left, for whoever reports the failure
+            with contextlib.suppress(AttributeError, TypeError):
+                failure.acquisition_summary = summary
         if status == "interrupted":
             raise AcquisitionInterrupted(summary) from None
         if errors and status == "complete":

@@ -17,6 +17,7 @@ import click
 import numpy as np
 
 from daq.bench_cmd import bench
+from daq.cli_errors import ErrorsAsMessages
 from daq.files import atomic_output, check_writable
 from rig.errors import RigError
 
@@ -43,10 +44,18 @@ def _force_option(fn):
     return click.option("--force", is_flag=True, help="Overwrite existing output files.")(fn)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=ErrorsAsMessages, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="pendulum-daq")
-def main():
-    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer)."""
+@click.option("--debug", is_flag=True,
+              help="Let errors through with their traceback (otherwise: one line, exit 1).")
+@click.pass_context
+def main(ctx, debug):
+    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer).
+
+    Exit status: 0 done; 1 an error (one line); 2 a usage error; 3 a run not as asked (over
+    its error budget or saturated; acquire --allow-over-budget); 128+N ended by signal N.
+    """
+    ctx.meta["daq.debug"] = debug
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -183,6 +192,90 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     click.echo(resonance_table(sc))
 
 
+# -- live view (rerun; imported only when one of these options is used) ---------------------
+
+def _live_options(fn):
+    for opt in reversed([
+        click.option("--live", is_flag=True,
+                     help="Spawn a rerun viewer (memory limit 2 GiB) and stream to it."),
+        click.option("--connect", metavar="URL",
+                     help="Stream to a running rerun viewer, e.g. "
+                          "rerun+http://127.0.0.1:9876/proxy."),
+        click.option("--rrd", type=click.Path(dir_okay=False, path_type=Path),
+                     help="Save the live view's stream to this .rrd file."),
+        click.option("--magnify", type=click.FloatRange(min=0, min_open=True), default=None,
+                     help="Factor on the angles in the bench drawing (the stage travel gets a sixth of it) "
+                          "(default 30 for a run, 1 for free motion)."),
+    ]):
+        fn = opt(fn)
+    return fn
+
+
+def _viewer_stream(live, connect, rrd, force):
+    """A :class:`processing.live_view.ViewerStream`, or None without a live option."""
+    if not (live or connect or rrd):
+        return None
+    from processing.live_view import ViewerOptions, ViewerStream
+
+    try:
+        return ViewerStream(ViewerOptions(spawn=live, connect=connect, rrd=rrd, force=force))
+    except ValueError as exc:
+        raise click.BadParameter(str(exc)) from None
+
+
+def _live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
+    """The live view as a sink of ``acquire``, or [] without a live option. Its options are
+    checked now; rerun (~1 s to import) is imported on a thread while the bench starts."""
+    if not (live or connect or rrd):
+        return []
+    if rrd is not None:
+        check_writable(rrd, force=force)
+    if connect:
+        from processing.viewer_url import host_port
+
+        try:
+            host_port(connect)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc)) from None
+    from daq.acquisition import Sink
+
+    class DeferredLiveView(Sink):
+        """processing.live_view.LiveView, made when the run starts (its import runs
+        beside the bench's start-up)."""
+
+        critical = False
+
+        def __init__(self):
+            import importlib
+            import threading
+
+            self.path, self._view = None, None
+            self._import = threading.Thread(
+                target=importlib.import_module, args=("processing.live_view",), daemon=True)
+            self._import.start()
+
+        def start(self, header):
+            self._import.join()
+            from processing.live_view import MAGNIFICATION, LiveView
+
+            self._view = LiveView(_viewer_stream(live, connect, rrd, force),
+                                  magnification=magnify or MAGNIFICATION, pacer=pacer)
+            self._view.start(header)
+
+        def block(self, block):
+            self._view.block(block)
+
+        def record(self, record):
+            self._view.record(record)
+
+        def stop(self, footer):
+            if self._view is not None:
+                self._view.stop(footer)
+                self.path = self._view.path
+
+    return [DeferredLiveView()]
+
+
 # -- simulation ------------------------------------------------------------------------------
 
 def _floats(ctx, param, value):
@@ -203,20 +296,26 @@ def _floats(ctx, param, value):
 @click.option("--omega0", callback=_floats, metavar="A,B,...",
               help="Initial angular velocities [rad/s] (default: the scene's).")
 @click.option("--method", default="dop853", show_default=True,
-              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "linear"]),
-              help="Integrator (rig.integrators.METHODS).")
+              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "etd3", "etd3m",
+                                 "linear"]),
+              help="Integrator (rig.integrators.METHODS; etd3m steps over held input samples, "
+                   "so it needs a moving base: on this fixed base use etd3).")
 @click.option("--rtol", type=float, help="Relative tolerance of dop853 [default 1e-10].")
 @click.option("--dt", "dt_s", type=float, help="Step of the fixed-step methods [s].")
 @click.option("--output-dt", "output_dt_s", type=float,
               help="Output interval [s] (default 1 s: a sample at every whole second).")
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Trajectory file: .csv, or .h5/.hdf5 for HDF5.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Trajectory file: .csv, or .h5/.hdf5 for HDF5 (optional with --live/--rrd).")
 @click.option("--no-error-estimate", is_flag=True, help="Skip the error estimate (one more run).")
 @_set_option
 @_force_option
+@click.option("--live", is_flag=True,
+              help="Show the motion in a spawned rerun viewer (memory limit 2 GiB).")
+@click.option("--rrd", type=click.Path(dir_okay=False, path_type=Path),
+              help="Save the motion as a rerun recording (.rrd).")
 @_library_errors
 def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt_s, out,
-             no_error_estimate, overrides, force):
+             no_error_estimate, overrides, force, live, rrd):
     """Simulate SCENE's pendulum on a fixed base from its initial state (free motion).
 
     Writes t, theta_1..theta_n, omega_1..omega_n and the energy, with the method and its error
@@ -229,17 +328,36 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
 
     if rtol is not None and dt_s is not None:
         raise click.UsageError("give --rtol (adaptive dop853) or --dt (fixed step), not both")
-    trajectory_format(out)
-    check_writable(out, force=force)
+    if method == "etd3m":
+        raise click.UsageError("--method etd3m steps over several held samples of a moving "
+                               "base's input; daq simulate runs the pendulum on a fixed base: "
+                               "use --method etd3 (the same exponential integrator)")
+    if out is None and not (live or rrd):
+        raise click.UsageError("give --out FILE (.csv, .h5) and/or --live / --rrd FILE.rrd")
+    if out is not None:
+        trajectory_format(out)
+        check_writable(out, force=force)
+    stream = _viewer_stream(live, None, rrd, force)
+    if stream is not None and output_dt_s is None:
+        from processing.bench_geometry import FRAMES_PER_S
+
+        output_dt_s = 1.0 / FRAMES_PER_S  # frames for the view, not one a second
     sc = load_scene(scene_name, overrides)
     kw = {} if rtol is None else {"rtol": rtol}
     traj = run_simulation(
         sc.chain, duration, theta0=sc.theta0_rad if theta0 is None else theta0,
         omega0=sc.omega0_rad_s if omega0 is None else omega0, method=method, dt_s=dt_s,
         output_dt_s=output_dt_s, estimate_error=not no_error_estimate, **kw)
-    write_trajectory(out, traj, sc, force=force)
+    if out is not None:
+        write_trajectory(out, traj, sc, force=force)
+    if stream is not None:
+        from processing.live_view import show_trajectory
+
+        path = show_trajectory(traj, sc, stream)
+        if path is not None:
+            click.echo(f"wrote {path} (rerun recording)")
     e = traj.energy_j
-    click.echo(f"wrote {out}: {traj.t_s.size} samples over {duration:g} s, {sc.chain.n} bodies, "
+    click.echo(f"{'wrote ' + str(out) if out else 'simulated'}: {traj.t_s.size} samples over {duration:g} s, {sc.chain.n} bodies, "
                f"method {traj.method} ({traj.n_steps} steps, {traj.wall_time_s:.3g} s)")
     click.echo(f"energy: {e[0]:.9g} J at t = 0, max |E - E0| = {np.max(np.abs(e - e[0])):.3g} J")
     if traj.error_estimate_rad is not None:
@@ -247,6 +365,53 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
                    f"({traj.error_method})")
     for text in traj.warnings:
         click.echo(f"WARNING: {text}", err=True)
+
+
+# -- live view: replay a run file (rerun) -------------------------------------------------
+
+@main.command()
+@click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--rrd", type=click.Path(dir_okay=False, path_type=Path),
+              help="Save the replay to this .rrd file.")
+@click.option("--connect", metavar="URL", help="Replay into a running rerun viewer.")
+@click.option("--screenshot", "screenshot_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Render the layout at the end of the run to a PNG, without a window.")
+@click.option("--size", default="1600x900", show_default=True, metavar="WxH",
+              help="Window size of --screenshot.")
+@click.option("--magnify", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Factor on the angles in the bench drawing (the stage travel gets a sixth of it) [default 30].")
+@_force_option
+@_library_errors
+def view(run, rrd, connect, screenshot_path, size, magnify, force):
+    """Replay the run file RUN into rerun as the live view showed it: a spawned viewer by
+    default, or --connect URL, --rrd FILE.rrd, --screenshot FILE.png (any combination). An
+    interrupted run shows its finished records."""
+    import tempfile
+
+    from processing.live_view import (MAGNIFICATION, LiveViewError, ViewerOptions,
+                                      ViewerStream, replay, screenshot)
+
+    for p in (rrd, screenshot_path):
+        if p is not None and p.resolve() == run.resolve():
+            raise click.BadParameter(f"output {str(p)!r} is the run file: choose another path")
+    if screenshot_path is not None:
+        check_writable(screenshot_path, force=force)
+    spawn = not (rrd or connect or screenshot_path)
+    with tempfile.TemporaryDirectory() as tmp:
+        target = rrd if rrd is not None or screenshot_path is None else Path(tmp) / "view.rrd"
+        stream = ViewerStream(ViewerOptions(spawn=spawn, connect=connect, rrd=target,
+                                            force=force))
+        v = replay(run, stream, magnification=magnify or MAGNIFICATION)
+        click.echo(f"replayed {v.footer.records_complete} of {v.header.plan.records} records "
+                   f"of {run} ({v.footer.status})")
+        if rrd is not None:
+            click.echo(f"wrote {rrd} (rerun recording)")
+        if screenshot_path is not None:
+            try:
+                screenshot(target, screenshot_path, size=size, force=force)
+            except LiveViewError as exc:
+                raise click.ClickException(str(exc)) from None
+            click.echo(f"wrote {screenshot_path}")
 
 
 # -- acquisition -----------------------------------------------------------------------------
@@ -320,13 +485,23 @@ def _model_lines(info: dict) -> list[str]:
 @click.option("--rate", type=float, help="Sample rate of every channel [Hz] (acquisition.rate_hz).")
 @click.option("--seed", type=click.IntRange(0, 2 ** 63 - 1),
               help="Seed of the run (default: a fresh random one, printed and stored).")
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="HDF5 run file to write.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="HDF5 run file to write (optional with a live option).")
 @_set_option
 @_force_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@_live_options
+@click.option("--realtime", is_flag=True,
+              help="Pace the run to the wall clock like the real bench (default: as fast as "
+                   "it can).")
+@click.option("--speed", type=float, default=None, metavar="K",
+              help="With --realtime: K times real time (default 1).")
+@click.option("--allow-over-budget", is_flag=True,
+              help="Exit 0 even if the run's estimated error exceeds its error budget or a "
+                   "channel clipped or saturated (otherwise a WARNING and exit status 3).")
 @_library_errors
-def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides, force, quiet):
+def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides, force, quiet,
+            live, connect, rrd, magnify, realtime, speed, allow_over_budget):
     """Acquire records of SCENE's bench into an HDF5 run file.
 
     --records, --duration and --rate override the scene's acquisition.records, .record_s and
@@ -335,8 +510,11 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     """
     import secrets
 
+    import signal
+
     from daq.acquisition import AcquisitionInterrupted
     from daq.acquisition import acquire as run_acquisition
+    from daq.signals import stop_signals_interrupt
     from rig.scene import load_scene
 
     if scene_arg is not None and scene_name is not None and scene_arg != scene_name:
@@ -349,33 +527,109 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     extra = [f"acquisition.{key}={value!r}" for key, value in
              (("records", records), ("record_s", duration), ("rate_hz", rate))
              if value is not None]
+    if out is None and not (live or connect or rrd):
+        raise click.UsageError("give --out RUN.h5 and/or a live option (--live, --connect URL, "
+                               "--rrd FILE.rrd)")
+    if speed is not None and not realtime:
+        raise click.UsageError(f"--speed {speed:g} needs --realtime")
+    if out is not None and rrd is not None and out.resolve() == rrd.resolve():
+        raise click.BadParameter(f"--rrd {str(rrd)!r} is the run file: choose another path")
     sc = load_scene(scene_name, [*overrides, *extra])
     if seed is None:
         seed = secrets.randbits(63)
+    pacer = None
+    if realtime:
+        from daq.pacing import Pacer
+
+        pacer = Pacer(1.0 if speed is None else speed)
+    sinks = _live_sinks(live, connect, rrd, force, magnify, pacer)
+    if pacer is not None and not sinks:
+        from daq.pacing import PacingSink
+
+        sinks = [PacingSink(pacer)]
     a = sc.settings["acquisition"]
     bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a["records"],
                                           record_s=a["record_s"], settle_s=a["settle_s"])
     try:
-        summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar)
+        with stop_signals_interrupt():  # SIGTERM, SIGHUP end the run like Ctrl-C
+            summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar,
+                                      sinks=sinks)
     except AcquisitionInterrupted as exc:
         if bar is not None:
             bar.close()
         s = exc.summary
+        by = s.message.split()[0] if s.message.startswith("SIG") else "SIGINT"
         where = f"{s.path} holds them (status interrupted)" if s.path else "no file was kept"
-        click.echo(f"interrupted after {s.records} of {s.records_planned} records; {where}",
-                   err=True)
-        raise click.exceptions.Exit(130) from None
+        click.echo(f"interrupted ({by}) after {s.records} of {s.records_planned} records; "
+                   f"{where}", err=True)
+        raise click.exceptions.Exit(128 + signal.Signals[by]) from None
+    except Exception as exc:
+        from daq.resources import is_disk_full
+
+        s = getattr(exc, "acquisition_summary", None)
+        if s is None or not is_disk_full(exc):
+            raise
+        raise click.ClickException(_disk_full_line(s)) from None
     finally:
         if bar is not None:
             bar.close()
     click.echo(_acquire_summary(summary))
+    for sink in sinks:
+        if getattr(sink, "path", None) is not None:
+            click.echo(f"wrote {sink.path} (rerun recording)")
+    warnings = _not_as_asked(summary)
+    for w in warnings:
+        click.echo(f"WARNING: {w}", err=True)
+    if warnings and not allow_over_budget:
+        from daq.cli_errors import EXIT_NOT_AS_ASKED
+
+        raise click.exceptions.Exit(EXIT_NOT_AS_ASKED)
+
+
+def _not_as_asked(s) -> list[str]:
+    """Why a finished run is not what was asked: over its error budget, or saturated."""
+    from daq.cli_errors import SATURATION_LIMIT
+
+    out = []
+    info = s.model_info
+    if info.get("budget_met") is False:
+        est = info.get("error_estimate")
+        est = est.get("relative_rms_theta") if isinstance(est, dict) else est
+        out.append(f"the run's estimated error {_fmt(est)} (relative RMS of the angles) exceeds "
+                   f"its error budget {_fmt(info.get('error_budget'))} (acquisition."
+                   "error_budget): the data are not as accurate as asked")
+    n = max(1, s.records * s.samples_per_record)
+    for what, totals in (("clipped by the ADC", s.clip_totals()),
+                         ("beyond its sensor's range", s.saturation_totals())):
+        for c, k in totals.items():
+            if k > SATURATION_LIMIT * n:
+                out.append(f"channel {c}: {k} of {n} samples ({100 * k / n:.3g} %) {what}, "
+                           f"more than {100 * SATURATION_LIMIT:g} %: lower the drive "
+                           "(source.level_vrms) or widen the range")
+    return out
+
+
+def _disk_full_line(s) -> str:
+    """One line for a run ended by a full disk: the partial file and what it holds."""
+    from daq.check import check_file
+
+    if s.path is None or not s.path.exists():
+        return (f"disk full after {s.records} of {s.records_planned} records; no file was kept")
+    fc = check_file(s.path)
+    held = (f"{fc.records_valid} finished records of {s.records_planned}, each verified"
+            if fc.kind == "run" else f"no readable record ({fc.status})")
+    repair = (f", then 'daq inspect --repair {s.path}' makes it plainly openable"
+              if any("marked open for writing" in n for n in fc.notes) else "")
+    return (f"disk full after {s.records} of {s.records_planned} records: {s.path} holds "
+            f"{held} (status {fc.status}); free some space{repair}")
 
 
 def _acquire_summary(s) -> str:
     clips = ", ".join(f"{c} {n}" for c, n in s.clip_totals().items())
     sats = ", ".join(f"{c} {n}" for c, n in s.saturation_totals().items())
     return "\n".join([
-        f"wrote {s.path} ({_size(s.file_bytes)}): {s.records} records x {s.samples_per_record} "
+        f"{'wrote ' + str(s.path) if s.path else 'no run file'} ({_size(s.file_bytes)}): "
+        f"{s.records} records x {s.samples_per_record} "
         f"samples at {s.rate_hz:g} Hz ({s.samples} samples per channel), channels "
         f"{', '.join(s.channels)}",
         f"seed: {s.seed}",
@@ -520,6 +774,9 @@ def _processing_errors(fn):
               default="bode", show_default=True, help="What --plot draws: Bode (gain, phase, "
               "coherence over the model), Nyquist with real and imaginary parts, the coherences; "
               "all: the three, as PLOT-bode.png, PLOT-nyquist.png, PLOT-coherence.png.")
+@click.option("--follow", is_flag=True,
+              help="Follow a run that is still being acquired (SWMR): print the averaged "
+                   "estimate each time records land, then analyse the whole run once it ends.")
 @click.option("--allow-incomplete", is_flag=True,
               help="Analyse a damaged run file (records failing their checksum, or fewer rows "
                    "than it counts) with only the records that verify, instead of refusing it.")
@@ -528,7 +785,7 @@ def _processing_errors(fn):
 @_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
             report_path, spectra_path, uff_path, estimator, fmin_hz, fmax_hz, phase, view,
-            force, allow_incomplete):
+            force, allow_incomplete, follow):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -558,6 +815,11 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
         seen[key] = "another output"
         check_writable(p, force=force)
+    if follow:
+        from processing.follow import follow_run
+
+        for update in follow_run(run, settings):
+            click.echo(update.line())
     records = _verified_records(run, allow_incomplete)
     analysis = run_analysis(read_run(run, records=records), settings, source=str(run))
     click.echo(analysis.summary())
@@ -747,7 +1009,10 @@ def _verified_records(run: Path, allow_incomplete: bool):
 @click.argument("paths", nargs=-1, required=True,
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list, one object per file.")
-def check_cmd(paths, as_json):
+@click.option("--repair", is_flag=True,
+              help="First clear the 'open for writing' mark a killed writer left (like h5clear "
+                   "-s; never while the writer lives), so that any HDF5 reader opens the file.")
+def check_cmd(paths, as_json, repair):
     """Check the files PATHS (run, spectra, trajectory files): structure and format version,
     completeness against the file's own plan, every record's checksum, calibrations and scene.
 
@@ -755,8 +1020,19 @@ def check_cmd(paths, as_json):
     problem); exit status 0 only if every file is sound (an interrupted run whose records all
     verify is sound), 1 otherwise. The library call is daq.check.check_file.
     """
-    from daq.check import check_file
+    from daq.check import check_file, superblock
+    from daq.hdf5 import clear_write_flags
+    from rig.errors import ConfigError
 
+    if repair:
+        for p in paths:
+            sb = superblock(p)
+            if sb and sb["flags"] and sb["version"] >= 2:
+                try:
+                    if clear_write_flags(p) and not as_json:
+                        click.echo(f"cleared the open-for-writing mark of {p}")
+                except ConfigError as exc:
+                    click.echo(f"not repaired: {exc}", err=True)
     results = [check_file(p) for p in paths]
     if as_json:
         click.echo(json.dumps([r.to_dict() for r in results], indent=2))

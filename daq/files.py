@@ -1,5 +1,6 @@
 """Safe output files: nothing existing is overwritten without ``force``; a file appears complete or
-not at all (written under a temporary name in the same directory, then renamed)."""
+not at all (written under a temporary name in the same directory, then renamed), with the mode
+the user's umask gives a new file."""
 
 from __future__ import annotations
 
@@ -26,6 +27,14 @@ def check_writable(path: Path, *, force: bool) -> Path:
     return path
 
 
+def umask_mode(mode: int = 0o666) -> int:
+    """``mode`` less the process's umask: what ``open()`` would give a new file (a temporary
+    file from :func:`tempfile.mkstemp` is 0600 whatever the umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mode & ~mask
+
+
 @contextlib.contextmanager
 def atomic_output(path: Path, *, force: bool, suffix: str = ""):
     """Yield a temporary path beside ``path``; on success rename it to ``path``, on error remove it.
@@ -42,6 +51,7 @@ def atomic_output(path: Path, *, force: bool, suffix: str = ""):
         yield tmp_path
         if path.exists() and not force:  # appeared meanwhile
             raise ConfigError(f"output {str(path)!r} exists; pass --force to overwrite it")
+        os.chmod(tmp_path, umask_mode())  # the user's umask, as for any new file
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():

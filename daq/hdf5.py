@@ -92,7 +92,7 @@ import numpy as np
 from daq.acquisition import FORMAT_VERSION, Sink
 from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
-from daq.files import check_writable
+from daq.files import check_writable, umask_mode
 from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Recording, STATUSES,
                          TruthField)
 from rig.errors import ConfigError
@@ -103,6 +103,7 @@ except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
 FORMAT = "pendulum-daq run"
+RUN_SUFFIXES = (".h5", ".hdf5", ".nxs")
 #: HDF5 format bounds of every file the project writes: the oldest that has SWMR (superblock
 #: v3, HDF5 1.10), so HDF5 1.10 and 1.14 read the files too ("latest" under HDF5 2.0 writes a
 #: layout message 1.x cannot read).
@@ -190,6 +191,9 @@ class HDF5Sink(Sink):
 
     def __init__(self, path: str | Path, *, force: bool = False, compression_level: int = 4,
                  truth_compression_level: int = 0):
+        if Path(path).suffix.lower() not in RUN_SUFFIXES:
+            raise ConfigError(f"--out {str(path)!r}: unknown extension {Path(path).suffix!r}; "
+                              f"a run file is HDF5: expected {', '.join(RUN_SUFFIXES)}")
         self.target = Path(path)
         self.force = force
         self.level, self.truth_level = compression_level, truth_compression_level
@@ -203,9 +207,11 @@ class HDF5Sink(Sink):
     def start(self, header: Header) -> None:
         target = check_writable(self.target, force=self.force)
         if target.exists():
+            self._hold_target(target)
             fd, tmp = tempfile.mkstemp(prefix=f"{target.stem}.partial-", suffix=target.suffix,
                                        dir=target.parent)
             os.close(fd)
+            os.chmod(tmp, umask_mode())
             self._tmp = Path(tmp)
             self._f = h5py.File(self._tmp, "w", libver=LIBVER)
         else:
@@ -221,10 +227,33 @@ class HDF5Sink(Sink):
             self._f = None
             self.path.unlink()
             self.path = None
+            self._release_target()
             raise
         if fcntl is not None:  # tells clear_write_flags that the writer is alive
             self._lock = open(self.path, "rb")
             fcntl.flock(self._lock, fcntl.LOCK_SH)
+
+    def _hold_target(self, target: Path) -> None:
+        """Lock the file a ``force`` run replaces for the run's duration; refuse if another
+        process holds it (a run writing it, or one replacing it)."""
+        self._target_lock = None
+        if fcntl is None:  # pragma: no cover - not POSIX
+            return
+        fh = open(target, "rb")
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.close()
+            raise ConfigError(f"output {str(target)!r} is held by another process (a run "
+                              "writing or replacing it); wait for it to end or choose another "
+                              "path") from None
+        self._target_lock = fh
+
+    def _release_target(self) -> None:
+        fh = getattr(self, "_target_lock", None)
+        if fh is not None:
+            fh.close()
+            self._target_lock = None
 
     def _flag_collection(self, entry, group: str, n: int, count_name: str, what: str):
         """An NXcollection of per-sample uint8 flags per channel and their counts per record."""
@@ -288,12 +317,15 @@ class HDF5Sink(Sink):
                 self._lock.close()
                 self._lock = None
         if self._tmp is not None:
-            if footer.status == "complete":
-                os.replace(self._tmp, self.target)
-                self.path = self.target
-            elif self._n == 0:
-                self._tmp.unlink()
-                self.path = None
+            try:
+                if footer.status == "complete":
+                    os.replace(self._tmp, self.target)
+                    self.path = self.target
+                elif self._n == 0:
+                    self._tmp.unlink()
+                    self.path = None
+            finally:
+                self._release_target()
 
     # -- layout ---------------------------------------------------------------------------
     def _layout(self, h: Header) -> None:

@@ -268,7 +268,14 @@ def read_scene_data(scene: str | Path, *, relative_to: Path | None = None,
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise ConfigError(f"scene file {str(path)!r} does not exist")
-        text, source, key = path.read_text(), str(path), str(path.resolve())
+        try:
+            text, source = path.read_text(encoding="utf-8"), str(path)
+        except UnicodeDecodeError as exc:
+            raise ConfigError(f"scene file {str(path)!r} is not a TOML text file (byte "
+                              f"{exc.start} is not UTF-8)") from None
+        except OSError as exc:
+            raise ConfigError(f"scene file {str(path)!r} cannot be read: {exc.strerror}") from None
+        key = str(path.resolve())
     else:
         text, source = preset_text(str(scene)), f"preset:{scene}"
         key = source
@@ -422,6 +429,28 @@ def _prefixed(exc: ConfigError, prefix: str) -> ConfigError:
     return ConfigError(f"{prefix}{exc}")
 
 
+def _finite_chain(p: dict, raw: dict) -> Chain:
+    """:func:`_build_chain`, and its linearised model evaluated: values that are each valid but
+    together overflow or divide by zero (e.g. f1_hz = 1e300) are a ConfigError naming them."""
+    given = ", ".join(f"pendulum.{k} = {v!r}" for k, v in raw.items()
+                      if isinstance(v, (int, float, list)) and not isinstance(v, bool))
+    try:
+        with np.errstate(over="raise", invalid="raise"):
+            chain = _build_chain(p)
+            chain.modes()
+    except ConfigError as exc:
+        if p.get("kind") != "ishizaki" or any(f"pendulum.{k} " in str(exc) for k in raw):
+            raise
+        # a body value derived from the design numbers: name the numbers given
+        raise ConfigError(f"{given}: {str(exc).removeprefix('pendulum.')}") from None
+    except (ZeroDivisionError, OverflowError, FloatingPointError, np.linalg.LinAlgError,
+            ValueError) as exc:
+        raise ConfigError(f"{given or 'the [pendulum] values'}: no finite pendulum follows "
+                          f"(numerical {type(exc).__name__}: {exc}); expected values of "
+                          "ordinary size (lengths in m, frequencies in Hz)") from None
+    return chain
+
+
 def _build_chain(p: dict) -> Chain:
     kind = p["kind"]
     try:
@@ -489,7 +518,7 @@ def resolve_scene(data: dict, *, source: str) -> Scene:
     if raw_p is None:
         raise ConfigError(f"scene {source} has no [pendulum] section")
     kind = raw_p.get("kind") if isinstance(raw_p, dict) else None
-    if kind not in PENDULUM_KINDS:
+    if not isinstance(kind, str) or kind not in PENDULUM_KINDS:
         raise ConfigError(f"pendulum.kind = {kind!r} is invalid: expected one of "
                           f"{', '.join(PENDULUM_KINDS)}")
     settings = {}
@@ -497,7 +526,7 @@ def resolve_scene(data: dict, *, source: str) -> Scene:
         if section == "pendulum":
             keys = {**keys, **PENDULUM_KINDS[kind]}
         settings[section] = _validate_section(section, data.get(section, {}), keys)
-    chain = _build_chain(settings["pendulum"])
+    chain = _finite_chain(settings["pendulum"], raw_p)
     n = chain.n
 
     mirror_body = settings["mirror"]["body"]

@@ -2,8 +2,20 @@
 cache (daq.antialias.design_cache_dir)."""
 
 import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
 
 import pytest
+
+# rerun's viewer and SDK read their analytics setting from $XDG_CONFIG_HOME/rerun: the tests use a
+# configuration of their own with analytics disabled (the user's is left alone).
+_RERUN_CONFIG = tempfile.mkdtemp(prefix="pendulum-daq-test-config-")
+os.environ["XDG_CONFIG_HOME"] = _RERUN_CONFIG
+_VIEWER = Path(sys.executable).parent / "rerun"
+if _VIEWER.exists():
+    subprocess.run([str(_VIEWER), "analytics", "disable"], capture_output=True, timeout=60)
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -49,7 +49,8 @@ def table(report: dict) -> str:
     lines = ["| fault injected | what the user sees | records lost |", "|---|---|---|"]
     for k, v in sorted(report.get("faults", {}).items()):
         lines.append(f"| {k} | {v['outcome']} | {v['records_lost']} |")
-    lines += ["", "| bad inputs tried (hypothesis and cases) | count |", "|---|---|"]
+    lines += ["", "| inputs tried, valid and invalid (hypothesis, fixed grids, CLI cases) | count |",
+              "|---|---|"]
     for k, v in sorted(report.get("inputs", {}).items()):
         lines.append(f"| {k} | {v} |")
     lines += ["", "Readers that open every object and attribute of the run, spectra and "

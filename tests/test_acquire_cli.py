@@ -115,7 +115,7 @@ def test_ctrl_c_keeps_the_finished_records_and_exits_130(runner, tmp_path, monke
     res = runner.invoke(main, ["acquire", *SHORT, "--records", "3", "--seed", "1", "--out",
                                str(out)])
     assert res.exit_code == 130, res.output
-    assert f"interrupted after 1 of 3 records; {out} holds them (status interrupted)" in res.stderr
+    assert f"interrupted (SIGINT) after 1 of 3 records; {out} holds them (status interrupted)" in res.stderr
     res = runner.invoke(main, ["inspect", str(out)])
     assert "status: INCOMPLETE (interrupted), 1 of 3 records: KeyboardInterrupt" in res.output
 

@@ -34,7 +34,8 @@ def sound(tmp_path_factory):
     d = tmp_path_factory.mktemp("check")
     res = daq("acquire", *SHORT, "--seed", "11", "--out", "run.h5", "-q", cwd=d, timeout=300)
     assert res.returncode == 0, res.stderr
-    res = daq("analyze", "run.h5", "--spectra", "spectra.h5", cwd=d, timeout=300)
+    res = daq("simulate", "double-rod", "--duration", "1", "--method", "rk4", "--dt", "0.01",
+              "--out", "trajectory.h5", cwd=d, timeout=300)
     assert res.returncode == 0, res.stderr
     return d
 
@@ -56,12 +57,12 @@ def _flip_chunk(path, dataset, record):
         fh.write(bytes([b[0] ^ 0xFF]))
 
 
-def test_a_sound_run_and_spectra_file_pass(sound):
-    res = daq("check", "run.h5", "spectra.h5", cwd=sound)
+def test_a_sound_run_and_trajectory_file_pass(sound):
+    res = daq("check", "run.h5", "trajectory.h5", cwd=sound)
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.splitlines() == [
         "run.h5: OK run, complete, 3 of 3 records verify, format 1.1",
-        "spectra.h5: OK spectra, complete, format 1.1"]
+        "trajectory.h5: OK trajectory, complete, format 1.1"]
     got = json.loads(daq("check", "run.h5", "--json", cwd=sound).stdout)
     assert got == [{"path": "run.h5", "kind": "run", "ok": True, "status": "complete",
                     "records_valid": 3, "records_planned": 3, "format_version": "1.1",

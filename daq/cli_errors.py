@@ -1,0 +1,80 @@
+"""What a command-line user sees when a command fails: one or two lines, never a traceback.
+
+:class:`ErrorsAsMessages` is the ``daq`` click group's class: every exception a command lets
+escape, library error or not, becomes ``Error: <one line>`` and exit status 1
+(:func:`user_message` writes the line: the bad value and what is valid for the library's own
+errors, the file and the reason for a failed write or read, a plain statement for the rest);
+``daq --debug COMMAND`` lets the exception and its traceback through.
+
+Exit statuses of ``daq`` (also in the README):
+
+- 0: done;
+- 1: an error (bad input, unreadable or damaged file, full disk ...), on one line;
+- 2: a usage error (unknown option, bad option value: click's own message);
+- 3 (:data:`EXIT_NOT_AS_ASKED`): ``daq acquire`` finished and wrote its file, but the run is not
+  what was asked: its estimated error exceeds its error budget, or a channel clipped or
+  saturated in more than :data:`SATURATION_LIMIT` of its samples (a WARNING says which);
+  ``--allow-over-budget`` makes that exit 0;
+- 128 + N: ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), every finished record kept.
+"""
+
+from __future__ import annotations
+
+import re
+
+import click
+
+__all__ = ["EXIT_NOT_AS_ASKED", "SATURATION_LIMIT", "ErrorsAsMessages", "user_message"]
+
+EXIT_NOT_AS_ASKED = 3
+#: Fraction of a channel's samples clipped by the ADC or beyond its sensor's range above which a
+#: run is not what was asked.
+SATURATION_LIMIT = 1e-3
+
+
+def _first_line(text: str) -> str:
+    lines = [s.strip() for s in str(text).strip().splitlines() if s.strip()]
+    return lines[0] if lines else ""
+
+
+def user_message(exc: BaseException) -> str:
+    """One line saying what went wrong, for a person (see the module docstring)."""
+    from daq.resources import is_disk_full
+    from rig.errors import RigError
+
+    try:
+        from processing.spectra import ProcessingError
+    except ImportError:  # pragma: no cover - processing not installed
+        ProcessingError = ()  # noqa: N806
+    if isinstance(exc, (RigError, ProcessingError)):
+        return _first_line(exc)
+    if is_disk_full(exc):
+        m = re.search(r"filename = '([^']*)'", str(exc))
+        name = getattr(exc, "filename", None) or (m.group(1) if m else None)
+        return f"disk full: no space left on the device{f' writing {name}' if name else ''}"
+    if isinstance(exc, PermissionError):
+        return f"permission denied: {exc.filename or _first_line(exc)}"
+    if isinstance(exc, OSError) and exc.filename:
+        return f"{exc.filename}: {exc.strerror or _first_line(exc)}"
+    if isinstance(exc, MemoryError):
+        what = _first_line(exc)
+        return (f"out of memory{f' ({what})' if what else ''}: ask for less (shorter records, "
+                "fewer points)")
+    return (f"{type(exc).__name__}: {_first_line(exc)} (not a case this command expects; "
+            "'daq --debug ...' shows where it happened)")
+
+
+class ErrorsAsMessages(click.Group):
+    """A click group whose commands' exceptions reach the user as one line (module docstring);
+    with ``ctx.meta["daq.debug"]`` set (``--debug``) they propagate with their traceback."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.ClickException, click.exceptions.Exit,
+                click.exceptions.Abort, KeyboardInterrupt, SystemExit):
+            raise
+        except Exception as exc:
+            if ctx.meta.get("daq.debug"):
+                raise
+            raise click.ClickException(user_message(exc)) from None

@@ -1,0 +1,138 @@
+"""Following a run while it is acquired: the averaged H1 estimate updated as records land.
+
+:func:`follow_run` reads a run file that ``daq acquire`` is still writing (HDF5 SWMR: the reader
+reads ``records_complete`` first, then that many rows, so it never sees a half-written record)
+and yields a :class:`FollowUpdate` every time more records have landed: the RMS-averaged H_t and
+Theta_2 (H1, the analyzer's spectral settings) of the records so far, their coherence, and how far
+they are from the exact model stored in the file. It stops when the run has ended (status no
+longer "acquiring" and every record read) or when the writer is gone without ending it (killed:
+the file's writer lock is free). If several records land between two polls, one update covers
+them.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+__all__ = ["FollowUpdate", "follow_run"]
+
+
+@dataclass(frozen=True, eq=False)
+class FollowUpdate:
+    """The averaged estimate after ``records`` of ``records_planned`` records.
+
+    Attributes
+    ----------
+    records, records_planned : records averaged, records the run plans.
+    status : the file's status when read ("acquiring" while the writer runs).
+    freqs_hz : (nf,) the analyzer's lines within the display band [Hz].
+    h_t, theta_2 : (nf,) complex H1 estimates [m per m/s^2], [rad per m/s^2].
+    coherence_x, coherence_y : (nf,) gamma^2 of (a, x) and (a, y).
+    h_t_rms_db, theta_2_rms_db : RMS over the band of 20 log10 |estimate / exact model| [dB].
+    """
+
+    records: int
+    records_planned: int
+    status: str
+    freqs_hz: np.ndarray
+    h_t: np.ndarray
+    theta_2: np.ndarray
+    coherence_x: np.ndarray
+    coherence_y: np.ndarray
+    h_t_rms_db: float
+    theta_2_rms_db: float
+
+    def line(self) -> str:
+        return (f"record {self.records} of {self.records_planned}: H_t {self.h_t_rms_db:.2f} dB "
+                f"rms from the model, Theta_2 {self.theta_2_rms_db:.2f} dB "
+                f"({self.freqs_hz[0]:g}-{self.freqs_hz[-1]:g} Hz), mean coherence "
+                f"{np.nanmean(self.coherence_x):.3f} / {np.nanmean(self.coherence_y):.3f}")
+
+
+def _writer_alive(path: Path) -> bool:
+    """Whether a writer holds the run file's lock (daq.hdf5.HDF5Sink takes a shared one)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: assume it is
+        return True
+    with open(path, "rb") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        fcntl.flock(fh, fcntl.LOCK_UN)
+    return False
+
+
+def _estimate(recording, settings) -> FollowUpdate:
+    from processing.analysis import CHANNELS, model_at_lines
+    from processing.frf import frequency_response
+    from processing.spectra import segment_ffts
+
+    h = recording.header
+    spectral = settings.spectral(h.plan.rate_hz, h.plan.samples)
+    ffts = segment_ffts({c: recording.values(c) for c in CHANNELS}, spectral,
+                        units={c: h.channel(c).unit for c in CHANNELS})
+    h_t = frequency_response(ffts, "a", "x")
+    theta_2 = frequency_response(ffts, "a", "y")
+    f = spectral.freqs_hz
+    band = (f >= settings.fmin_hz) & (f <= settings.fmax_hz)
+    model = model_at_lines(h, f[band])
+
+    def rms_db(est, exact):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = 20 * np.log10(np.abs(est / exact))
+        return float(np.sqrt(np.nanmean(d ** 2)))
+
+    return FollowUpdate(
+        records=recording.records, records_planned=h.plan.records, status=recording.status,
+        freqs_hz=f[band], h_t=h_t.h[band], theta_2=theta_2.h[band],
+        coherence_x=h_t.coherence[band], coherence_y=theta_2.coherence[band],
+        h_t_rms_db=rms_db(h_t.h[band], model.h_t),
+        theta_2_rms_db=rms_db(theta_2.h[band], model.theta_2))
+
+
+def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
+               open_timeout_s: float = 60.0) -> Iterator[FollowUpdate]:
+    """Yield the averaged estimate each time more records of the run file ``path`` have landed
+    (module docstring), until the run ends. ``settings``: a
+    :class:`processing.analysis.AnalyzerSettings` (default: the paper's). Waits up to
+    ``open_timeout_s`` for the writer to make the file readable; raises
+    :class:`rig.errors.ConfigError` if it does not, and for settings the run cannot take (e.g.
+    a time record longer than a record)."""
+    from daq.hdf5 import _status, open_run, read_run
+    from processing.analysis import AnalyzerSettings
+    from rig.errors import ConfigError
+
+    settings = settings if settings is not None else AnalyzerSettings()
+    path = Path(path)
+    t0, seen = time.monotonic(), 0
+    while True:
+        try:
+            with open_run(path) as f:
+                status, n = _status(f)
+        except (ConfigError, OSError, KeyError) as exc:  # not yet (or not now) readable
+            if time.monotonic() - t0 > open_timeout_s:
+                raise ConfigError(f"{str(path)!r} did not become a readable run file within "
+                                  f"{open_timeout_s:g} s: {exc}") from None
+            time.sleep(poll_s)
+            continue
+        t0 = time.monotonic()
+        if n > seen:
+            rec = read_run(path, records=range(n))
+            seen = n
+            yield _estimate(rec, settings)
+        if status != "acquiring" and n == seen:
+            return
+        if status == "acquiring" and not _writer_alive(path):
+            with open_run(path) as f:  # a last look: records that landed before it died
+                status, n = _status(f)
+            if n == seen:
+                return
+            continue
+        time.sleep(poll_s)

@@ -1,0 +1,76 @@
+"""``daq analyze --follow``: a reader process follows a writer process (``daq acquire``) through
+SWMR, printing the averaged estimate as records land, and stops when the run ends -- or when the
+writer is killed."""
+
+import re
+import signal
+import subprocess
+import sys
+import time
+
+from processing.follow import follow_run
+
+RUN = ["acquire", "--scene", "ishizaki2009", "--duration", "5", "--rate", "100", "--set",
+       "acquisition.settle_s=5", "--set", "acquisition.model=linear", "--seed", "4", "-q"]
+
+
+def _start(*args, cwd):
+    return subprocess.Popen([sys.executable, "-m", "daq.cli", *map(str, args)], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def _wait_exists(path, proc, timeout=120):
+    t0 = time.monotonic()
+    while not path.exists():
+        assert proc.poll() is None and time.monotonic() - t0 < timeout, proc.communicate()
+        time.sleep(0.02)
+
+
+def _updates(stdout):
+    return [int(m.group(1)) for m in re.finditer(r"^record (\d+) of \d+: ", stdout, re.M)]
+
+
+def test_follow_prints_the_estimate_as_records_land_and_stops_when_the_run_ends(tmp_path):
+    out = tmp_path / "run.h5"
+    writer = _start(*RUN, "--records", 300, "--out", out, cwd=tmp_path)
+    _wait_exists(out, writer)
+    reader = _start("analyze", out, "--follow", cwd=tmp_path)
+    w_out, w_err = writer.communicate(timeout=300)
+    r_out, r_err = reader.communicate(timeout=300)
+    assert writer.returncode == 0, w_err
+    assert reader.returncode == 0, r_err
+    seen = _updates(r_out)
+    assert len(seen) >= 2 and seen == sorted(set(seen)) and seen[-1] == 300, r_out
+    last = r_out.splitlines()[len(seen) - 1]
+    # the last update is the estimate of the whole run, and the full analysis follows it
+    (whole,) = list(follow_run(out))
+    assert last == whole.line()
+    assert r_out.splitlines()[len(seen)].startswith(f"analysed {out}: ishizaki2009, seed 4, "
+                                                    "300 of 300 records")
+
+
+def test_follow_stops_when_the_writer_is_killed(tmp_path):
+    out = tmp_path / "run.h5"
+    writer = _start(*RUN, "--records", 5000, "--out", out, cwd=tmp_path)
+    _wait_exists(out, writer)
+    reader = _start("analyze", out, "--follow", cwd=tmp_path)
+    t0 = time.monotonic()
+    while not _seen_records(out) >= 3:
+        assert time.monotonic() - t0 < 120
+        time.sleep(0.05)
+    writer.kill()
+    writer.communicate()
+    r_out, r_err = reader.communicate(timeout=120)
+    assert reader.returncode == 0, r_err
+    assert "INCOMPLETE run (status acquiring)" in r_out and "Traceback" not in r_err
+
+
+def _seen_records(path):
+    import h5py
+
+    try:
+        with h5py.File(path, "r", swmr=True) as f:
+            return int(f["entry/records_complete"][()])
+    except (OSError, KeyError):
+        return 0
