@@ -931,6 +931,8 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
             click.echo(f"  run {r['index']} failed: {r['error']}")
     click.echo(f"wrote {result.manifest} (xarray.open_dataset(..., engine=\"h5netcdf\")) and "
                f"{result.table}")
+
+
 # -- export ----------------------------------------------------------------------------------
 
 @main.command()

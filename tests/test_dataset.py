@@ -361,9 +361,9 @@ def test_a_worker_that_dies_is_retried_a_bounded_number_of_times_then_recorded_f
 
     def watch():
         while not stop.is_set():
-            for p in (out / "runs").glob(".run_000001.h5.*.partial") if (out / "runs").exists() \
+            for p in (out / "runs").glob(".run_000001.h5.*.partial.h5") if (out / "runs").exists() \
                     else ():
-                pid = int(p.name.split(".")[-3])
+                pid = int(p.name.split(".")[-4])
                 if pid not in killed:
                     killed.append(pid)
                     os.kill(pid, signal.SIGKILL)

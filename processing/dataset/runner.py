@@ -268,12 +268,12 @@ def _read_journal(out_dir: Path) -> dict:
 
 
 def _clean_partials(runs_dir: Path) -> None:
-    """Remove temporary files of this host's dead writers (``.run_*.<host>.<pid>.*.partial``)."""
+    """Remove temporary files of this host's dead writers (``.run_*.<host>.<pid>.*.partial.h5``)."""
     host = socket.gethostname().replace(".", "-")
-    for p in runs_dir.glob(".run_*.partial"):
+    for p in runs_dir.glob(".run_*.partial.h5"):
         parts = p.name.split(".")
         try:
-            h, pid = parts[-4], int(parts[-3])
+            h, pid = parts[-5], int(parts[-4])
         except (IndexError, ValueError):
             continue
         if h != host:

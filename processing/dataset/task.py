@@ -2,7 +2,7 @@
 
 :func:`run_task` takes plain data (picklable, no open files) and returns plain data, so the same
 function runs in a local process pool or on a Dask worker. It writes the run under a temporary
-name beside the final one (``.run_000042.h5.<host>.<pid>.<token>.partial``), adds the analysis
+name beside the final one (``.run_000042.h5.<host>.<pid>.<token>.partial.h5``), adds the analysis
 outputs (:func:`processing.dataset.runfile.write_outputs`), flushes it to disk and publishes it
 with a hard link, which fails if the final name exists: a finished file is never overwritten
 unless the task says ``replace`` (the sweep was changed with ``--force``). A run that fails
@@ -24,7 +24,8 @@ __all__ = ["run_task", "partial_name", "worker_init"]
 def partial_name(final: Path) -> Path:
     """A temporary name beside ``final`` that no other writer uses (host, pid and a token)."""
     host = socket.gethostname().replace(".", "-")
-    return final.with_name(f".{final.name}.{host}.{os.getpid()}.{secrets.token_hex(4)}.partial")
+    return final.with_name(f".{final.name}.{host}.{os.getpid()}.{secrets.token_hex(4)}.partial"
+                           f"{final.suffix}")
 
 
 _BUSY = False  # this worker is running a task (SIGINT interrupts it; an idle worker ignores it)
