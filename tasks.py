@@ -8,7 +8,7 @@ Extra arguments go to the job's last command: ``python3 tasks.py test -k analysi
 ``python3 tasks.py experiment --window uniform`` (to ``daq analyze``).
 
 The environment is ``.venv`` beside this file, created (and the package installed into it with its
-test extras) on first use and refreshed when ``pyproject.toml`` changes.
+test and dask extras) on first use and refreshed when ``pyproject.toml`` changes.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ def ensure_venv() -> None:
             run(sys.executable, "-m", "venv", "--clear", "--without-pip", VENV)
     has_pip = subprocess.run([str(PY), "-m", "pip", "--version"], capture_output=True).returncode == 0
     pip = [PY, "-m", "pip"] if has_pip else [sys.executable, "-m", "pip", "--python", PY]
-    run(*pip, "install", "--disable-pip-version-check", "-q", "-e", ".[test]")
+    run(*pip, "install", "--disable-pip-version-check", "-q", "-e", ".[test,dask]")
     STAMP.write_text(want)
 
 

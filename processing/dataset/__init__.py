@@ -1,0 +1,25 @@
+"""Datasets: parameter sweeps of the emulated experiment, one HDF5 file per run, one manifest.
+
+The sweep composes the acquisition (:mod:`daq`) and the analysis (:mod:`processing`) of every run,
+so it lives in ``processing``, the layer that may use both (rig <- daq <- processing); the CLI's
+``daq dataset`` only calls it.
+
+- :func:`load_sweep` reads and validates a sweep file (:mod:`processing.dataset.sweep`);
+- :func:`plan_runs` resolves every run, :func:`describe_plan` is the dry run;
+- :func:`run_sweep` runs it into a directory on any ``concurrent.futures`` executor
+  (:func:`local_pool` by default, :func:`dask_executor` for a Dask cluster), resumably;
+- :func:`write_manifest` and :func:`write_table` index it (:mod:`processing.dataset.manifest`);
+- :func:`check_run_file` says whether a run file is valid and complete.
+"""
+
+from processing.dataset.engines import dask_executor, default_workers, local_pool
+from processing.dataset.manifest import write_manifest, write_table
+from processing.dataset.runfile import RunFileCheck, check_run_file
+from processing.dataset.runner import (PlannedRun, SweepInterrupted, SweepProgress, SweepResult,
+                                       describe_plan, plan_runs, run_sweep)
+from processing.dataset.sweep import RunSpec, Sweep, load_sweep, parse_sweep, run_seed
+
+__all__ = ["Sweep", "RunSpec", "load_sweep", "parse_sweep", "run_seed", "PlannedRun",
+           "SweepProgress", "SweepResult", "SweepInterrupted", "plan_runs", "describe_plan",
+           "run_sweep", "local_pool", "dask_executor", "default_workers", "write_manifest",
+           "write_table", "RunFileCheck", "check_run_file"]

@@ -1,0 +1,473 @@
+"""Run a sweep into a directory: plan, resume, execute on any executor, record, index.
+
+The directory ``DIR`` of a sweep holds::
+
+    sweep.toml      the sweep file as given          sweep.json   the plan a rerun compares
+    runs/run_000000.h5 ...                           journal.jsonl  one line per finished run
+    manifest.h5, manifest.csv   the dataset (processing.dataset.manifest)
+
+:func:`run_sweep` is idempotent: a rerun of the same sweep skips every run whose file is valid and
+complete (:func:`processing.dataset.runfile.check_run_file`: status, records, the plan's hash and
+the sha256 the journal recorded), redoes the others and never overwrites a finished file. A
+changed sweep file is refused unless ``force``, and the error says what changed; with ``force``
+the runs whose specification changed are redone and their files replaced. Only the parent writes
+the journal and the manifest; each task writes its own run file.
+
+Failures are data: a parameter set the scene rejects is recorded as failed without running, a
+run that fails in its task (divergence, an analysis that cannot be made) returns its error; a
+worker that dies (killed, out of memory: :class:`~concurrent.futures.process.BrokenProcessPool`)
+makes the runner rebuild the pool and resubmit the runs that were in flight, at most
+``max_retries`` times each, then record them as failed. KeyboardInterrupt (Ctrl-C) stops the
+sweep: the pool is shut down, finished runs stay, the manifest marks the rest "missing" and
+:class:`SweepInterrupted` carries the result.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import json
+import os
+import shutil
+import socket
+import time
+from concurrent.futures import FIRST_COMPLETED, Executor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from rig.errors import ConfigError
+
+from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table
+from processing.dataset.runfile import check_run_file
+from processing.dataset.sweep import RunSpec, Sweep
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX
+    fcntl = None
+
+__all__ = ["PlannedRun", "SweepProgress", "SweepResult", "SweepInterrupted", "plan_runs",
+           "describe_plan", "run_sweep", "JOURNAL", "PLAN"]
+
+JOURNAL, PLAN, RUNS = "journal.jsonl", "sweep.json", "runs"
+#: Cost of a run of the linear model in a warm worker, for the dry run's estimate: seconds per
+#: simulated second and per run (fitted to the paper's run: 2.4 s acquisition + 0.3 s analysis
+#: for 3300 s simulated, BENCHMARKS.md "Datasets").
+_S_PER_SIM_S, _S_PER_RUN = 6.3e-4, 0.6
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    """A run of the plan: its spec, its resolved scene settings (None if the scene rejected the
+    parameter set, ``error`` says why), simulated seconds and an estimate of its file size."""
+
+    spec: RunSpec
+    settings: dict | None
+    scene_source: str
+    error: str
+    simulated_s: float
+    bytes_estimate: int
+
+
+@dataclass(frozen=True)
+class SweepProgress:
+    """Where a sweep is: runs ``done`` (complete, this session or skipped), ``failed``,
+    ``skipped`` (already complete), ``total``; ``rate_per_min`` of runs finished this session and
+    ``eta_s`` (None until a run has finished)."""
+
+    total: int
+    done: int
+    failed: int
+    skipped: int
+    running: int
+    elapsed_s: float
+    rate_per_min: float
+    eta_s: float | None
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What :func:`run_sweep` left in ``out_dir``: counts, the manifest files and every run's
+    result ({index: dict of :func:`processing.dataset.task.run_task`})."""
+
+    out_dir: Path
+    total: int
+    complete: int
+    failed: int
+    missing: int
+    skipped: int
+    manifest: Path
+    table: Path
+    results: dict
+    wall_s: float
+    interrupted: bool = False
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """The sweep was interrupted; ``result`` is the :class:`SweepResult` (manifest written)."""
+
+    def __init__(self, result: SweepResult):
+        super().__init__(f"sweep interrupted: {result.complete} of {result.total} runs complete")
+        self.result = result
+
+
+# -- planning --------------------------------------------------------------------------------
+
+def plan_runs(sweep: Sweep) -> tuple[PlannedRun, ...]:
+    """Resolve every run's scene (an invalid parameter set is recorded, not raised) and check the
+    analysis settings against its records."""
+    from processing.spectra import SettingsError
+    from rig.scene import load_scene
+
+    settings = sweep.analyzer_settings()
+    out = []
+    for spec in sweep.runs():
+        try:
+            sc = load_scene(sweep.scene, spec.overrides)
+            acq = sc.settings["acquisition"]
+            samples = round(acq["record_s"] * acq["rate_hz"])
+            settings.spectral(acq["rate_hz"], samples)
+        except (ConfigError, SettingsError) as exc:
+            out.append(PlannedRun(spec, None, "", f"{type(exc).__name__}: {exc}", 0.0, 0))
+            continue
+        sim_s = acq["settle_s"] + acq["records"] * acq["record_s"]
+        n = acq["records"] * samples
+        per = 3 * 2 + (8 * (4 + sc.chain.n) if acq["truth"] and sweep.keep["truth"] else 0)
+        out.append(PlannedRun(spec, sc.settings, sc.source, "", float(sim_s),
+                              int(n * per + 200_000)))
+    return tuple(out)
+
+
+def describe_plan(sweep: Sweep, planned, *, workers: int, head: int = 10) -> str:
+    """What ``--dry-run`` prints: the count, the parameter table's head, time and disk."""
+    ok = [p for p in planned if not p.error]
+    keys = list(sweep.parameter_keys)
+    lines = [f"sweep {sweep.name}: {len(planned)} runs ({len(ok)} valid, "
+             f"{len(planned) - len(ok)} invalid parameter sets), seed {sweep.seed}, scene "
+             f"{sweep.scene}"]
+    cols = ["run", "seed", *keys, "status"]
+    table = [cols]
+    for p in planned[:head]:
+        table.append([str(p.spec.index), str(p.spec.seed),
+                      *(_fmt(p.spec.params[k]) for k in keys),
+                      "ok" if not p.error else f"invalid: {p.error}"])
+    widths = [max(len(r[i]) for r in table) for i in range(len(cols) - 1)]
+    for r in table:
+        lines.append("  " + "  ".join(c.rjust(w) for c, w in zip(r, widths)) + "  " + r[-1])
+    if len(planned) > head:
+        lines.append(f"  ... {len(planned) - head} more")
+    cpu = sum(_S_PER_RUN + _S_PER_SIM_S * p.simulated_s for p in ok)
+    disk = sum(p.bytes_estimate for p in ok)
+    lines.append(f"estimated time: {_duration(cpu / max(1, workers))} on {workers} worker"
+                 f"{'s' if workers != 1 else ''} for the linear model (runs whose drive needs "
+                 "the nonlinear model take longer: BENCHMARKS.md)")
+    lines.append(f"estimated disk: {disk / 1e6:.1f} MB (at most: codes before compression)")
+    return "\n".join(lines)
+
+
+def _fmt(v) -> str:
+    return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+
+def _duration(s: float) -> str:
+    if s < 90:
+        return f"{s:.0f} s"
+    if s < 5400:
+        return f"{s / 60:.0f} min"
+    return f"{s / 3600:.1f} h"
+
+
+# -- the directory ---------------------------------------------------------------------------
+
+def _plan_doc(sweep: Sweep, planned) -> dict:
+    return {"format": "pendulum-daq sweep plan", "version": 1, "sweep": sweep.describe(),
+            "runs": len(planned), "spec_hashes": [p.spec.spec_hash for p in planned]}
+
+
+def _changes(old: dict, new: dict) -> list[str]:
+    out = []
+    a, b = old.get("sweep", {}), new["sweep"]
+    for k in sorted(set(a) | set(b)):
+        if a.get(k) != b.get(k):
+            out.append(f"{k}: {_short(a.get(k))} -> {_short(b.get(k))}")
+    if old.get("runs") != new["runs"]:
+        out.append(f"runs: {old.get('runs')} -> {new['runs']}")
+    if not out and old.get("spec_hashes") != new["spec_hashes"]:
+        out.append("the base scene's file changed")
+    return out
+
+
+def _short(v) -> str:
+    s = json.dumps(v, sort_keys=True)
+    return s if len(s) <= 80 else s[:77] + "..."
+
+
+def _prepare(out_dir: Path, sweep: Sweep, planned, force: bool) -> list[str]:
+    doc = _plan_doc(sweep, planned)
+    plan_path = out_dir / PLAN
+    changes: list[str] = []
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise ConfigError(f"--out {str(out_dir)!r} is a file; expected a directory")
+        if plan_path.exists():
+            old = json.loads(plan_path.read_text())
+            changes = _changes(old, doc)
+            if changes and not force:
+                raise ConfigError(f"{str(out_dir)!r} holds another version of this sweep; "
+                                  f"changed: {'; '.join(changes)}. Pass --force to apply the "
+                                  "changes (runs whose specification changed are redone and "
+                                  "their files replaced) or choose another --out")
+        elif any(p.name != ".lock" for p in out_dir.iterdir()):
+            raise ConfigError(f"--out {str(out_dir)!r} exists and is not a sweep directory (no "
+                              f"{PLAN}); expected a new or empty directory, or a sweep's")
+    (out_dir / RUNS).mkdir(parents=True, exist_ok=True)
+    _write_atomic(plan_path, json.dumps(doc, indent=1, sort_keys=True))
+    if sweep.text:
+        _write_atomic(out_dir / "sweep.toml", sweep.text)
+    return changes
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "w") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+@contextlib.contextmanager
+def _locked(out_dir: Path):
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fh = open(out_dir / ".lock", "a+")
+    try:
+        if fcntl is not None:
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                raise ConfigError(f"{str(out_dir)!r} is in use by another running sweep; wait "
+                                  "for it or choose another --out") from None
+        yield
+    finally:
+        fh.close()
+
+
+def _read_journal(out_dir: Path) -> dict:
+    out = {}
+    path = out_dir / JOURNAL
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                r = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # a line cut by a kill
+            out[r["index"]] = r
+    return out
+
+
+def _clean_partials(runs_dir: Path) -> None:
+    """Remove temporary files of this host's dead writers (``.run_*.<host>.<pid>.*.partial.h5``)."""
+    host = socket.gethostname().replace(".", "-")
+    for p in runs_dir.glob(".run_*.partial.h5"):
+        parts = p.name.split(".")
+        try:
+            h, pid = parts[-5], int(parts[-4])
+        except (IndexError, ValueError):
+            continue
+        if h != host:
+            continue
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            p.unlink(missing_ok=True)
+        except PermissionError:
+            pass
+
+
+# -- running ---------------------------------------------------------------------------------
+
+def _job(sweep: Sweep, p: PlannedRun, runs_dir: Path, replace: bool) -> dict:
+    s = p.spec
+    return {"index": s.index, "seed": s.seed, "sweep_seed": sweep.seed, "params": s.params,
+            "overrides": list(s.overrides), "spec_hash": s.spec_hash, "settings": p.settings,
+            "scene_source": p.scene_source, "analysis": dict(sweep.analysis),
+            "keep": dict(sweep.keep), "runs_dir": str(runs_dir.resolve()), "file": s.name,
+            "replace": replace}
+
+
+def run_sweep(sweep: Sweep, out_dir: str | Path, *,
+              executor: Executor | Callable[[], Executor] | None = None, workers: int | None = None,
+              force: bool = False, max_retries: int = 2,
+              progress: Callable[[SweepProgress], None] | None = None,
+              planned=None) -> SweepResult:
+    """Run (or finish) ``sweep`` into ``out_dir`` (module docstring).
+
+    Parameters
+    ----------
+    executor : an Executor (e.g. ``distributed.Client(...).get_executor(pure=False)``), or a
+        function making one (called again to rebuild a broken pool); default: a local spawn
+        process pool of ``workers`` (:func:`processing.dataset.engines.local_pool`).
+    workers : tasks in flight at once (default: the executor's workers, or the cores).
+    force : apply a changed sweep file to an existing directory.
+    max_retries : resubmissions of a run whose worker died before it is recorded as failed.
+    progress : called with a :class:`SweepProgress` after every finished run.
+    planned : the :func:`plan_runs` of ``sweep`` if already made.
+
+    Raises
+    ------
+    ConfigError : before any run, for a directory that holds something else or another sweep.
+    SweepInterrupted : on KeyboardInterrupt, after the manifest is written.
+    """
+    from processing.dataset.engines import default_workers, local_pool
+    from processing.dataset.task import run_task
+
+    t0 = time.perf_counter()
+    out_dir = Path(out_dir)
+    planned = plan_runs(sweep) if planned is None else planned
+    workers = workers or default_workers()
+    if executor is None:
+        def factory():
+            return local_pool(workers)
+        own = True
+    elif callable(executor) and not isinstance(executor, Executor):
+        factory, own = executor, True
+    else:
+        fixed = executor
+
+        def factory():
+            return fixed
+        own = False
+
+    with _locked(out_dir):
+        _prepare(out_dir, sweep, planned, force)
+        runs_dir = out_dir / RUNS
+        _clean_partials(runs_dir)
+        journal_path = out_dir / JOURNAL
+        journal = _read_journal(out_dir)
+        results: dict[int, dict] = {}
+        todo = collections.deque()
+        skipped = 0
+        for p in planned:
+            s = p.spec
+            if p.error:
+                results[s.index] = {"index": s.index, "status": "failed", "error": p.error,
+                                    "file": "", "sha256": "", "model": ""}
+                continue
+            final = runs_dir / s.name
+            replace = False
+            if final.exists():
+                j = journal.get(s.index)
+                known = (j["sha256"] if j and j.get("status") == "complete"
+                         and j.get("spec_hash") == s.spec_hash else None)
+                chk = check_run_file(final, sha256=known, spec_hash=s.spec_hash)
+                if chk.ok:
+                    results[s.index] = {"index": s.index, "status": "complete", "error": "",
+                                        "file": s.name, "sha256": chk.sha256,
+                                        "model": (j or {}).get("model", "")}
+                    skipped += 1
+                    continue
+                if chk.spec_hash and chk.spec_hash != s.spec_hash and force:
+                    replace = True  # a finished file of the old plan: --force replaces it
+                else:  # damaged or unfinished under the final name: kept aside, redone
+                    k = 0
+                    while final.with_name(f"{s.name}.invalid-{k}").exists():
+                        k += 1
+                    shutil.move(final, final.with_name(f"{s.name}.invalid-{k}"))
+            todo.append(_job(sweep, p, runs_dir, replace))
+
+        state = {"done": skipped, "failed": sum(r["status"] == "failed" for r in results.values()),
+                 "finished_now": 0}
+        total = len(planned)
+
+        def record(res: dict, spec_hash: str) -> None:
+            results[res["index"]] = res
+            with open(journal_path, "a") as fh:
+                fh.write(json.dumps({**res, "spec_hash": spec_hash}) + "\n")
+                fh.flush()
+                os.fsync(fh.fileno())
+            state["done" if res["status"] == "complete" else "failed"] += 1
+            state["finished_now"] += 1
+            if progress is not None:
+                el = time.perf_counter() - t0
+                rate = state["finished_now"] / el * 60 if el > 0 else 0.0
+                left = total - state["done"] - state["failed"]
+                progress(SweepProgress(total=total, done=state["done"], failed=state["failed"],
+                                       skipped=skipped, running=len(inflight),
+                                       elapsed_s=el, rate_per_min=rate,
+                                       eta_s=left / rate * 60 if rate > 0 else None))
+
+        inflight: dict = {}
+        interrupted = False
+        ex = factory() if todo else None
+        window = workers  # in flight = running: a dead worker charges only the runs it could hold
+        attempts = collections.Counter()
+        try:
+            while todo or inflight:
+                while todo and len(inflight) < window:
+                    job = todo.popleft()
+                    inflight[ex.submit(run_task, job)] = job
+                done, _ = wait(list(inflight), timeout=1.0, return_when=FIRST_COMPLETED)
+                broken = []
+                for fut in done:
+                    job = inflight.pop(fut)
+                    try:
+                        res = fut.result()
+                    except BrokenProcessPool:
+                        broken.append(job)
+                        continue
+                    except KeyboardInterrupt:
+                        raise
+                    except Exception as exc:  # e.g. Dask's KilledWorker after its retries
+                        res = {"index": job["index"], "status": "failed", "file": "",
+                               "sha256": "", "model": "",
+                               "error": f"{type(exc).__name__}: {exc}"[:500]}
+                    record(res, job["spec_hash"])
+                if broken:
+                    # the pool is dead: every run in flight went with it
+                    for fut in list(inflight):
+                        broken.append(inflight.pop(fut))
+                    with contextlib.suppress(Exception):
+                        ex.shutdown(wait=False, cancel_futures=True)
+                    ex = factory() if own else ex
+                    for job in sorted(broken, key=lambda j: j["index"]):
+                        attempts[job["index"]] += 1
+                        if attempts[job["index"]] > max_retries or not own:
+                            record({"index": job["index"], "status": "failed", "file": "",
+                                    "sha256": "", "model": "",
+                                    "error": f"BrokenProcessPool: the worker running it died "
+                                             f"{attempts[job['index']]} times (killed or out "
+                                             "of memory)"}, job["spec_hash"])
+                        else:
+                            todo.appendleft(job)
+        except KeyboardInterrupt:
+            interrupted = True
+            for fut in list(inflight):
+                fut.cancel()
+            if ex is not None:
+                with contextlib.suppress(BaseException):
+                    ex.shutdown(wait=True, cancel_futures=True)
+            for fut, job in list(inflight.items()):
+                if fut.done() and not fut.cancelled():
+                    with contextlib.suppress(BaseException):
+                        res = fut.result()
+                        if res.get("status") == "complete":
+                            record(res, job["spec_hash"])
+        finally:
+            if ex is not None and own and not interrupted:
+                ex.shutdown(wait=True)
+            manifest = write_manifest(out_dir, sweep, [p.spec for p in planned], results)
+            table = write_table(out_dir / TABLE, [p.spec for p in planned], results,
+                                sweep.parameter_keys)
+        counts = collections.Counter(r["status"] for r in results.values())
+        result = SweepResult(out_dir=out_dir, total=total, complete=counts["complete"],
+                             failed=counts["failed"],
+                             missing=total - counts["complete"] - counts["failed"],
+                             skipped=skipped, manifest=manifest, table=table,
+                             results=dict(results), wall_s=time.perf_counter() - t0,
+                             interrupted=interrupted)
+    if interrupted:
+        raise SweepInterrupted(result)
+    return result
+

@@ -1,0 +1,127 @@
+"""One run of a sweep, as a task any worker can execute: acquire, analyse, keep, publish.
+
+:func:`run_task` takes plain data (picklable, no open files) and returns plain data, so the same
+function runs in a local process pool or on a Dask worker. It writes the run under a temporary
+name beside the final one (``.run_000042.h5.<host>.<pid>.<token>.partial.h5``), adds the analysis
+outputs (:func:`processing.dataset.runfile.write_outputs`), flushes it to disk and publishes it
+with a hard link, which fails if the final name exists: a finished file is never overwritten
+unless the task says ``replace`` (the sweep was changed with ``--force``). A run that fails
+(invalid scene, divergence, an analysis that cannot be made) leaves no file and returns its error;
+only KeyboardInterrupt propagates (after the temporary file is removed).
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import socket
+import time
+from pathlib import Path
+
+__all__ = ["run_task", "partial_name", "worker_init"]
+
+
+def partial_name(final: Path) -> Path:
+    """A temporary name beside ``final`` that no other writer uses (host, pid and a token)."""
+    host = socket.gethostname().replace(".", "-")
+    return final.with_name(f".{final.name}.{host}.{os.getpid()}.{secrets.token_hex(4)}.partial"
+                           f"{final.suffix}")
+
+
+_BUSY = False  # this worker is running a task (SIGINT interrupts it; an idle worker ignores it)
+
+
+def _on_sigint(signum, frame):
+    if _BUSY:
+        raise KeyboardInterrupt
+
+
+def worker_init() -> None:
+    """Initializer of local pool workers: die with the parent (Linux ``PR_SET_PDEATHSIG``), so
+    that a killed sweep leaves no worker writing behind it; one BLAS thread; a Ctrl-C interrupts
+    the run in progress (its temporary file is removed) and is ignored by an idle worker (the
+    parent shuts the pool down)."""
+    import signal
+
+    signal.signal(signal.SIGINT, _on_sigint)
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        pass
+
+
+def _publish(tmp: Path, final: Path, replace: bool) -> None:
+    if replace:
+        os.replace(tmp, final)
+        return
+    os.link(tmp, final)  # FileExistsError if a finished file is there: never overwritten
+    tmp.unlink()
+
+
+def run_task(job: dict) -> dict:
+    """Run one job (made by :func:`processing.dataset.runner.run_sweep`) and return its result.
+
+    Returns ``{"index", "status": "complete" | "failed", "error", "file", "sha256", "model",
+    "wall_s", "cpu_s", "host"}`` (``cpu_s``: the worker's CPU time for the run); "complete"
+    means the final file exists, valid, with that sha256.
+    """
+    global _BUSY
+    from processing.dataset.runfile import check_run_file, sha256_file
+
+    _BUSY = True
+    t0, c0 = time.perf_counter(), time.process_time()
+    final = Path(job["runs_dir"]) / job["file"]
+    out = {"index": job["index"], "status": "failed", "error": "", "file": job["file"],
+           "sha256": "", "model": "", "wall_s": 0.0, "host": socket.gethostname()}
+    tmp = partial_name(final)
+    try:
+        out["model"] = _run(job, tmp)
+        try:
+            _publish(tmp, final, bool(job.get("replace")))
+        except FileExistsError:
+            # finished meanwhile by another worker of an earlier, killed sweep: keep that one
+            # if it is this run, valid
+            chk = check_run_file(final, spec_hash=job["spec_hash"])
+            if not chk.ok:
+                raise RuntimeError(f"{final.name} exists and is not this run's valid file "
+                                   f"({'; '.join(chk.problems)}); not overwritten") from None
+        out["sha256"] = sha256_file(final)
+        out["status"] = "complete"
+    except KeyboardInterrupt:
+        out["error"] = "interrupted"
+        raise
+    except Exception as exc:  # failures are data: the sweep records the error and goes on
+        msg = str(exc).splitlines()[0] if str(exc) else ""
+        out["error"] = f"{type(exc).__name__}: {msg}"[:500]
+    finally:
+        _BUSY = False
+        if tmp.exists():
+            tmp.unlink()
+        out["wall_s"] = time.perf_counter() - t0
+        out["cpu_s"] = time.process_time() - c0
+    return out
+
+
+def _run(job: dict, tmp: Path) -> str:
+    """Acquire and analyse into ``tmp``; returns the model that ran."""
+    from daq.acquisition import acquire
+    from daq.hdf5 import read_run
+    from processing.analysis import AnalyzerSettings, analyze
+    from processing.dataset.runfile import write_outputs
+    from rig.scene import scene_from_settings
+
+    scene = scene_from_settings(job["settings"], source=job["scene_source"])
+    summary = acquire(scene, seed=job["seed"], out=tmp)
+    settings = AnalyzerSettings(**{k: tuple(v) if isinstance(v, list) else v
+                                   for k, v in job["analysis"].items()})
+    analysis = analyze(read_run(tmp), settings, source=job["file"])
+    write_outputs(tmp, analysis, job["keep"], spec={
+        "sweep_seed": job["sweep_seed"], "run_index": job["index"], "run_seed": job["seed"],
+        "spec_hash": job["spec_hash"], "parameters": job["params"],
+        "overrides": job["overrides"]})
+    return str(summary.model_info.get("model", ""))
