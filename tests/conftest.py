@@ -1,7 +1,9 @@
 """Shared test setup: designed filters are cached in a per-session directory, never in the user's
 cache (daq.antialias.design_cache_dir)."""
 
+import atexit
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -12,6 +14,7 @@ import pytest
 # rerun's viewer and SDK read their analytics setting from $XDG_CONFIG_HOME/rerun: the tests use a
 # configuration of their own with analytics disabled (the user's is left alone).
 _RERUN_CONFIG = tempfile.mkdtemp(prefix="pendulum-daq-test-config-")
+atexit.register(shutil.rmtree, _RERUN_CONFIG, ignore_errors=True)
 os.environ["XDG_CONFIG_HOME"] = _RERUN_CONFIG
 _VIEWER = Path(sys.executable).parent / "rerun"
 if _VIEWER.exists():
