@@ -16,6 +16,7 @@ the run file), one group (:data:`GROUP`, ``"spectra"``) laid out as netCDF-4 wou
       H_t_real, H_t_imag     measured H_t = G_ax / G_aa [m/(m/s^2)]
       Theta_2_real, _imag    measured Theta_2 = G_ay / G_aa [rad/(m/s^2)]
       coherence_x, coherence_y   gamma^2 of (a, x) and (a, y) [1]
+      expected_coherence_x, _y   their expected values (processing.coherence_model), with E[H1]
       H_t_relative_error, Theta_2_relative_error   Bendat-Piersol eps [1] (1 sigma of |H|/|H|
                              and of the phase in rad)
       model_H_t_*, model_Theta_2_*   exact whole-chain response at the lines (_real, _imag)
@@ -145,6 +146,12 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
                                    f"acceleration ({frf.estimator.upper()})")
                 _variable(g, f"coherence_{c}", frf.coherence, fr, units="1",
                           long_name=f"magnitude-squared coherence of a and {c}")
+                budget = a.coherence_budget
+                if budget is not None and np.array_equal(budget.freqs_hz, f):
+                    _variable(g, f"expected_coherence_{c}", budget.expected[c], fr, units="1",
+                              long_name=f"expected coherence of a and {c} (optical lever "
+                                        "geometry, noise floors, quantisation, leakage: "
+                                        "processing.coherence_model)")
                 _variable(g, f"{name}_relative_error", frf.relative_error, fr, units="1",
                           long_name=f"Bendat-Piersol normalised random error of |{name}| (1 "
                                     "sigma; also the phase's std in rad)")

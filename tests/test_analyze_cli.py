@@ -33,7 +33,7 @@ from click.testing import CliRunner
 from daq.acquisition import AcquisitionInterrupted, acquire
 from daq.cli import main
 from daq.hdf5 import read_run
-from processing.analysis import CSV_COLUMNS
+from processing.analysis import CSV_COLUMNS, analyze
 from rig.scene import load_scene
 
 SHORT = ["acquisition.records=6", "acquisition.record_s=20.0", "acquisition.settle_s=60.0"]
@@ -120,6 +120,12 @@ def test_analyze_writes_csv_plot_report_and_spectra(runner, run_file, tmp_path):
         np.testing.assert_allclose(h[1:], gx[1:] / ds["G_aa"].values[1:], rtol=1e-12)
         sel = ds["frequency"].sel(frequency=0.2).values
         assert sel == pytest.approx(0.2)
+        # the expected coherence beside the measured one: the same numbers the analysis holds
+        budget = analyze(read_run(run_file)).coherence_budget
+        for c in ("x", "y"):
+            assert ds[f"expected_coherence_{c}"].attrs["units"] == "1"
+            np.testing.assert_array_equal(ds[f"expected_coherence_{c}"].values,
+                                          budget.expected[c])
 
 
 def test_lines_and_span_off_the_files_grid_recompute_the_model(runner, run_file):
