@@ -45,7 +45,8 @@ def sweep_text(level: float, runs: int) -> str:
 def time_loop(level: float, runs: int, work: Path) -> float:
     script = (f'for i in $(seq 1 {runs}); do "{PY}" -m daq.cli acquire --scene ishizaki2009 '
               f'--set source.level_vrms={level} --seed $i --out "{work}/run_$i.h5" -q '
-              '> /dev/null || exit 1; done')
+              # a strong drive puts the spot off the PSD now and then: exit 3 without the flag
+              '--allow-over-budget > /dev/null || exit 1; done')
     t = time.perf_counter()
     subprocess.run(["bash", "-c", script], check=True, cwd=ROOT)
     return time.perf_counter() - t
