@@ -1284,6 +1284,24 @@ def _kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarra
     return z_out[:, model.slices["theta_rad"]]
 
 
+def _richardson_estimate(scene, model: BenchModel, v: np.ndarray, z0: np.ndarray,
+                         order: int) -> dict:
+    """Error estimate of a coupled-bench method of ``order`` on the probe input ``v``: Richardson
+    against the same method with twice the steps per DAC sample, ``|theta - theta_fine| 2^p /
+    (2^p - 1)`` [rad], and the nonlinear-minus-linear model difference on the probe."""
+    theta = _kernel_theta(model, v, z0)
+    fine = build_model(scene, method=model.method, substeps=2 * model.substeps,
+                       selection=model.selection)
+    diff = (theta - _kernel_theta(fine, v, z0)) * (2.0**order / (2.0**order - 1.0))
+    lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
+    return {
+        "max_abs_theta_rad": float(np.max(np.abs(diff))),
+        "relative_rms_theta": _rel_rms(diff, theta),
+        "integrator_max_abs_theta_rad": float(np.max(np.abs(diff))),
+        "probe_nonlinear_minus_linear_relative_rms_theta": _rel_rms(theta - lin, theta),
+    }
+
+
 def _rel_rms(diff: np.ndarray, ref: np.ndarray) -> float:
     """max over bodies of rms(diff_j) / rms(ref_j) (0 where nothing moves)."""
     num = np.sqrt(np.mean(diff**2, axis=0))
@@ -1377,19 +1395,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
             f"{ETDAB_ORDER} (its integral over a step from the polynomial through its last "
             f"{ETDAB_ORDER} values, one evaluation per step), {model.substeps} step(s) per DAC "
             "sample")
-        theta = _kernel_theta(model, v, z0)
-        fine = build_model(scene, method="etdab", substeps=2 * model.substeps,
-                           selection=model.selection)
-        theta_f = _kernel_theta(fine, v, z0)
-        factor = 2.0**ETDAB_ORDER / (2.0**ETDAB_ORDER - 1.0)
-        diff = (theta - theta_f) * factor
-        lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
-        info["error_estimate"] = {
-            "max_abs_theta_rad": float(np.max(np.abs(diff))),
-            "relative_rms_theta": _rel_rms(diff, theta),
-            "integrator_max_abs_theta_rad": float(np.max(np.abs(diff))),
-            "probe_nonlinear_minus_linear_relative_rms_theta": _rel_rms(theta - lin, theta),
-        }
+        info["error_estimate"] = _richardson_estimate(scene, model, v, z0, ETDAB_ORDER)
         info["error_method"] = (
             f"Richardson on a {probe_s:g} s probe of the scene's drive from rest: |theta - "
             f"theta(2x steps)| 2^{ETDAB_ORDER}/(2^{ETDAB_ORDER} - 1) (the error is that of the "
@@ -1402,19 +1408,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
                           "system (rig.coupled): the linear bench propagated exactly (matrix "
                           "exponential, zero-order hold), the nonlinear remainder by Lawson's "
                           f"RK4, {model.substeps} step(s) per DAC sample")
-        theta = _kernel_theta(model, v, z0)
-        fine = build_model(scene, method="lawson4", substeps=2 * model.substeps,
-                           selection=model.selection)
-        theta_f = _kernel_theta(fine, v, z0)
-        factor = 16.0 / 15.0
-        diff = (theta - theta_f) * factor
-        lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
-        info["error_estimate"] = {
-            "max_abs_theta_rad": float(np.max(np.abs(diff))),
-            "relative_rms_theta": _rel_rms(diff, theta),
-            "integrator_max_abs_theta_rad": float(np.max(np.abs(diff))),
-            "probe_nonlinear_minus_linear_relative_rms_theta": _rel_rms(theta - lin, theta),
-        }
+        info["error_estimate"] = _richardson_estimate(scene, model, v, z0, 4)
         info["error_method"] = (
             f"Richardson on a {probe_s:g} s probe of the scene's drive from rest: |theta - "
             "theta(2x steps)| 16/15 (order 4; the error is that of the small nonlinear "
