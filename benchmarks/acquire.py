@@ -27,6 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from daq.acquisition import acquire, rig_bench  # noqa: E402
+from daq.hdf5 import Hdf5Sink  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 
 CONFIGS = {
@@ -40,7 +41,7 @@ def one_run(name, out, extra=()):
     override, kw = CONFIGS[name]
     scene = load_scene("ishizaki2009", [override, *extra])
     t, c = time.perf_counter(), time.process_time()
-    summary = acquire(scene, seed=2009, out=out, force=True,
+    summary = acquire(scene, seed=2009, sinks=[Hdf5Sink(out, force=True)],
                       bench=functools.partial(rig_bench, **kw))
     return time.perf_counter() - t, time.process_time() - c, summary
 

@@ -1,16 +1,16 @@
 """The acquisition: bench -> anti-alias filter -> ADC -> records, as a stream fanned out to sinks.
 
-:func:`acquire` runs one continuous acquisition of a scene and sends every sink, in order::
+:func:`acquire` runs one continuous acquisition of a scene and sends every sink
+(:mod:`daq.sinks`), in order::
 
     start(Header) -> block(Block) ... record(Record) ... -> stop(Footer)
 
-``block`` delivers digitised samples as soon as they exist (live views), ``record`` every finished
-record (files, memory). The loop knows nothing about files or viewers: a sink with
-``critical = True`` (files, memory) stops the run if it fails; one with ``critical = False`` (a live
-view) only warns and is dropped. Every sink receives ``stop`` whatever happens: with status
-"complete", "interrupted" (KeyboardInterrupt, e.g. Ctrl-C) or "failed" (an exception; re-raised
-after the sinks are closed). Records are handed to the sinks with SIGINT deferred, so a sink sees
-a whole record or none.
+The loop knows nothing about files or viewers: it is handed its sinks (a run file is a
+``daq.hdf5.Hdf5Sink``), and a critical sink's failure stops the run while a live one's only drops
+it. Every sink receives ``stop`` whatever happens: with status "complete", "interrupted"
+(KeyboardInterrupt, e.g. Ctrl-C) or "failed" (an exception; re-raised after the sinks are
+closed). Records are handed to the sinks with SIGINT deferred, so a sink sees a whole record or
+none.
 
 The bench is anything with the :class:`Bench` interface; the default is the emulated rig
 (:func:`rig_bench`, ``rig.bench``); :class:`FunctionBench` turns functions of time into a bench
@@ -25,7 +25,6 @@ import math
 import signal
 import threading
 import time
-import warnings
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -37,19 +36,12 @@ from daq.adc import ADC
 from daq.antialias import AntiAliasFilter
 from daq.blas import single_threaded_blas
 from daq.channels import channels_for
-from daq.files import check_writable
-from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan,
-                         Recording, TruthField)
+from daq.records import Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan, TruthField
+from daq.sinks import Fanout, Sink
 from rig.blocks import AnalogBlock, Calibration
 from rig.errors import ConfigError, RigError
 from rig.prefetch import prefetch
 from rig.scene import Scene
-
-#: 1.1: HDF5 1.10 format bounds, fletcher32 on every chunked dataset, the anti-alias sections
-#: as the dataset entry/instrument/antialias/sos (1.0: an attribute). Both are read.
-FORMAT_VERSION = "1.1"
-READABLE_FORMAT_VERSIONS = ("1.0", "1.1")
-
 
 class StreamError(RigError, RuntimeError):
     """The bench broke the block contract (gap, wrong rate, missing channel, non-finite volts)."""
@@ -92,13 +84,24 @@ class Bench(Protocol):
     filter is applied by the acquisition); ``units`` and ``long_names`` (optional dicts) say what
     they are. ``model_info()`` says what was simulated (model, method, error estimate...) and,
     for the rig, why (``reason``, ``selection``: the model chosen for the scene's error budget).
-    An optional ``saturation_keys`` dict maps a channel to the truth key of its sensor's
-    saturation flag (bool at the simulation rate: e.g. the spot off the PSD, the accelerometer
-    over its range); the acquisition stores, per sample, whether it was set within the sample's
-    decimation interval.
+
+    Optional members (the acquisition reads them with these defaults when a bench lacks them):
+
+    - ``truth_keys``: the truth series to record, in order (default: every key of the first
+      block's ``truth``);
+    - ``saturation_keys``: channel -> truth key of its sensor's saturation flag (bool at the
+      simulation rate: e.g. the spot off the PSD, the accelerometer over its range); the
+      acquisition stores, per sample, whether it was set within the sample's decimation
+      interval (default: none);
+    - ``units``, ``long_names``: response name -> unit / description of ``expected_response``
+      (default: none; a response dict may also carry its own ``"units"`` and ``"long_names"``).
     """
 
     fs_hz: float
+    truth_keys: tuple[str, ...] | None = None
+    saturation_keys: dict[str, str] | None = None
+    units: dict[str, str] | None = None
+    long_names: dict[str, str] | None = None
 
     def blocks(self) -> Iterator[AnalogBlock]: ...
 
@@ -247,93 +250,6 @@ def _as_dict(obj) -> dict:
     return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
 
 
-# -- sinks -----------------------------------------------------------------------------------
-
-class Sink:
-    """Receives the stream; override what you need. ``critical``: a failure stops the run."""
-
-    critical = True
-
-    def start(self, header: Header) -> None:
-        pass
-
-    def block(self, block: Block) -> None:
-        pass
-
-    def record(self, record) -> None:
-        pass
-
-    def stop(self, footer: Footer) -> None:
-        pass
-
-
-class MemorySink(Sink):
-    """Keeps the run in memory; :attr:`recording` is a :class:`daq.records.Recording`."""
-
-    def __init__(self):
-        self.header = None
-        self.footer = None
-        self._records = []
-
-    def start(self, header: Header) -> None:
-        self.header, self.footer, self._records = header, None, []
-
-    def record(self, record) -> None:
-        self._records.append(record)
-
-    def stop(self, footer: Footer) -> None:
-        self.footer = footer
-
-    @property
-    def recording(self) -> Recording:
-        h = self.header
-        n, recs = h.plan.samples, self._records
-
-        def stack(get, key, shape, dtype):
-            if not recs:
-                return np.empty((0, n) + shape, dtype)
-            return np.stack([get(r)[key] for r in recs])
-
-        return Recording(
-            header=h,
-            codes={c.name: stack(lambda r: r.codes, c.name, (), c.adc.dtype) for c in h.channels},
-            clipped={c.name: stack(lambda r: r.clipped, c.name, (), bool) for c in h.channels},
-            truth={t.name: stack(lambda r: r.truth, t.name, t.shape, float) for t in h.truth},
-            status=self.footer.status if self.footer else "acquiring",
-            saturated={c.name: stack(lambda r: r.saturated, c.name, (), bool)
-                       for c in h.channels})
-
-
-class _Fanout:
-    def __init__(self, sinks: Iterable[Sink]):
-        self.sinks = list(sinks)
-
-    def send(self, method: str, event) -> None:
-        for s in list(self.sinks):
-            try:
-                getattr(s, method)(event)
-            except Exception as exc:
-                if getattr(s, "critical", True):
-                    raise
-                warnings.warn(f"sink {type(s).__name__} failed in {method}() and was dropped: "
-                              f"{type(exc).__name__}: {exc}", RuntimeWarning, stacklevel=2)
-                self.sinks.remove(s)
-
-    def stop_all(self, footer: Footer) -> list[BaseException]:
-        """Stop every sink; collect (not raise) their errors."""
-        errors = []
-        for s in self.sinks:
-            try:
-                s.stop(footer)
-            except Exception as exc:
-                if getattr(s, "critical", True):
-                    errors.append(exc)
-                else:
-                    warnings.warn(f"sink {type(s).__name__} failed in stop(): {exc}",
-                                  RuntimeWarning, stacklevel=2)
-        return errors
-
-
 @contextlib.contextmanager
 def _sigint_deferred():
     """Hold a SIGINT (Ctrl-C) until the block exits, then raise KeyboardInterrupt; likewise a
@@ -380,7 +296,8 @@ class AcquisitionSummary:
     model_info : what the bench simulated.
     seed : the seed of the run.
     wall_s : wall time of :func:`acquire` [s].
-    path : the file written (None without ``out``); ``file_bytes`` its size.
+    path : the file written (the first sink with a ``target``; None without one);
+        ``file_bytes`` its size.
     """
 
     status: str
@@ -433,8 +350,8 @@ def antialias_for(acquisition: dict, plan: RecordPlan) -> AntiAliasFilter:
         attenuation_db=acquisition.get("antialias_attenuation_db"))
 
 
-def acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bool = False,
-            sinks: Iterable[Sink] = (), progress: Callable[[float, float], None] | None = None,
+def acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
+            progress: Callable[[float, float], None] | None = None,
             bench: Callable[[Scene, int], Bench] | None = None) -> AcquisitionSummary:
     """Acquire ``scene.settings["acquisition"]["records"]`` records of the scene's bench.
 
@@ -442,9 +359,10 @@ def acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bo
     ----------
     scene : the resolved scene; its ``[acquisition]`` section sets rates, records, ADC and filter.
     seed : seeds the bench (0 <= seed < 2**63); written into every record.
-    out : if given, an HDF5 file (:class:`daq.hdf5.HDF5Sink`) is added to ``sinks``.
-    force : allow replacing an existing ``out`` (it is replaced only by a complete run).
-    sinks : more sinks (e.g. :class:`MemorySink`).
+    sinks : where the stream goes, in order (:mod:`daq.sinks`): e.g. a run file first
+        (``daq.hdf5.Hdf5Sink(path, force=...)``), a :class:`daq.sinks.MemorySink`, a live view.
+        Each sink's ``check()`` runs before anything is simulated; the free space is checked
+        beside the first sink's ``target`` file.
     progress : called as ``progress(simulated_s, total_s)`` after every bench block.
     bench : ``bench(scene, seed) -> Bench``; default :func:`rig_bench`.
 
@@ -467,12 +385,11 @@ def acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bo
     # nothing from more, and OpenBLAS's spinning threads take the core that the pipeline's other
     # stage runs on (the process's CPU time drops by ~0.7 s).
     with single_threaded_blas():
-        return _acquire(scene, seed=seed, out=out, force=force, sinks=sinks, progress=progress,
-                        bench=bench)
+        return _acquire(scene, seed=seed, sinks=sinks, progress=progress, bench=bench)
 
 
-def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: bool = False,
-             sinks: Iterable[Sink] = (), progress: Callable[[float, float], None] | None = None,
+def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
+             progress: Callable[[float, float], None] | None = None,
              bench: Callable[[Scene, int], Bench] | None = None) -> AcquisitionSummary:
     """:func:`acquire` (with one BLAS thread)."""
     t_start = time.perf_counter()
@@ -482,17 +399,13 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
     aa = antialias_for(acq, plan)
     seed = check_seed(seed)
     sinks = list(sinks)
-    file_sink = None
     from daq.resources import preflight
 
-    if out is not None:
-        check_writable(Path(out), force=force)
-    preflight(plan, scene, out)  # file size and memory, before anything is simulated
-    if out is not None:
-        from daq.hdf5 import HDF5Sink
-
-        file_sink = HDF5Sink(out, force=force)
-        sinks.insert(0, file_sink)  # the file first: it is what must not miss a record
+    for s in sinks:
+        s.check()
+    file_sink = next((s for s in sinks if getattr(s, "target", None) is not None), None)
+    # file size and memory, before anything is simulated
+    preflight(plan, scene, None if file_sink is None else file_sink.target)
     the_bench = (bench or rig_bench)(scene, seed)
     if not math.isclose(the_bench.fs_hz, plan.simulation_rate_hz, rel_tol=1e-12):
         raise ConfigError(f"the bench runs at {the_bench.fs_hz:g} Hz but acquisition."
@@ -510,7 +423,7 @@ def _acquire(scene: Scene, *, seed: int, out: str | Path | None = None, force: b
                     truth=truth, model_info=the_bench.model_info(), response=response,
                     software_version=software_version(), start_time=utc_now_iso())
 
-    fan = _Fanout(sinks)
+    fan = Fanout(sinks)
     clips: list[list[int]] = []
     sats: list[list[int]] = []
     status, message, failure = "failed", "", None
@@ -610,7 +523,7 @@ def _interval_any(flags: np.ndarray, kept: slice, carry: bool) -> tuple[np.ndarr
     return out, bool(flags[idx[-1] + 1:].any())
 
 
-def _run(header: Header, blocks: Iterator[AnalogBlock], fan: _Fanout, progress,
+def _run(header: Header, blocks: Iterator[AnalogBlock], fan: Fanout, progress,
          clips: list, sats: list, saturation_keys: dict) -> None:
     """The acquisition loop. Appends each finished record's clip counts to ``clips`` (and its
     saturation counts to ``sats``) in the same SIGINT-free section that hands the record to the

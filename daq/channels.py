@@ -89,6 +89,14 @@ class Channel:
                    unit=str(d["unit"]), volts_per_unit=float(d["volts_per_unit"]),
                    range_v=float(d["range_v"]), bits=int(d["bits"]))
 
+    @classmethod
+    def from_attrs(cls, name: str, attrs) -> "Channel":
+        """The channel ``name`` of a run file from its dataset's attributes
+        (:meth:`description` as HDF5 attributes, the unit as ``engineering_unit``)."""
+        a = {k: (v.decode("utf-8", "replace") if isinstance(v, bytes) else v)
+             for k, v in attrs.items()}
+        return cls.from_description({**a, "name": name, "unit": a["engineering_unit"]})
+
 
 def channels_for(acquisition: dict, calibrations: dict[str, Calibration]) -> tuple[Channel, ...]:
     """The channels of a run, in the order of ``calibrations``.

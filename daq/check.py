@@ -25,18 +25,19 @@ long as every record it counts verifies.
 from __future__ import annotations
 
 import json
-import struct
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from daq.channels import Channel
+from daq.hdf5 import READABLE_FORMAT_VERSIONS
+from daq.records import STATUSES
+from daq.repair import UnreadableFile, _first_line, open_hdf5
 from rig.errors import ConfigError
 
-__all__ = ["FileCheck", "MissingFile", "UnreadableFile", "check_file", "open_hdf5",
-           "superblock"]
+__all__ = ["FileCheck", "MissingFile", "check_file", "check_ok_or_raise"]
 
-_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 #: Statuses of a file that is not whole (besides a run's own: complete, interrupted, failed,
 #: acquiring).
 BAD_STATUSES = ("not hdf5", "truncated", "corrupt", "unreadable", "invalid")
@@ -110,123 +111,6 @@ class FileCheck:
         return head
 
 
-def superblock(path: str | Path) -> dict | None:
-    """The HDF5 superblock's version, file-consistency flags and end-of-file address, read
-    directly from the file (no HDF5 call); None if the file does not start with the HDF5
-    signature (user blocks are not searched: the project writes none)."""
-    with open(path, "rb") as fh:
-        head = fh.read(96)
-    if len(head) < 9 or head[:8] != _SIGNATURE:
-        return None
-    version = head[8]
-    try:
-        if version >= 2:  # signature, version, offsets size, lengths size, flags, 4 addresses
-            so = head[9]
-            flags = head[11]
-            first = 12
-        else:  # v0/v1: versions of free space, root symbol table, shared header; sizes; ks; flags
-            so = head[13]
-            flags = struct.unpack_from("<I", head, 20)[0]
-            first = 24 if version == 0 else 28
-        fmt = {4: "<I", 8: "<Q"}[so]
-        eof = struct.unpack_from(fmt, head, first + 2 * so)[0]
-    except (KeyError, struct.error):
-        return {"version": version, "flags": None, "eof": None}
-    return {"version": version, "flags": flags, "eof": eof}
-
-
-class UnreadableFile(ConfigError):
-    """HDF5 cannot open the file: ``status`` is "not hdf5", "truncated" or "unreadable",
-    ``reason`` the sentence saying why."""
-
-    def __init__(self, path: Path, status: str, reason: str):
-        super().__init__(f"{str(path)!r} is truncated: {reason}" if status == "truncated"
-                         else f"{str(path)!r} is not a readable HDF5 file: {reason}")
-        self.status, self.reason = status, reason
-
-
-def open_hdf5(path: str | Path):
-    """Open an HDF5 file read-only without ever hanging: ``(h5py.File, marked)``.
-
-    A file shorter than its superblock's end-of-file address is refused as truncated before
-    HDF5 sees it; a file marked "open for writing" (``marked``: a live or killed SWMR writer) is
-    opened as a SWMR reader, any other in the plain mode, and a failed open is never retried in
-    SWMR mode. Raises :class:`UnreadableFile` (a ConfigError) if it cannot be opened.
-    """
-    import h5py
-
-    path = Path(path)
-    size = path.stat().st_size
-    sb = superblock(path)
-    if sb is None:
-        raise UnreadableFile(path, "not hdf5", f"not an HDF5 file ({size} bytes, no HDF5 "
-                                               "signature)")
-    if sb["eof"] is not None and size < sb["eof"]:
-        raise UnreadableFile(path, "truncated", f"{size} of the {sb['eof']} bytes its "
-                                                f"HDF5 superblock records ({sb['eof'] - size} "
-                                                "missing); no HDF5 reader opens it")
-    marked = bool(sb["flags"]) and sb["version"] >= 3
-    try:
-        f = _open_swmr(path) if marked else h5py.File(path, "r")
-    except (OSError, KeyError) as exc:
-        raise UnreadableFile(path, "unreadable", f"HDF5 cannot open it "
-                                                 f"({_first_line(exc)})") from None
-    return f, marked
-
-
-#: Metadata read attempts of a SWMR reader. HDF5's default (100) retries a checksum failure with
-#: a doubling sleep from 1 ns capped at an hour per attempt -- days for a corrupt file; 24
-#: attempts retry for ~17 ms in all, ample for a live writer's metadata flush.
-SWMR_READ_ATTEMPTS = 24
-
-
-def _hdf5_library():
-    """The HDF5 C library h5py runs on (ctypes), or None if it cannot be found."""
-    import ctypes
-    import glob
-
-    import h5py
-
-    paths = []
-    try:  # the library already loaded into this process (Linux)
-        with open("/proc/self/maps") as fh:
-            for line in fh:
-                name = line.split()[-1]
-                if Path(name).name.startswith("libhdf5") and ".so" in name:
-                    paths.append(name)
-    except OSError:
-        pass
-    paths += glob.glob(str(Path(h5py.__file__).parent.parent / "h5py.libs" / "libhdf5-*.so*"))
-    for p in dict.fromkeys(paths):
-        if Path(p).name.startswith("libhdf5_hl") or not Path(p).exists():
-            continue
-        try:
-            lib = ctypes.CDLL(p)
-            fn = lib.H5Pset_metadata_read_attempts
-        except (OSError, AttributeError):
-            continue
-        fn.argtypes = [ctypes.c_int64, ctypes.c_uint]
-        return lib
-    return None
-
-
-def _open_swmr(path: Path):
-    """Open ``path`` as a SWMR reader with :data:`SWMR_READ_ATTEMPTS` metadata read attempts
-    (a corrupt file fails in milliseconds instead of sleeping for days)."""
-    import h5py
-
-    lib = _hdf5_library()
-    if lib is None:  # pragma: no cover - h5py without a findable HDF5: HDF5's default retries
-        return h5py.File(path, "r", swmr=True)
-    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
-    fapl.set_fclose_degree(h5py.h5f.CLOSE_STRONG)
-    if lib.H5Pset_metadata_read_attempts(fapl.id, SWMR_READ_ATTEMPTS) < 0:  # pragma: no cover
-        return h5py.File(path, "r", swmr=True)
-    fid = h5py.h5f.open(str(path).encode(), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ,
-                        fapl=fapl)
-    return h5py.File(fid)
-
-
 def check_file(path: str | Path) -> FileCheck:
     """Check ``path`` (see the module docstring). Never raises for a bad file; raises
     :class:`MissingFile` if ``path`` does not exist or is not a file."""
@@ -244,11 +128,6 @@ def check_file(path: str | Path) -> FileCheck:
             c.problem("invalid", f"unexpected structure ({type(exc).__name__}: "
                                  f"{_first_line(exc)})")
     return c.result()
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
 
 
 class _Checker:
@@ -341,8 +220,6 @@ class _Checker:
     # -- run files ----------------------------------------------------------------------------
     def _run(self, f) -> set:
         """The run-file checks; returns the per-record datasets it verified itself."""
-        from daq.acquisition import READABLE_FORMAT_VERSIONS
-        from daq.records import STATUSES
 
         if self.version not in READABLE_FORMAT_VERSIONS:
             self.problem("invalid", f"format version {self.version!r} is not one this reader "
@@ -455,14 +332,12 @@ class _Checker:
                                     f"the file has {samples}")
 
     def _calibrations(self, data, names) -> None:
-        from daq.hdf5 import _channel
-
         for c in names:
             if c not in data:
                 continue
             a = data[c].attrs
             try:
-                ch = _channel(c, a)
+                ch = Channel.from_attrs(c, a)
             except Exception as exc:  # noqa: BLE001 - any failure is an inconsistent file
                 self.problem("invalid", f"channel {c}: calibration does not rebuild "
                                         f"({_first_line(exc)})")

@@ -237,7 +237,7 @@ def _live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
             host_port(connect)
         except ValueError as exc:
             raise click.BadParameter(str(exc)) from None
-    from daq.acquisition import Sink
+    from daq.sinks import Sink
 
     class DeferredLiveView(Sink):
         """processing.live_view.LiveView, made when the run starts (its import runs
@@ -322,7 +322,7 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     estimate (how it was obtained is recorded too).
     """
     from daq.files import check_writable
-    from daq.trajectory_io import trajectory_format, write_trajectory
+    from daq.trajectory import trajectory_format, write_trajectory
     from rig.scene import load_scene
     from rig.simulate import simulate as run_simulation
 
@@ -514,6 +514,7 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
 
     from daq.acquisition import AcquisitionInterrupted
     from daq.acquisition import acquire as run_acquisition
+    from daq.hdf5 import Hdf5Sink
     from daq.signals import stop_signals_interrupt
     from rig.scene import load_scene
 
@@ -552,8 +553,8 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
                                           record_s=a["record_s"], settle_s=a["settle_s"])
     try:
         with stop_signals_interrupt():  # SIGTERM, SIGHUP end the run like Ctrl-C
-            summary = run_acquisition(sc, seed=seed, out=out, force=force, progress=bar,
-                                      sinks=sinks)
+            files = [] if out is None else [Hdf5Sink(out, force=force)]  # the file first
+            summary = run_acquisition(sc, seed=seed, progress=bar, sinks=[*files, *sinks])
     except AcquisitionInterrupted as exc:
         if bar is not None:
             bar.close()
@@ -651,7 +652,8 @@ def inspect(path, as_json, repair):
     """Show what the run file PATH holds: scene, seed, versions, status, channels, clipping,
     model."""
     from daq.check import check_file
-    from daq.hdf5 import clear_write_flags, run_info
+    from daq.hdf5 import run_info
+    from daq.repair import clear_write_flags
 
     if repair and clear_write_flags(path) and not as_json:
         click.echo(f"cleared the open-for-writing mark of {path}")
@@ -1022,8 +1024,8 @@ def check_cmd(paths, as_json, repair):
     problem); exit status 0 only if every file is sound (an interrupted run whose records all
     verify is sound), 1 otherwise. The library call is daq.check.check_file.
     """
-    from daq.check import check_file, superblock
-    from daq.hdf5 import clear_write_flags
+    from daq.check import check_file
+    from daq.repair import clear_write_flags, superblock
     from rig.errors import ConfigError
 
     if repair:

@@ -70,7 +70,7 @@ first, then refreshes the data, and finds at least that many complete rows. An i
 exception) closes the file with status "interrupted"/"failed" and every finished record. If the
 process is killed, the file stays valid with every flushed record and status "acquiring", but
 HDF5 marks it "open for writing": SWMR readers (and :func:`open_run`) read it as it is; others
-need the mark cleared first (``h5clear -s FILE`` or :func:`clear_write_flags`, ``daq inspect
+need the mark cleared first (``h5clear -s FILE`` or :func:`daq.repair.clear_write_flags`, ``daq inspect
 --repair``).
 
 An existing file is never overwritten without ``force``; with ``force`` the new run is written
@@ -89,12 +89,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from daq.acquisition import FORMAT_VERSION, Sink
 from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
 from daq.files import check_writable, umask_mode
 from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Recording, STATUSES,
                          TruthField)
+from daq.repair import open_hdf5, write_flags
+from daq.sinks import Sink
 from rig.errors import ConfigError
 
 try:
@@ -103,6 +104,10 @@ except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
 FORMAT = "pendulum-daq run"
+#: 1.1: HDF5 1.10 format bounds, fletcher32 on every chunked dataset, the anti-alias sections
+#: as the dataset entry/instrument/antialias/sos (1.0: an attribute). Both are read.
+FORMAT_VERSION = "1.1"
+READABLE_FORMAT_VERSIONS = ("1.0", "1.1")
 RUN_SUFFIXES = (".h5", ".hdf5", ".nxs")
 #: HDF5 format bounds of every file the project writes: the oldest that has SWMR (superblock
 #: v3, HDF5 1.10), so HDF5 1.10 and 1.14 read the files too ("latest" under HDF5 2.0 writes a
@@ -173,7 +178,7 @@ def _group(parent, name: str, nx_class: str, /, **attrs):
     return g
 
 
-class HDF5Sink(Sink):
+class Hdf5Sink(Sink):
     """Writes the stream into an HDF5 run file (see the module docstring).
 
     Parameters
@@ -191,9 +196,6 @@ class HDF5Sink(Sink):
 
     def __init__(self, path: str | Path, *, force: bool = False, compression_level: int = 4,
                  truth_compression_level: int = 0):
-        if Path(path).suffix.lower() not in RUN_SUFFIXES:
-            raise ConfigError(f"--out {str(path)!r}: unknown extension {Path(path).suffix!r}; "
-                              f"a run file is HDF5: expected {', '.join(RUN_SUFFIXES)}")
         self.target = Path(path)
         self.force = force
         self.level, self.truth_level = compression_level, truth_compression_level
@@ -204,8 +206,18 @@ class HDF5Sink(Sink):
         self._n = 0
 
     # -- stream ---------------------------------------------------------------------------
+    def check(self) -> None:
+        """Refuse an output that exists (without ``force``), is a directory or is in a missing
+        or read-only directory (:func:`daq.files.check_writable`), or that is not named as a
+        run file (:data:`RUN_SUFFIXES`)."""
+        path = check_writable(self.target, force=self.force)
+        if path.suffix.lower() not in RUN_SUFFIXES:
+            raise ConfigError(f"--out {str(path)!r}: unknown extension {path.suffix!r}; "
+                              f"a run file is HDF5: expected {', '.join(RUN_SUFFIXES)}")
+
     def start(self, header: Header) -> None:
-        target = check_writable(self.target, force=self.force)
+        self.check()
+        target = self.target
         if target.exists():
             self._hold_target(target)
             fd, tmp = tempfile.mkstemp(prefix=f"{target.stem}.partial-", suffix=target.suffix,
@@ -487,9 +499,7 @@ class HDF5Sink(Sink):
 def open_run(path: str | Path):
     """Open a run file read-only; a file still marked open for writing (a live or killed writer)
     is opened as a SWMR reader. A truncated or unreadable file is a ConfigError at once
-    (:func:`daq.check.open_hdf5`: never a retry in SWMR mode, which can wait for minutes)."""
-    from daq.check import open_hdf5
-
+    (:func:`daq.repair.open_hdf5`: never a retry in SWMR mode, which can wait for minutes)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"run file {str(path)!r} does not exist")
@@ -564,13 +574,8 @@ def run_info(path: str | Path) -> dict:
             if "truth" in e else [],
             "responses": sorted(k[:-5] for k in model if k.endswith("_real")),
         }
-        info["writer_flag_set"] = _flags_byte(path) not in (0, None)
+        info["writer_flag_set"] = write_flags(path) not in (0, None)
     return info
-
-
-def _channel(name: str, attrs) -> Channel:
-    a = {k: (_s(v) if isinstance(v, (bytes, str)) else v) for k, v in attrs.items()}
-    return Channel.from_description({**a, "name": name, "unit": a["engineering_unit"]})
 
 
 def read_run(path: str | Path, records=None) -> Recording:
@@ -596,7 +601,7 @@ def read_run(path: str | Path, records=None) -> Recording:
         plan = RecordPlan.from_settings(settings["acquisition"])
         data = e["data"]
         names = [_s(data.attrs["signal"])] + [_s(s) for s in data.attrs["auxiliary_signals"]]
-        channels = tuple(_channel(c, data[c].attrs) for c in names)
+        channels = tuple(Channel.from_attrs(c, data[c].attrs) for c in names)
         ag = e["instrument/antialias"]
         a = ag.attrs
         sos = np.array(ag["sos"][()] if "sos" in ag else a["sos"], dtype=float)  # 1.1 / 1.0
@@ -638,93 +643,3 @@ def read_run(path: str | Path, records=None) -> Recording:
                      if "saturation" in e else {})
     return Recording(header=header, codes=codes, clipped=clipped, truth=truth, status=status,
                      saturated=saturated)
-
-
-# -- repair ----------------------------------------------------------------------------------
-
-_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-
-
-def _flags_byte(path: Path) -> int | None:
-    with open(path, "rb") as fh:
-        head = fh.read(12)
-    if len(head) < 12 or head[:8] != _SIGNATURE or head[8] < 2:
-        return None
-    return head[11]
-
-
-def _lookup3(data: bytes, initval: int = 0) -> int:
-    """Bob Jenkins' lookup3 ``hashlittle``: the checksum of HDF5's version 2/3 superblock."""
-    mask = 0xFFFFFFFF
-
-    def rot(x, k):
-        return ((x << k) | (x >> (32 - k))) & mask
-
-    length = len(data)
-    a = b = c = (0xDEADBEEF + length + initval) & mask
-    i = 0
-    while length > 12:
-        a = (a + int.from_bytes(data[i:i + 4], "little")) & mask
-        b = (b + int.from_bytes(data[i + 4:i + 8], "little")) & mask
-        c = (c + int.from_bytes(data[i + 8:i + 12], "little")) & mask
-        a = (a - c) & mask; a ^= rot(c, 4); c = (c + b) & mask    # noqa: E702
-        b = (b - a) & mask; b ^= rot(a, 6); a = (a + c) & mask    # noqa: E702
-        c = (c - b) & mask; c ^= rot(b, 8); b = (b + a) & mask    # noqa: E702
-        a = (a - c) & mask; a ^= rot(c, 16); c = (c + b) & mask   # noqa: E702
-        b = (b - a) & mask; b ^= rot(a, 19); a = (a + c) & mask   # noqa: E702
-        c = (c - b) & mask; c ^= rot(b, 4); b = (b + a) & mask    # noqa: E702
-        i += 12
-        length -= 12
-    if length == 0:
-        return c
-    tail = data[i:] + bytes(12 - length)
-    a = (a + int.from_bytes(tail[0:4], "little")) & mask
-    b = (b + int.from_bytes(tail[4:8], "little")) & mask
-    c = (c + int.from_bytes(tail[8:12], "little")) & mask
-    c ^= b; c = (c - rot(b, 14)) & mask   # noqa: E702
-    a ^= c; a = (a - rot(c, 11)) & mask   # noqa: E702
-    b ^= a; b = (b - rot(a, 25)) & mask   # noqa: E702
-    c ^= b; c = (c - rot(b, 16)) & mask   # noqa: E702
-    a ^= c; a = (a - rot(c, 4)) & mask    # noqa: E702
-    b ^= a; b = (b - rot(a, 14)) & mask   # noqa: E702
-    c ^= b; c = (c - rot(b, 24)) & mask   # noqa: E702
-    return c
-
-
-def clear_write_flags(path: str | Path) -> bool:
-    """Clear the "open for writing" mark a killed writer left in the superblock (``h5clear -s``).
-
-    Only the superblock's file-consistency flags byte and its checksum are rewritten. Refuses
-    while the writer of a run is still alive (it holds a shared lock on the file). Returns True if
-    a mark was cleared, False if there was none.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"run file {str(path)!r} does not exist")
-    flags = _flags_byte(path)
-    if flags is None:
-        raise ConfigError(f"{str(path)!r} has no version 2/3 HDF5 superblock at offset 0; "
-                          "nothing to clear")
-    if flags == 0:
-        return False
-    with open(path, "r+b") as fh:
-        if fcntl is not None:
-            try:
-                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                raise ConfigError(f"{str(path)!r} is still being written (its writer holds a "
-                                  "lock); read it with SWMR instead") from None
-        head = bytearray(fh.read(12))
-        size_of_offsets = head[9]
-        n = 12 + 4 * size_of_offsets
-        fh.seek(0)
-        sb = bytearray(fh.read(n + 4))
-        if int.from_bytes(sb[n:n + 4], "little") != _lookup3(bytes(sb[:n])):
-            raise ConfigError(f"{str(path)!r}: superblock checksum mismatch; not touching it")
-        sb[11] = 0
-        sb[n:n + 4] = _lookup3(bytes(sb[:n])).to_bytes(4, "little")
-        fh.seek(0)
-        fh.write(sb)
-        fh.flush()
-        os.fsync(fh.fileno())
-    return True

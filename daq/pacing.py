@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import time
 
-from daq.acquisition import Sink
+from daq.sinks import Sink
 from rig.errors import ConfigError
 
 

@@ -53,7 +53,7 @@ os.environ.setdefault("RUST_LOG", "off")
 import rerun as rr  # noqa: E402
 import rerun.blueprint as rrb  # noqa: E402
 
-from daq.acquisition import Sink  # noqa: E402
+from daq.sinks import Sink  # noqa: E402
 from daq.files import check_writable  # noqa: E402
 from daq.records import Block, Footer, Record  # noqa: E402
 from processing import bode_canvas as bc  # noqa: E402

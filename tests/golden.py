@@ -46,12 +46,12 @@ def run_arrays(name: str, **bench_kw) -> dict[str, np.ndarray]:
     import functools
 
     from daq.acquisition import acquire, rig_bench
-    from daq.hdf5 import read_run
+    from daq.hdf5 import Hdf5Sink, read_run
 
     bench = functools.partial(rig_bench, **(bench_kw or RUNS[name][1]))
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.h5"
-        acquire(golden_scene(name), seed=SEED, out=path, bench=bench)
+        acquire(golden_scene(name), seed=SEED, sinks=[Hdf5Sink(path)], bench=bench)
         rec = read_run(path)
     out = {}
     for group in ("codes", "clipped", "saturated", "truth"):

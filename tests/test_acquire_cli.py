@@ -9,9 +9,10 @@ import pytest
 from click.testing import CliRunner
 
 import daq.acquisition
-from daq.acquisition import FunctionBench, Sink, acquire
+from daq.acquisition import FunctionBench, acquire
 from daq.cli import main
-from daq.hdf5 import read_run
+from daq.hdf5 import Hdf5Sink, read_run
+from daq.sinks import Sink
 from rig.blocks import Calibration
 from rig.scene import load_scene
 
@@ -154,7 +155,7 @@ def test_inspect_and_repair_a_file_whose_writer_died(runner, tmp_path):
 
     sc = load_scene("ishizaki2009", ["acquisition.records=2", "acquisition.record_s=2.0",
                                      "acquisition.settle_s=1.0"])
-    acquire(sc, seed=1, out=out, sinks=[Snapshot()])
+    acquire(sc, seed=1, sinks=[Hdf5Sink(out), Snapshot()])
     with pytest.raises(OSError):
         h5py.File(snap, "r")
     res = runner.invoke(main, ["inspect", str(snap)])

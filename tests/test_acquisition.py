@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from daq.acquisition import (AcquisitionInterrupted, FunctionBench, MemorySink, Sink,
-                             StreamError, acquire)
+from daq.acquisition import AcquisitionInterrupted, FunctionBench, StreamError, acquire
 from daq.antialias import AntiAliasFilter
+from daq.hdf5 import Hdf5Sink
+from daq.sinks import MemorySink, Sink
 from rig.blocks import Calibration
 from rig.errors import ConfigError
 from rig.scene import load_scene
@@ -271,7 +272,7 @@ def test_bad_settings_are_refused_before_any_work_and_nothing_is_destroyed(tmp_p
     out = tmp_path / "run.h5"
     out.write_bytes(b"precious")
     with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)")):
-        acquire(scene(*overrides), seed=1, out=out, force=True, bench=_never)
+        acquire(scene(*overrides), seed=1, sinks=[Hdf5Sink(out, force=True)], bench=_never)
     assert out.read_bytes() == b"precious"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.h5"]
 
@@ -280,11 +281,11 @@ def test_bad_outputs_and_seeds_are_refused_before_any_work(tmp_path):
     out = tmp_path / "run.h5"
     out.write_bytes(b"precious")
     with pytest.raises(ConfigError, match="exists; pass --force to overwrite it"):
-        acquire(scene(), seed=1, out=out, bench=_never)
+        acquire(scene(), seed=1, sinks=[Hdf5Sink(out)], bench=_never)
     with pytest.raises(ConfigError, match="does not exist"):
-        acquire(scene(), seed=1, out=tmp_path / "no" / "run.h5", bench=_never)
+        acquire(scene(), seed=1, sinks=[Hdf5Sink(tmp_path / "no" / "run.h5")], bench=_never)
     with pytest.raises(ConfigError, match="is a directory"):
-        acquire(scene(), seed=1, out=tmp_path, force=True, bench=_never)
+        acquire(scene(), seed=1, sinks=[Hdf5Sink(tmp_path, force=True)], bench=_never)
     for seed in (-1, 2 ** 63, 1.5, True):
         with pytest.raises(ConfigError, match=r"seed = .* is invalid: expected an integer"):
             acquire(scene(), seed=seed, bench=_never)

@@ -37,8 +37,9 @@ import math
 import numpy as np
 import pytest
 
-from daq.acquisition import MemorySink, acquire
-from daq.hdf5 import read_run
+from daq.acquisition import acquire
+from daq.hdf5 import Hdf5Sink, read_run
+from daq.sinks import MemorySink
 from processing.analysis import (AnalyzerSettings, _FastBench, analyze, expected_estimate,
                                  model_at_lines)
 from processing.compare import LinearModel
@@ -54,7 +55,7 @@ G = 9.80665
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     path = tmp_path_factory.mktemp("analysis") / "run.h5"
-    acquire(load_scene("ishizaki2009", ["acquisition.records=6"]), seed=11, out=path)
+    acquire(load_scene("ishizaki2009", ["acquisition.records=6"]), seed=11, sinks=[Hdf5Sink(path)])
     rec = read_run(path)
     return rec, analyze(rec, source=str(path))
 

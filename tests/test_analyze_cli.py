@@ -32,7 +32,7 @@ from click.testing import CliRunner
 
 from daq.acquisition import AcquisitionInterrupted, acquire
 from daq.cli import main
-from daq.hdf5 import read_run
+from daq.hdf5 import Hdf5Sink, read_run
 from processing.analysis import CSV_COLUMNS, analyze
 from rig.scene import load_scene
 
@@ -47,7 +47,7 @@ def runner():
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("cli") / "run.h5"
-    acquire(load_scene("ishizaki2009", SHORT), seed=4, out=path)
+    acquire(load_scene("ishizaki2009", SHORT), seed=4, sinks=[Hdf5Sink(path)])
     return path
 
 
@@ -200,7 +200,7 @@ def test_an_interrupted_run_is_analysed_with_its_finished_records(runner, tmp_pa
             raise KeyboardInterrupt
 
     with pytest.raises(AcquisitionInterrupted):
-        acquire(sc, seed=2, out=out, progress=stop)
+        acquire(sc, seed=2, sinks=[Hdf5Sink(out)], progress=stop)
     assert read_run(out).status == "interrupted"
     csv_path = tmp_path / "frf.csv"
     res = runner.invoke(main, ["analyze", str(out), "--csv", str(csv_path)])

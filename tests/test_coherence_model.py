@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from daq.acquisition import acquire
-from daq.hdf5 import read_run
+from daq.hdf5 import Hdf5Sink, read_run
 from processing.analysis import AnalyzerSettings, analyze
 from processing.coherence_model import quadratic_spectra
 from rig.scene import load_scene
@@ -26,7 +26,7 @@ from rig.scene import load_scene
 @pytest.fixture(scope="module")
 def paper(tmp_path_factory):
     path = tmp_path_factory.mktemp("coh") / "paper.h5"
-    acquire(load_scene("ishizaki2009"), seed=2009, out=path)
+    acquire(load_scene("ishizaki2009"), seed=2009, sinks=[Hdf5Sink(path)])
     return analyze(read_run(path), AnalyzerSettings())
 
 

@@ -23,7 +23,7 @@ import processing.analysis
 from daq.acquisition import acquire
 from daq.cli import main
 from daq.eu import to_xarray
-from daq.hdf5 import read_run
+from daq.hdf5 import Hdf5Sink, read_run
 from processing.analysis import AnalyzerSettings, analyze
 from rig.scene import load_scene
 
@@ -34,7 +34,7 @@ ASCII_RTOL = 1e-11
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("exchange") / "run.h5"
-    acquire(load_scene("ishizaki2009", SHORT), seed=5, out=path)
+    acquire(load_scene("ishizaki2009", SHORT), seed=5, sinks=[Hdf5Sink(path)])
     return path
 
 

@@ -13,8 +13,10 @@ import h5py
 import numpy as np
 import pytest
 
-from daq.acquisition import FunctionBench, MemorySink, acquire
-from daq.hdf5 import clear_write_flags, open_run, read_run, run_info
+from daq.acquisition import FunctionBench, acquire
+from daq.hdf5 import Hdf5Sink, open_run, read_run, run_info
+from daq.repair import clear_write_flags
+from daq.sinks import MemorySink
 from rig.blocks import Calibration
 from rig.errors import ConfigError
 from rig.scene import load_scene, scene_from_settings
@@ -63,7 +65,8 @@ def scene(records=3, record_s=2.0, settle_s=1.0, *more):
 
 def write(path, sc=None, seed=3, **kw):
     mem = MemorySink()
-    summary = acquire(sc or scene(), seed=seed, out=path, sinks=[mem],
+    summary = acquire(sc or scene(), seed=seed,
+                      sinks=[Hdf5Sink(path, force=kw.pop("force", False)), mem],
                       bench=kw.pop("bench", bench()), **kw)
     return summary, mem.recording
 
@@ -233,7 +236,8 @@ WRITER = textwrap.dedent("""
     sys.path.insert(0, {tests!r})
     from test_hdf5 import bench, scene
     from daq.acquisition import acquire
-    acquire(scene(200, 1.0, 0.5), seed=11, out=sys.argv[1], bench=bench(delay_s=0.03))
+    from daq.hdf5 import Hdf5Sink
+    acquire(scene(200, 1.0, 0.5), seed=11, sinks=[Hdf5Sink(sys.argv[1])], bench=bench(delay_s=0.03))
 """)
 
 
@@ -308,11 +312,10 @@ def test_files_that_are_not_runs_are_refused_clearly(tmp_path):
 
 
 def test_a_record_cut_short_by_an_error_is_dropped_from_the_file(tmp_path):
-    from daq.hdf5 import HDF5Sink
     from daq.records import Footer, Record
 
     _, rec = write(tmp_path / "ref.h5")
-    sink = HDF5Sink(tmp_path / "run.h5")
+    sink = Hdf5Sink(tmp_path / "run.h5")
     sink.start(rec.header)
 
     def record(i, **truth):

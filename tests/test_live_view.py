@@ -17,9 +17,10 @@ import pyarrow.compute as pc
 import pytest
 from click.testing import CliRunner
 
-from daq.acquisition import Sink, acquire
+from daq.acquisition import acquire
 from daq.cli import main
-from daq.hdf5 import read_run
+from daq.hdf5 import Hdf5Sink, read_run
+from daq.sinks import Sink
 from rig.scene import load_scene
 
 lv = pytest.importorskip("processing.live_view")
@@ -70,7 +71,7 @@ def run(tmp_path_factory):
     d = tmp_path_factory.mktemp("live")
     out, rrd = d / "run.h5", d / "run.rrd"
     sink = live_sink(rrd)
-    summary = acquire(short_scene(), seed=SEED, out=out, sinks=[sink])
+    summary = acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(out), sink])
     assert summary.status == "complete" and sink.path == rrd
     return out, rrd
 
@@ -197,7 +198,7 @@ class _StopAfter(Sink):
 def test_replay_of_an_interrupted_file_shows_only_its_finished_records(tmp_path):
     out, live, replayed = tmp_path / "run.h5", tmp_path / "live.rrd", tmp_path / "replay.rrd"
     with pytest.raises(KeyboardInterrupt):
-        acquire(short_scene(), seed=SEED, out=out, sinks=[live_sink(live), _StopAfter(2)])
+        acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(out), live_sink(live), _StopAfter(2)])
     rec = read_run(out)
     assert rec.status == "interrupted" and rec.records == 2
     assert live.exists()  # the live recording is kept (renamed at the end) too
@@ -229,11 +230,11 @@ def _without_start_time(path: Path, start: bytes) -> bytes:
 
 def test_refused_viewer_warns_once_and_the_file_is_the_same_as_without_live_options(tmp_path):
     plain, live, rrd = tmp_path / "plain.h5", tmp_path / "live.h5", tmp_path / "live.rrd"
-    acquire(short_scene(), seed=SEED, out=plain)
+    acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(plain)])
     url = f"rerun+http://127.0.0.1:{_closed_port()}/proxy"
     with pytest.warns(lv.LiveViewWarning) as caught:
-        summary = acquire(short_scene(), seed=SEED, out=live,
-                          sinks=[live_sink(rrd, connect=url)])
+        summary = acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(live),
+                                                                 live_sink(rrd, connect=url)])
     assert len(caught) == 1 and "connection refused" in str(caught[0].message)
     assert summary.status == "complete" and rrd.exists()
     a, b = read_run(plain).header.start_time.encode(), read_run(live).header.start_time.encode()
@@ -243,8 +244,8 @@ def test_refused_viewer_warns_once_and_the_file_is_the_same_as_without_live_opti
 def test_missing_viewer_executable_warns_once_and_the_run_goes_on(tmp_path, monkeypatch):
     monkeypatch.setattr(lv, "viewer_executable", lambda: None)
     with pytest.warns(lv.LiveViewWarning) as caught:
-        summary = acquire(short_scene(), seed=SEED, out=tmp_path / "run.h5",
-                          sinks=[lv.LiveView(lv.ViewerStream(lv.ViewerOptions(spawn=True)))])
+        summary = acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(tmp_path / "run.h5"),
+                                 lv.LiveView(lv.ViewerStream(lv.ViewerOptions(spawn=True)))])
     assert len(caught) == 1 and "no rerun viewer executable" in str(caught[0].message)
     assert summary.status == "complete" and summary.records == 3
 
@@ -256,7 +257,7 @@ def test_a_failing_live_view_is_dropped_with_one_warning_and_the_file_is_complet
 
     sink = Broken(lv.ViewerStream(lv.ViewerOptions(rrd=tmp_path / "x.rrd")))
     with pytest.warns(RuntimeWarning, match="disk of the viewer full") as caught:
-        summary = acquire(short_scene(), seed=SEED, out=tmp_path / "run.h5", sinks=[sink])
+        summary = acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(tmp_path / "run.h5"), sink])
     assert len(caught) == 1
     assert summary.status == "complete" and read_run(tmp_path / "run.h5").records == 3
 
@@ -408,8 +409,8 @@ def test_viewer_going_away_mid_run_warns_once_and_the_run_goes_on(tmp_path):
         url = f"rerun+http://127.0.0.1:{port}/proxy"
         rrd = tmp_path / "run.rrd"
         with pytest.warns(lv.LiveViewWarning) as caught:
-            summary = acquire(short_scene(), seed=SEED, out=tmp_path / "run.h5",
-                              sinks=[live_sink(rrd, connect=url), KillViewer()])
+            summary = acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(tmp_path / "run.h5"),
+                                     live_sink(rrd, connect=url), KillViewer()])
         assert len(caught) == 1 and "lost the rerun viewer" in str(caught[0].message)
         assert summary.status == "complete"
         rec = read_run(tmp_path / "run.h5")
@@ -432,7 +433,7 @@ def test_realtime_live_view_sends_the_run_paced_and_unchanged(tmp_path):
     rrd = tmp_path / "paced.rrd"
     view = lv.LiveView(lv.ViewerStream(lv.ViewerOptions(rrd=rrd)),
                        pacer=Pacer(50.0, clock=lambda: now[0], sleep=sleep))
-    acquire(short_scene(), seed=SEED, out=tmp_path / "run.h5", sinks=[view])
+    acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(tmp_path / "run.h5"), view])
     rec = read_run(tmp_path / "run.h5")
     # the records' 15 s, from the first sample to the last, at 50 x real time, in 0.1 s steps
     assert sum(slept) == pytest.approx(15.0 / 50.0, rel=1e-12)

@@ -3,7 +3,7 @@
 import h5py
 
 from daq.acquisition import acquire
-from daq.hdf5 import read_run
+from daq.hdf5 import Hdf5Sink, read_run
 from rig.scene import load_scene
 
 SHORT = ["acquisition.records=1", "acquisition.record_s=1", "acquisition.settle_s=1",
@@ -13,7 +13,7 @@ SHORT = ["acquisition.records=1", "acquisition.record_s=1", "acquisition.settle_
 def test_run_file_records_what_runs_at_the_dac_rate_and_why(tmp_path):
     scene = load_scene("ishizaki2009", SHORT)
     path = tmp_path / "run.h5"
-    acquire(scene, seed=3, out=path)
+    acquire(scene, seed=3, sinks=[Hdf5Sink(path)])
     info = read_run(path).header.model_info["per_sample"]
     assert info["rate_hz"] == scene.settings["acquisition"]["simulation_rate_hz"]
     assert "optical lever" in info["what"] and "anti-alias" in info["what"]

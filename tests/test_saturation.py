@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from daq.acquisition import _interval_any, acquire
-from daq.hdf5 import read_run, run_info
+from daq.hdf5 import Hdf5Sink, read_run, run_info
 from processing.analysis import analyze
 from rig.bench import BenchSimulation
 from rig.scene import load_scene
@@ -44,7 +44,7 @@ def test_interval_flags_do_not_depend_on_how_the_run_is_split_into_blocks(q):
 def test_saturation_is_flagged_counted_stored_and_equal_to_the_benchs_own_flags(tmp_path):
     sc = load_scene("ishizaki2009", SMALL)
     out = tmp_path / "sat.h5"
-    summary = acquire(sc, seed=3, out=out)
+    summary = acquire(sc, seed=3, sinks=[Hdf5Sink(out)])
     rec = read_run(out)
     plan = rec.header.plan
     q = round(plan.simulation_rate_hz / plan.rate_hz)
@@ -69,7 +69,7 @@ def test_saturation_is_flagged_counted_stored_and_equal_to_the_benchs_own_flags(
 def test_the_default_experiment_never_saturates_and_an_older_file_reads_as_never(tmp_path):
     sc = load_scene("ishizaki2009", SMALL[:3])
     out = tmp_path / "ok.h5"
-    summary = acquire(sc, seed=3, out=out)
+    summary = acquire(sc, seed=3, sinks=[Hdf5Sink(out)])
     assert summary.saturation_totals() == {"a": 0, "x": 0, "y": 0}
     with h5py.File(out, "r+") as f:  # what a file written before the saturation group looks like
         del f["entry/saturation"]

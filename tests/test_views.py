@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 from daq.acquisition import acquire
 from daq.cli import main
-from daq.hdf5 import read_run
+from daq.hdf5 import Hdf5Sink, read_run
 from processing.analysis import AnalyzerSettings, analyze, bode_figures
 from processing.views import view_figures, view_paths
 from rig.scene import load_scene
@@ -26,7 +26,7 @@ SHORT = ["acquisition.records=3", "acquisition.record_s=20.0", "acquisition.sett
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("views") / "run.h5"
-    acquire(load_scene("ishizaki2009", SHORT), seed=6, out=path)
+    acquire(load_scene("ishizaki2009", SHORT), seed=6, sinks=[Hdf5Sink(path)])
     return path
 
 

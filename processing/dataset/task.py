@@ -110,13 +110,13 @@ def run_task(job: dict) -> dict:
 def _run(job: dict, tmp: Path) -> str:
     """Acquire and analyse into ``tmp``; returns the model that ran."""
     from daq.acquisition import acquire
-    from daq.hdf5 import read_run
+    from daq.hdf5 import Hdf5Sink, read_run
     from processing.analysis import AnalyzerSettings, analyze
     from processing.dataset.runfile import write_outputs
     from rig.scene import scene_from_settings
 
     scene = scene_from_settings(job["settings"], source=job["scene_source"])
-    summary = acquire(scene, seed=job["seed"], out=tmp)
+    summary = acquire(scene, seed=job["seed"], sinks=[Hdf5Sink(tmp)])
     settings = AnalyzerSettings(**{k: tuple(v) if isinstance(v, list) else v
                                    for k, v in job["analysis"].items()})
     analysis = analyze(read_run(tmp), settings, source=job["file"])
