@@ -20,7 +20,6 @@ The bench is anything with the :class:`Bench` interface; the default is the emul
 from __future__ import annotations
 
 import contextlib
-import importlib.metadata
 import math
 import signal
 import threading
@@ -34,13 +33,13 @@ import numpy as np
 
 from daq.adc import ADC
 from daq.antialias import AntiAliasFilter
-from daq.blas import single_threaded_blas
 from daq.channels import channels_for
 from daq.records import Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan, TruthField
 from daq.sinks import Fanout, Sink
+from rig._io import software_version
+from rig._threads import prefetch, single_threaded_blas
 from rig.blocks import AnalogBlock, Calibration
 from rig.errors import ConfigError, RigError
-from rig.prefetch import prefetch
 from rig.scene import Scene
 
 class StreamError(RigError, RuntimeError):
@@ -57,14 +56,6 @@ class AcquisitionInterrupted(KeyboardInterrupt):
         super().__init__(f"acquisition interrupted after {summary.records} of "
                          f"{summary.records_planned} records")
         self.summary = summary
-
-
-def software_version() -> str:
-    """The installed version of pendulum-daq."""
-    try:
-        return importlib.metadata.version("pendulum-daq")
-    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
-        return "unknown"
 
 
 def utc_now_iso() -> str:

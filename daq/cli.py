@@ -18,7 +18,7 @@ import numpy as np
 
 from daq.bench_cmd import bench
 from daq.cli_errors import ErrorsAsMessages
-from daq.files import atomic_output, check_writable
+from rig._io import atomic_output, check_writable
 from rig.errors import RigError
 
 
@@ -321,7 +321,7 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     Writes t, theta_1..theta_n, omega_1..omega_n and the energy, with the method and its error
     estimate (how it was obtained is recorded too).
     """
-    from daq.files import check_writable
+    from rig._io import check_writable
     from daq.trajectory import trajectory_format, write_trajectory
     from rig.scene import load_scene
     from rig.simulate import simulate as run_simulation

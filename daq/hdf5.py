@@ -91,11 +91,11 @@ import numpy as np
 
 from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
-from daq.files import check_writable, umask_mode
 from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Recording, STATUSES,
                          TruthField)
 from daq.repair import open_hdf5, write_flags
 from daq.sinks import Sink
+from rig._io import check_writable, umask_mode
 from rig.errors import ConfigError
 
 try:
@@ -208,7 +208,7 @@ class Hdf5Sink(Sink):
     # -- stream ---------------------------------------------------------------------------
     def check(self) -> None:
         """Refuse an output that exists (without ``force``), is a directory or is in a missing
-        or read-only directory (:func:`daq.files.check_writable`), or that is not named as a
+        or read-only directory (:func:`rig._io.check_writable`), or that is not named as a
         run file (:data:`RUN_SUFFIXES`)."""
         path = check_writable(self.target, force=self.force)
         if path.suffix.lower() not in RUN_SUFFIXES:

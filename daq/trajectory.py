@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import csv
 import json
-from importlib.metadata import version
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from daq.files import atomic_output
+from rig._io import atomic_output, software_version
 from rig.errors import ConfigError
 from rig.scene import Scene
 from rig.simulate import Trajectory
@@ -49,7 +48,7 @@ def trajectory_format(path: Path) -> str:
 
 def _metadata(traj: Trajectory, scene: Scene) -> dict:
     return {
-        "software_version": version("pendulum-daq"),
+        "software_version": software_version(),
         "scene": scene.name,
         "scene_source": scene.source,
         "method": traj.method,

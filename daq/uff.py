@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from daq.files import atomic_output, check_writable
+from rig._io import atomic_output, check_writable
 from rig.errors import ConfigError
 
 #: UFF 58 function types used here (record 6, field 1).

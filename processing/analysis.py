@@ -94,7 +94,7 @@ The paper's analysis (30 x 100 s, E[H1] on 131072-point correlation functions, e
 computes in 0.2 - 0.3 s of CPU (1.5 s before): the bench's responses on the dense grids come from
 the modal form of its exact ZOH step (:class:`_FastBench`, checked against
 :func:`rig.bench.expected_response` on every run), the fits by variable projection, and BLAS runs
-single-threaded (:mod:`daq.blas`: the products are thin, and OpenBLAS's spinning threads
+single-threaded (:mod:`rig._threads`: the products are thin, and OpenBLAS's spinning threads
 had tripled the CPU time on a busy two-core machine). Nothing here imports scipy or matplotlib
 (the Bode figure imports matplotlib when asked for). What ``daq analyze`` takes beyond that is
 starting Python and importing numpy, click, h5py, scipy.linalg (the bench model's matrix
@@ -121,8 +121,6 @@ from types import MappingProxyType
 
 import numpy as np
 
-from daq.blas import single_threaded_blas
-from daq.files import atomic_output
 from processing.compare import compare, expected_h1_taps
 from processing.frf import ESTIMATORS, FrequencyResponse, frequency_response
 from processing.modal import (FitError, InputSpectrum, ModalFit, RotationReading, fit_modes,
@@ -131,6 +129,8 @@ from processing.report import report_markdown
 from processing.spectra import (AVERAGING, WINDOWS, ChannelDataError, SettingsError,
                                 SpectralSettings, _readonly, auto_spectrum, cross_spectrum,
                                 segment_ffts)
+from rig._io import atomic_output
+from rig._threads import single_threaded_blas
 from rig.errors import ConfigError
 
 __all__ = ["AnalyzerSettings", "Analysis", "RunInfo", "ModelAtLines", "ExpectedEstimate",

@@ -54,7 +54,7 @@ import rerun as rr  # noqa: E402
 import rerun.blueprint as rrb  # noqa: E402
 
 from daq.sinks import Sink  # noqa: E402
-from daq.files import check_writable  # noqa: E402
+from rig._io import check_writable  # noqa: E402
 from daq.records import Block, Footer, Record  # noqa: E402
 from processing import bode_canvas as bc  # noqa: E402
 from processing.bench_geometry import (FRAMES_PER_S, MAGNIFICATION, MM, BenchDrawing,  # noqa

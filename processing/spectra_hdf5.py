@@ -36,7 +36,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from daq.files import atomic_output
+from rig._io import atomic_output
 
 __all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "write_spectra"]
 
@@ -92,7 +92,7 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
     -------
     Path : ``path``.
     """
-    from daq.acquisition import software_version
+    from rig._io import software_version
     from daq.hdf5 import LIBVER
 
     a = analysis

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from daq.files import atomic_output, check_writable
+from rig._io import atomic_output, check_writable
 
 VIEWS = ("bode", "nyquist", "coherence", "all")
 

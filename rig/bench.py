@@ -147,7 +147,7 @@ from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
 from rig.integrators import METHODS, discretise, integrate, to_native
 from rig.jit import njit
-from rig.prefetch import Prefetch
+from rig._threads import Prefetch
 from rig.psd import OpticalLever
 from rig.scene import Scene
 from rig.source import NOISE_TYPES, Source, SourceState, generate, start_source

@@ -206,7 +206,7 @@ def test_fast_bench_response_equals_rig_expected_response(run):
 
 
 def test_blas_runs_single_threaded_inside_the_analysis_and_is_restored_after():
-    from daq.blas import _openblas_controls, single_threaded_blas
+    from rig._threads import _openblas_controls, single_threaded_blas
 
     controls = _openblas_controls()
     before = [get() for get, _ in controls]

@@ -1,10 +1,12 @@
 """Safe output files: nothing existing is overwritten without ``force``; a file appears complete or
 not at all (written under a temporary name in the same directory, then renamed), with the mode
-the user's umask gives a new file."""
+the user's umask gives a new file. Also the version every written file records
+(:func:`software_version`). Private infrastructure of the packages above."""
 
 from __future__ import annotations
 
 import contextlib
+import importlib.metadata
 import os
 import tempfile
 from pathlib import Path
@@ -56,3 +58,11 @@ def atomic_output(path: Path, *, force: bool, suffix: str = ""):
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def software_version() -> str:
+    """The installed version of pendulum-daq (written into every file the project makes)."""
+    try:
+        return importlib.metadata.version("pendulum-daq")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"
