@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""The work-precision benchmark as a script: the same code as ``daq bench`` (daq/bench_cmd.py,
-rig/benchmark.py), with the same options.
+"""The work-precision benchmark (benchmarks/work_precision.py computes, benchmarks/report.py
+renders), run from the source tree (it is not part of the installed package).
 
     python benchmarks/run.py --quick                 # a few minutes
     python benchmarks/run.py --full --out out/bench  # the issue's durations (about half an hour)
@@ -15,7 +15,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from daq.bench_cmd import bench  # noqa: E402
+from benchmarks.report import bench  # noqa: E402
 
 if __name__ == "__main__":
     bench.main(args=sys.argv[1:], prog_name="benchmarks/run.py")

@@ -27,7 +27,7 @@
 etd3m at m = 5 (today's best within 1e-6) and 10, etd4m at m = 10 and 20 (20: 50 Hz output),
 timed in interleaved rounds (one run of each per round; medians and quartiles of wall and CPU),
 and ``solve_ivp`` RK45 restarted at every held sample (the cheapest ``solve_ivp`` configuration
-within 1e-6, ``daq bench --full``) on the first 5 s, extrapolated to 3000 s.
+within 1e-6, ``benchmarks/run.py --full``) on the first 5 s, extrapolated to 3000 s.
 
 ``--etd3m-sweep`` prints only etd3m at m = 1, 2, 5, 10, 20 samples per step next to etd3 and
 rk4 at 1 ms (m = 20 outputs every 0.02 s, its error taken on those rows of the reference).
@@ -47,7 +47,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rig.benchmark import paper_input, rel_rms_error  # noqa: E402
+from benchmarks.work_precision import paper_input, rel_rms_error  # noqa: E402
 from rig.integrators import integrate  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 from rig.simulate import simulate  # noqa: E402
@@ -173,7 +173,7 @@ def etd4m_rounds(chain, base, ref, rounds):
     """etd3m (m = 5, 10) and etd4m (m = 10, 20) through ``simulate`` (no error estimate) in
     ``rounds`` interleaved rounds, errors against ``ref`` (0.01 s rows); then solve_ivp RK45
     (rtol 1e-6, atol 1e-9) restarted at every held sample on the first 5 s."""
-    from rig.benchmark import _ivp_per_sample
+    from benchmarks.work_precision import _ivp_per_sample
 
     configs = [("etd3m", 5, 0.01), ("etd3m", 10, 0.01), ("etd4m", 10, 0.01), ("etd4m", 20, 0.02)]
     runs = {c: functools.partial(simulate, chain, 3000.0, theta0=0.0, base=base, method=c[0],

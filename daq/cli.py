@@ -16,7 +16,6 @@ from pathlib import Path
 import click
 import numpy as np
 
-from daq.bench_cmd import bench
 from daq.cli_errors import ErrorsAsMessages
 from rig._io import atomic_output, check_writable
 from rig.errors import RigError
@@ -1045,9 +1044,6 @@ def check_cmd(paths, as_json, repair):
             click.echo(r.line())
     if not all(r.ok for r in results):
         raise click.exceptions.Exit(1)
-
-
-main.add_command(bench)
 
 
 def run() -> None:

@@ -15,7 +15,7 @@ from rig.coupled import etd_ab_weights
 from rig.scene import load_scene
 
 QUIET = ["accelerometer.noise_mps2_rthz=0", "psd.noise_m_rthz=0"]
-#: beta^2 = 0.997 (rig.benchmark.DEGENERATE): a nearly singular mass matrix, a 316 Hz mode
+#: beta^2 = 0.997 (benchmarks.work_precision.DEGENERATE): a nearly singular mass matrix, a 316 Hz mode
 BETA2 = [f"pendulum.r1_m={0.999 * 9.80665 / (2 * math.pi * 2.4783) ** 2!r}", "pendulum.eps=1.001",
          f"pendulum.f2_hz={math.sqrt(0.999 * 9.80665 / 0.000846) / (2 * math.pi)!r}"]
 SCENES = {

@@ -6,7 +6,7 @@ block-wise runs, registration."""
 import numpy as np
 import pytest
 
-from rig.benchmark import paper_input, rel_rms_error
+from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.etd4m import etd4m_coefficients, etd4m_kernel
 from rig.integrators import METHODS, integrate, to_native
 from rig.scene import load_scene

@@ -5,7 +5,7 @@ etd3, the linear limit, the kernel and block-wise equivalences, divergence and b
 import numpy as np
 import pytest
 
-from rig.benchmark import paper_input, rel_rms_error
+from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.errors import ConfigError, DivergenceError
 from rig.integrators import (METHODS, etd3m_coefficients, etd3m_kernel, integrate, lift_linear,
                              discretise, to_native)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from rig.benchmark import paper_input, rel_rms_error
+from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.chain import Chain
 from rig.errors import DivergenceError
 from rig.integrators import (discretise, integrate, lift_linear, lifted_kernel, lifted_kernel2,
@@ -24,7 +24,7 @@ def paper():
 
 @pytest.fixture(scope="module")
 def drive():
-    """The paper's 3000 s of random base acceleration at 1 kHz (rig.benchmark), and one more
+    """The paper's 3000 s of random base acceleration at 1 kHz (benchmarks.work_precision), and one more
     sample for the linear hold."""
     return paper_input(3000.001)
 

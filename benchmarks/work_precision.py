@@ -3,7 +3,7 @@ by side in the same process, for :func:`scipy.integrate.solve_ivp` on the same e
 
 Compute only (nothing is printed or written here): :func:`run_benchmarks` returns a
 :class:`BenchmarkReport` of :class:`SceneResult` (one per scene) holding :class:`Entry` rows;
-``daq bench`` (:mod:`daq.bench_cmd`) and ``benchmarks/run.py`` render them as Markdown tables,
+``benchmarks/run.py`` (:mod:`benchmarks.report`) renders them as Markdown tables,
 JSON and log-log plots.
 
 Scenes (SPEC section 7 and issue 5)
@@ -159,7 +159,7 @@ class SceneResult:
 
 @dataclass(frozen=True)
 class BenchmarkReport:
-    """Everything one ``daq bench`` run measured.
+    """Everything one ``benchmarks/run.py`` run measured.
 
     Attributes
     ----------

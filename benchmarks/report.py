@@ -1,9 +1,9 @@
-"""``daq bench``: the work-precision benchmark (:mod:`rig.benchmark`) as Markdown, JSON and plots.
+"""The work-precision benchmark (:mod:`benchmarks.work_precision`) as Markdown, JSON and plots:
+the command of ``python benchmarks/run.py`` (see that file).
 
-The same command runs as a script: ``python benchmarks/run.py --quick`` (see that file).
-Rendering lives here, computing in :func:`rig.benchmark.run_benchmarks`: :func:`to_markdown`
-and :func:`plot_scene` take its :class:`rig.benchmark.BenchmarkReport` and return text and
-matplotlib figures.
+Rendering lives here, computing in :func:`benchmarks.work_precision.run_benchmarks`:
+:func:`to_markdown` and :func:`plot_scene` take its
+:class:`benchmarks.work_precision.BenchmarkReport` and return text and matplotlib figures.
 """
 
 from __future__ import annotations
@@ -215,7 +215,7 @@ def bench(mode, scenes, out_dir, repeats, limit_s, no_compile_times, from_json, 
     n = 2..100, near-degenerate designs. Writes OUT/bench.md (tables), OUT/bench.json and
     OUT/bench_<scene>.png (log-log wall time against error, one curve per method).
     """
-    from rig import benchmark as rb
+    from benchmarks import work_precision as rb
 
     stored = None
     if from_json is not None:
@@ -234,7 +234,7 @@ def bench(mode, scenes, out_dir, repeats, limit_s, no_compile_times, from_json, 
             compile_check=not no_compile_times, progress=lambda s: click.echo(f"  {s}", err=True))
     except RigError as exc:
         raise click.ClickException(str(exc)) from None
-    command = "daq bench --" + mode + "".join(f" --scene {s}" for s in scenes
+    command = "python benchmarks/run.py --" + mode + "".join(f" --scene {s}" for s in scenes
                                               if len(scenes) < len(rb.SCENES))
     repeats = repeats or (stored.settings.get("repeats") if stored else None)
     limit_s = limit_s or (stored.settings.get("limit_s") if stored else None)

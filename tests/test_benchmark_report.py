@@ -1,4 +1,4 @@
-"""daq bench: the work-precision report's pieces (scoring, the time-limited solve_ivp driver, the
+"""benchmarks/run.py: the work-precision report's pieces (scoring, the time-limited solve_ivp driver, the
 renderers) and the command itself on a stubbed benchmark (the real one takes minutes)."""
 
 import json
@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-import rig.benchmark as rb
-from daq.bench_cmd import plot_scene, scene_table, to_markdown
-from daq.cli import main
+import benchmarks.work_precision as rb
+from benchmarks.report import bench, plot_scene, scene_table, to_markdown
 from rig.chain import Chain
 from rig.errors import ConfigError
 
@@ -85,8 +84,8 @@ def test_degenerate_designs_are_degenerate():
 
 def test_markdown_has_every_entry_its_error_and_marks_extrapolation():
     report = _report()
-    text = to_markdown(report, "daq bench --quick")
-    assert "daq bench --quick" in text and "cores" in text and "a note" in text
+    text = to_markdown(report, "python benchmarks/run.py --quick")
+    assert "python benchmarks/run.py --quick" in text and "cores" in text and "a note" in text
     table = scene_table(report.scenes[0])
     assert table.count("\n") == 1 + 4
     assert "600 (extrap.)" in table and "1.5e-09" in table and "estimated_error = 1.4e-09" in table
@@ -113,28 +112,29 @@ def test_bench_command_writes_its_outputs_and_refuses_to_overwrite(tmp_path, mon
 
     monkeypatch.setattr(rb, "run_benchmarks", fake)
     runner = CliRunner()
-    args = ["bench", "--quick", "--scene", "paper", "--scene", "chains", "--out", str(tmp_path),
+    args = ["--quick", "--scene", "paper", "--scene", "chains", "--out", str(tmp_path),
             "--repeats", "2", "--time-limit", "3"]
-    res = runner.invoke(main, args)
+    res = runner.invoke(bench, args)
     assert res.exit_code == 0, res.output
     assert calls["scenes"] == ("paper", "chains") and calls["repeats"] == 2
     assert calls["limit_s"] == 3.0 and calls["mode"] == "quick"
     for name in ("bench.md", "bench.json", "bench_paper.png", "bench_chains.png"):
         assert (tmp_path / name).stat().st_size > 0
-    assert "daq bench --quick --scene paper --scene chains --repeats 2" in (
+    assert "python benchmarks/run.py --quick --scene paper --scene chains --repeats 2" in (
         tmp_path / "bench.md").read_text()
-    res = runner.invoke(main, args)
+    res = runner.invoke(bench, args)
     assert res.exit_code == 1 and "exists; pass --force" in res.output
-    assert runner.invoke(main, args + ["--force"]).exit_code == 0
+    assert runner.invoke(bench, args + ["--force"]).exit_code == 0
     # a stored run renders again without running
     again = tmp_path / "again"
-    res = runner.invoke(main, ["bench", "--from-json", str(tmp_path / "bench.json"), "--out",
+    res = runner.invoke(bench, ["--from-json", str(tmp_path / "bench.json"), "--out",
                                str(again)])
     assert res.exit_code == 0, res.output
     first, second = (tmp_path / "bench.md").read_text(), (again / "bench.md").read_text()
     assert first.split("### ", 1)[1] == second.split("### ", 1)[1]  # same tables
     # the command shown is the stored run's (its repeats and limit)
-    assert "daq bench --quick --scene paper --scene chains --repeats 3 --time-limit 5" in second
+    assert ("python benchmarks/run.py --quick --scene paper --scene chains --repeats 3 "
+            "--time-limit 5") in second
     monkeypatch.setattr(rb, "run_benchmarks", None)  # not called
 
 
@@ -148,8 +148,8 @@ def test_every_curve_of_the_stored_benchmark_plots_has_its_own_colour_and_marker
 
     import matplotlib.pyplot as plt
 
-    from daq.bench_cmd import plot_scene
-    from rig.benchmark import BenchmarkReport
+    from benchmarks.report import plot_scene
+    from benchmarks.work_precision import BenchmarkReport
 
     stored = Path(__file__).resolve().parents[1] / "docs" / "bench" / "bench.json"
     report = BenchmarkReport.from_json(stored.read_text())
