@@ -1,13 +1,13 @@
-"""The ``daq`` command line: a thin click layer over the library API.
+"""The ``daq`` command line: a thin click layer over the library API, and the one module that
+composes rig, daq and processing.
 
-Library errors (:class:`rig.errors.RigError`) become click errors here and only here.
+Errors become one line and exit status 1 in one place, the group's class
+(:class:`daq.cli_errors.ErrorsAsMessages`); ``daq --debug`` lets them through.
 """
 
 from __future__ import annotations
 
 import contextlib
-import csv
-import functools
 import json
 import os
 import sys
@@ -17,21 +17,9 @@ import click
 import numpy as np
 
 from daq.cli_errors import ErrorsAsMessages
+from processing.frf import ESTIMATORS
+from processing.spectra import AVERAGING, WINDOWS
 from rig._io import atomic_output, check_writable
-from rig.errors import RigError
-
-
-def _library_errors(fn):
-    """Turn library errors into a clean ``Error: ...`` message and exit status 1."""
-
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        try:
-            return fn(*args, **kwargs)
-        except RigError as exc:
-            raise click.ClickException(str(exc)) from None
-
-    return wrapper
 
 
 def _set_option(fn):
@@ -79,7 +67,6 @@ def scene_list():
 @click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
 @click.option("--toml", "as_toml", is_flag=True,
               help="Print a complete scene file (every key, documented) to edit and load back.")
-@_library_errors
 def scene_show(scene_name, overrides, as_json, as_toml):
     """Show SCENE fully resolved: every physical parameter in SI units, the derived design
     parameters and the natural frequencies (--toml: the scene as an editable file)."""
@@ -151,14 +138,13 @@ def _fmt(v) -> str:
 @click.option("--points", default=1000, show_default=True, type=click.IntRange(min=2),
               help="Number of log-spaced frequencies.")
 @_force_option
-@_library_errors
 def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force):
     """Analytic Bode data of SCENE (exact linear model, direct complex solve).
 
     x is the mirror translation relative to the stage [m per m/s^2], y the mirror rotation [rad
     per m/s^2] (SPEC section 5).
     """
-    from rig.response import gain_db, log_grid, mirror_response, phase_deg
+    from rig.response import log_grid, mirror_response, write_csv
     from rig.scene import load_scene
 
     sc = load_scene(scene_name, overrides)
@@ -168,15 +154,7 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
             check_writable(p, force=force)
     resp = mirror_response(sc, freqs)
     if csv_path is not None:
-        with atomic_output(csv_path, force=force) as tmp:
-            with open(tmp, "w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(["frequency_hz", "x_re", "x_im", "x_gain_db", "x_phase_deg",
-                            "y_re", "y_im", "y_gain_db", "y_phase_deg"])
-                cols = [freqs, resp.x.real, resp.x.imag, gain_db(resp.x), phase_deg(resp.x),
-                        resp.y.real, resp.y.imag, gain_db(resp.y), phase_deg(resp.y)]
-                for row in zip(*cols):
-                    w.writerow([repr(float(v)) for v in row])
+        write_csv(resp, csv_path, force=force)
         click.echo(f"wrote {csv_path} ({points} frequencies, {fmin:g}-{fmax:g} Hz)")
     if plot_path is not None:
         from processing.plots import model_bode_figure
@@ -312,7 +290,6 @@ def _floats(ctx, param, value):
               help="Show the motion in a spawned rerun viewer (memory limit 2 GiB).")
 @click.option("--rrd", type=click.Path(dir_okay=False, path_type=Path),
               help="Save the motion as a rerun recording (.rrd).")
-@_library_errors
 def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt_s, out,
              no_error_estimate, overrides, force, live, rrd):
     """Simulate SCENE's pendulum on a fixed base from its initial state (free motion).
@@ -380,7 +357,6 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
 @click.option("--magnify", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Factor on the angles in the bench drawing (the stage travel gets a sixth of it) [default 30].")
 @_force_option
-@_library_errors
 def view(run, rrd, connect, screenshot_path, size, magnify, force):
     """Replay the run file RUN into rerun as the live view showed it: a spawned viewer by
     default, or --connect URL, --rrd FILE.rrd, --screenshot FILE.png (any combination). An
@@ -498,7 +474,6 @@ def _model_lines(info: dict) -> list[str]:
 @click.option("--allow-over-budget", is_flag=True,
               help="Exit 0 even if the run's estimated error exceeds its error budget or a "
                    "channel clipped or saturated (otherwise a WARNING and exit status 3).")
-@_library_errors
 def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides, force, quiet,
             live, connect, rrd, magnify, realtime, speed, allow_over_budget):
     """Acquire records of SCENE's bench into an HDF5 run file.
@@ -646,7 +621,6 @@ def _acquire_summary(s) -> str:
 @click.option("--repair", is_flag=True,
               help="Clear the 'open for writing' mark a killed writer left in the file (like "
                    "h5clear -s) so that any HDF5 reader opens it.")
-@_library_errors
 def inspect(path, as_json, repair):
     """Show what the run file PATH holds: scene, seed, versions, status, channels, clipping,
     model."""
@@ -716,29 +690,12 @@ def _inspect_text(i: dict) -> str:
 
 # -- analysis --------------------------------------------------------------------------------
 
-def _processing_errors(fn):
-    """Turn the analyzer's errors (:class:`processing.spectra.ProcessingError`) into a clean
-    ``Error: ...`` message and exit status 1."""
-
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        from processing.spectra import ProcessingError
-
-        try:
-            return fn(*args, **kwargs)
-        except ProcessingError as exc:
-            raise click.ClickException(str(exc)) from None
-
-    return wrapper
-
-
 @main.command()
 @click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("--window", type=click.Choice(["hann", "uniform", "flattop", "force",
-                                             "exponential"]), default="hann", show_default=True,
+@click.option("--window", type=click.Choice(WINDOWS), default="hann", show_default=True,
               help="FFT window (hann: the 35670A's for random noise; uniform: a plain FFT of "
                    "each record).")
-@click.option("--averaging", type=click.Choice(["rms", "vector", "exponential", "peak"]),
+@click.option("--averaging", type=click.Choice(AVERAGING),
               default="rms", show_default=True, help="Averaging of the spectra (peak hold has no "
               "cross spectra and is refused).")
 @click.option("--lines", type=click.IntRange(min=1),
@@ -761,7 +718,7 @@ def _processing_errors(fn):
 @click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write H_t and Theta_2 with their coherence as UFF 58 (.uff/.unv) for modal "
                    "software (processing.uff).")
-@click.option("--estimator", type=click.Choice(["h1", "h2", "hv"]), default="h1",
+@click.option("--estimator", type=click.Choice(ESTIMATORS), default="h1",
               show_default=True, help="FRF estimator: H1 = G_ax/G_aa (noise on the output), "
                    "H2 = G_xx/G_xa (noise on the input), Hv (total least squares).")
 @click.option("--fmin", "fmin_hz", type=float, default=0.1, show_default=True,
@@ -782,8 +739,6 @@ def _processing_errors(fn):
               help="Analyse a damaged run file (records failing their checksum, or fewer rows "
                    "than it counts) with only the records that verify, instead of refusing it.")
 @_force_option
-@_library_errors
-@_processing_errors
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
             report_path, spectra_path, uff_path, estimator, fmin_hz, fmax_hz, phase, view,
             force, allow_incomplete, follow):
@@ -888,7 +843,6 @@ def _sigterm_as_interrupt():
 @click.option("--dry-run", is_flag=True, help="Print the runs, time and disk; run nothing.")
 @click.option("--force", is_flag=True,
               help="Apply a changed sweep file to an existing dataset (changed runs are redone).")
-@_library_errors
 def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
     """Run the parameter sweep SWEEP.toml: one HDF5 file per run (the run and its analysis), a
     manifest that xarray opens as one dataset (DIR/manifest.h5) and a table (DIR/manifest.csv).
@@ -948,7 +902,6 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
               help="Write every record of every channel in engineering units as UFF 58 time "
                    "responses (.uff/.unv, daq.uff).")
 @_force_option
-@_library_errors
 def export(run, out_path, units, uff_path, force):
     """Export the run file RUN's channels (finished records) in engineering units: to a netCDF
     file (--out) and/or to UFF 58 time records (--uff). The run file is only read."""

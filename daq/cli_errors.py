@@ -40,13 +40,10 @@ def _first_line(text: str) -> str:
 def user_message(exc: BaseException) -> str:
     """One line saying what went wrong, for a person (see the module docstring)."""
     from daq.resources import is_disk_full
+    from processing import ProcessingError
     from rig.errors import RigError
 
-    try:
-        from processing.spectra import ProcessingError
-    except ImportError:  # pragma: no cover - processing not installed
-        ProcessingError = ()  # noqa: N806
-    if isinstance(exc, (RigError, ProcessingError)):
+    if isinstance(exc, (RigError, ProcessingError)):  # the library's own errors: the one line
         return _first_line(exc)
     if is_disk_full(exc):
         m = re.search(r"filename = '([^']*)'", str(exc))

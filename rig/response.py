@@ -79,3 +79,30 @@ def phase_deg(h) -> np.ndarray:
     """Phase wrapped to (-180, 180] [deg]."""
     p = np.degrees(np.angle(h))
     return np.where(p <= -180.0, p + 360.0, p)
+
+
+#: Columns of :func:`write_csv` (``daq model --csv``; README "daq model CSV columns").
+CSV_COLUMNS = ("frequency_hz", "x_re", "x_im", "x_gain_db", "x_phase_deg",
+               "y_re", "y_im", "y_gain_db", "y_phase_deg")
+
+
+def write_csv(resp: MirrorResponse, path, *, force: bool = False):
+    """Write ``resp`` as CSV, one row per frequency (:data:`CSV_COLUMNS`; every value as
+    ``repr(float)``, so it reads back bit for bit); never over an existing file without
+    ``force``, and the file appears whole or not at all (:func:`rig._io.atomic_output`).
+    Returns the path."""
+    import csv
+    from pathlib import Path
+
+    from rig._io import atomic_output
+
+    path = Path(path)
+    cols = [resp.freqs_hz, resp.x.real, resp.x.imag, gain_db(resp.x), phase_deg(resp.x),
+            resp.y.real, resp.y.imag, gain_db(resp.y), phase_deg(resp.y)]
+    with atomic_output(path, force=force) as tmp:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(CSV_COLUMNS)
+            for row in zip(*cols):
+                w.writerow([repr(float(v)) for v in row])
+    return path

@@ -158,7 +158,7 @@ def test_nothing_is_overwritten_without_force(runner, run_file, tmp_path):
     (["{text}"], 1, "is not a readable HDF5 file"),
     (["{other_h5}"], 1, "is not a pendulum-daq run file"),
     (["{run}", "--window", "blackman"], 2,
-     "Invalid value for '--window': 'blackman' is not one of 'hann', 'uniform', 'flattop'"),
+     "Invalid value for '--window': 'blackman' is not one of 'uniform', 'hann', 'flattop'"),
     (["{run}", "--averaging", "peak"], 1, "averaging = 'peak' is invalid for this analysis"),
     (["{run}", "--nperseg", "4000"], 1,
      "nperseg = 4000 (40 s), longer than a record (2000 samples = 20 s): expected 2 <= nperseg "
