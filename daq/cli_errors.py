@@ -15,8 +15,7 @@ Exit statuses of ``daq`` (also in the README):
   what was asked: its estimated error exceeds its error budget, or a channel clipped or
   saturated in more than :data:`SATURATION_LIMIT` of its samples (a WARNING says which);
   ``--allow-over-budget`` makes that exit 0;
-- 128 + N: ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), every finished record kept.
-"""
+- 128 + N: ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), every finished record kept."""
 
 from __future__ import annotations
 

@@ -1,0 +1,80 @@
+"""The ``daq`` commands' shared options, number formatting and run-file check."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+
+def set_option(fn):
+    return click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+                        help="Override a scene value, e.g. --set pendulum.q1=300 (repeatable).")(fn)
+
+
+def force_option(fn):
+    return click.option("--force", is_flag=True, help="Overwrite existing output files.")(fn)
+
+
+def fmt(v) -> str:
+    """A value as a person reads it: numbers to 6 digits, booleans and nothing as in JSON/TOML
+    (true, false, null), lists in brackets."""
+    if isinstance(v, bool) or v is None:
+        return json.dumps(v)
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(fmt(x) for x in v) + "]"
+    return str(v)
+
+
+def size_text(n: int | None) -> str:
+    if n is None:
+        return "-"
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return str(n)
+
+
+def model_lines(info: dict) -> list[str]:
+    """Which model ran, how, and its error estimate (the rest is in ``inspect --json``)."""
+    est = info.get("error_estimate", "-")
+    if isinstance(est, dict):
+        est = ", ".join(f"{k} {fmt(v)}" for k, v in est.items())
+    lines = [f"model: {info.get('model', '-')}", f"  method: {info.get('method', '-')}",
+             f"  error estimate: {fmt(est)}"]
+    if info.get("reason"):
+        lines.append(f"  why this model: {info['reason']}")
+    return lines
+
+
+def run_check(path: Path):
+    """:func:`daq.check.check_file` of a file that must be a run file that opens: a ConfigError
+    (not a run file, truncated, unreadable: the reader's own message) otherwise."""
+    from daq.check import check_file
+    from daq.hdf5 import open_run
+
+    fc = check_file(path)
+    if fc.kind != "run":
+        with open_run(path):  # raises the reader's message
+            pass
+        raise click.ClickException(fc.line())
+    return fc
+
+
+def verified_records(run: Path, allow_incomplete: bool):
+    """The records of RUN to analyse: None (all it counts) for a sound file; a bad file is
+    refused, or with ``allow_incomplete`` reduced to the records that verify."""
+    fc = run_check(run)
+    if fc.ok:
+        return None
+    if not allow_incomplete or not fc.valid_records:
+        hint = (f"; --allow-incomplete analyses the {fc.records_valid} records that verify"
+                if fc.valid_records else "; no record of it verifies")
+        raise click.ClickException(fc.line() + hint)
+    click.echo(f"warning: {fc.line()}; analysing the {len(fc.valid_records)} records that "
+               f"verify", err=True)
+    return fc.valid_records
