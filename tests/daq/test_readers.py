@@ -20,7 +20,7 @@ import pytest
 
 from faults import record_readers
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 COMPAT_PY = ROOT / ".venv-compat" / "bin" / "python"
 SHORT = ["--scene", "ishizaki2009", "--records", "2", "--duration", "5", "--rate", "100",
          "--set", "acquisition.settle_s=5"]
