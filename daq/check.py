@@ -7,9 +7,9 @@ any reader of many run files): it never raises for a bad file -- a bad file is a
 - the HDF5 superblock is read by hand first: a file shorter than the end-of-file address its
   superblock records is *truncated* (no HDF5 reader opens it), named as such without calling
   HDF5; only a file still marked "open for writing" (a live or killed writer) is opened as a
-  SWMR reader, never after another open failed, and with :data:`SWMR_READ_ATTEMPTS` metadata
-  read attempts (HDF5's default SWMR reader retries unreadable metadata with doubling sleeps
-  for days);
+  SWMR reader, never after another open failed, and with
+  :data:`daq.repair.SWMR_READ_ATTEMPTS` metadata read attempts (HDF5's default SWMR reader
+  retries unreadable metadata with doubling sleeps for days; :func:`daq.repair.open_hdf5`);
 - every object and attribute is read; every chunk's fletcher32 checksum is verified by reading
   it (a record of a run-file channel is one chunk), so a corrupt record is named with its index;
 - a run file is checked against its own plan: format version, status, ``records_complete``
