@@ -51,7 +51,7 @@ def _metadata(traj: Trajectory, scene: Scene) -> dict:
     return {
         "software_version": version("pendulum-daq"),
         "scene": scene.name,
-        "scene_source": scene.source,
+        "scene_source": scene.origin,
         "method": traj.method,
         "settings": traj.settings,
         "n_steps": traj.n_steps,
