@@ -14,6 +14,7 @@ scene loader and a dataset sweep's axes share.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -48,8 +49,10 @@ def param(default: Any, doc: str, *, unit: str = "", choices: tuple = (), lo: fl
     return dataclasses.field(default=default, metadata={"key": key})
 
 
+@functools.cache
 def keys_of(cls) -> dict[str, Key]:
-    """``{name: Key}`` of the fields of ``cls`` declared with :func:`param`, in field order."""
+    """``{name: Key}`` of the fields of ``cls`` declared with :func:`param`, in field order
+    (computed once per class; the table is shared: do not modify it)."""
     out = {}
     for f in dataclasses.fields(cls):
         key = f.metadata.get("key")
