@@ -21,16 +21,11 @@ kHz) is far above the simulation band and is not modelled.
 
 Output stage: the measured volts are ``front end + noise``, then clipped to ``+-|S| range``.
 
-* ``sensitivity_vpmps2 = 1.0`` V per m/s^2 (charge amplifier gain at 1000 mV/unit): the default
-  drive, 6.5e-3 m/s^2 rms, gives 6.5 mV rms.
-* ``noise_mps2_rthz = 1e-5`` m/s^2/rtHz input-referred, white (a charge amplifier's 1/f rise
-  below ~1 Hz is not modelled): 45 dB below the default drive's acceleration density from 0.1 to
-  10 Hz, 26 dB in the stage's notch at the 2.48 Hz pendulum mode (:func:`rig.bench.
-  signal_to_noise`).
-* ``range_mps2 = 10`` m/s^2: the amplifier's +-10 V output at 1 V per m/s^2. Samples beyond are
-  clipped (flat-topped, as a saturated amplifier does) and flagged (``overrange``).
-* ``sign`` = +1/-1: polarity of the mounting; it is part of the :class:`~rig.blocks.Calibration`,
-  and processing must undo it (SPEC section 5).
+Defaults: the fields of :class:`Accelerometer` (1 V per m/s^2, 0.05 Hz corner, 1e-5 m/s^2/rtHz
+white noise, +-10 m/s^2 range, polarity +1); samples beyond the range are clipped (flat-topped, as
+a saturated amplifier does) and flagged (``overrange``); the polarity is part of the
+:class:`~rig.blocks.Calibration`, and processing must undo it (SPEC section 5). The levels and
+signal-to-noise ratios they give are in ``docs/devices.md``.
 
 The noise is white over the simulation band: each sample gets ``|S| noise sqrt(fs / 2)`` rms (a
 one-sided density ``noise`` up to the Nyquist frequency).
