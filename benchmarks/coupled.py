@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from rig import bench as rb  # noqa: E402
 from rig import coupled as rc  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
-from rig.source import generate, start_source  # noqa: E402
+from rig.devices.source import generate, start_source  # noqa: E402
 
 RUN_S = 3330.0
 

@@ -71,7 +71,7 @@ from rig.integrators import (RECURSIVE_FROM_N, _rhs, bodies_array, integrate, rh
 from rig.ishizaki import chain_from_design
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
-from rig.source import Source, generate, start_source
+from rig.devices.source import Source, generate, start_source
 
 SCENES = ("paper", "free-decay", "double-rod", "chains", "degenerate")
 MODES = ("quick", "full")
@@ -261,7 +261,8 @@ def machine_info() -> dict:
 
 
 def paper_input(duration_s: float, seed: int = PAPER_SEED) -> BaseInput:
-    """The paper's drive: rig.source random noise (0-12.5 Hz), 0.05 m/s^2 rms, held at 1 kHz."""
+    """The paper's drive: rig.devices.source random noise (0-12.5 Hz), 0.05 m/s^2 rms, held at
+    1 kHz."""
     src = Source(type="random", level_vrms=PAPER_RMS_MPS2, fs_hz=PAPER_FS_HZ)
     ax, _ = generate(src, start_source(src, seed), round(duration_s * PAPER_FS_HZ))
     return BaseInput(ax, 1.0 / PAPER_FS_HZ)

@@ -34,10 +34,12 @@ import numpy as np
 from daq.adc import ADC
 from daq.antialias import AntiAliasFilter
 from daq.channels import channels_for
-from daq.records import Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan, TruthField
+from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan,
+                         Recording, TruthField)
 from daq.sinks import Fanout, Sink
 from rig._io import software_version
 from rig._threads import prefetch, single_threaded_blas
+from rig.acquisition_settings import AcquisitionSettings
 from rig.blocks import AnalogBlock, Calibration
 from rig.errors import ConfigError, RigError
 from rig.scene import Scene
@@ -203,11 +205,11 @@ class _RigBench:
 
     def __init__(self, rb, scene: Scene, seed: int, **bench_kw):
         self._rb, self._scene = rb, scene
-        acq = scene.settings["acquisition"]
-        n = min(round(BLOCK_S * acq["rate_hz"]), round(acq["record_s"] * acq["rate_hz"]))
-        self._block_s = max(1, n) / acq["rate_hz"]  # a whole number of ADC samples
+        acq = scene.acquisition
+        n = min(round(BLOCK_S * acq.rate_hz), round(acq.record_s * acq.rate_hz))
+        self._block_s = max(1, n) / acq.rate_hz  # a whole number of ADC samples
         # exactly what the run consumes (nothing simulated beyond it, even when prefetching)
-        plan = RecordPlan.from_settings(acq)
+        plan = RecordPlan.from_acquisition(acq)
         self._duration_s = plan.simulation_samples / plan.simulation_rate_hz
         # the source is made from now on, while the model is chosen and the kernels load
         self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s),
@@ -331,20 +333,19 @@ def check_seed(seed) -> int:
     return int(seed)
 
 
-def antialias_for(acquisition: dict, plan: RecordPlan) -> AntiAliasFilter:
-    """The anti-alias filter of ``Scene.settings["acquisition"]``."""
+def antialias_for(acquisition: AcquisitionSettings, plan: RecordPlan) -> AntiAliasFilter:
+    """The anti-alias filter of ``Scene.acquisition``."""
     return AntiAliasFilter.design(
-        plan.simulation_rate_hz, plan.rate_hz, bits=acquisition["adc_bits"],
-        kind=acquisition.get("antialias", "elliptic"),
-        passband=acquisition.get("antialias_passband", 0.4),
-        ripple_db=acquisition.get("antialias_ripple_db", 0.01),
-        attenuation_db=acquisition.get("antialias_attenuation_db"))
+        plan.simulation_rate_hz, plan.rate_hz, bits=acquisition.adc_bits,
+        kind=acquisition.antialias, passband=acquisition.antialias_passband,
+        ripple_db=acquisition.antialias_ripple_db,
+        attenuation_db=acquisition.antialias_attenuation_db)
 
 
 def acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
             progress: Callable[[float, float], None] | None = None,
             bench: Callable[[Scene, int], Bench] | None = None) -> AcquisitionSummary:
-    """Acquire ``scene.settings["acquisition"]["records"]`` records of the scene's bench.
+    """Acquire ``scene.acquisition.records`` records of the scene's bench.
 
     Parameters
     ----------
@@ -384,9 +385,9 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
              bench: Callable[[Scene, int], Bench] | None = None) -> AcquisitionSummary:
     """:func:`acquire` (with one BLAS thread)."""
     t_start = time.perf_counter()
-    acq = scene.settings["acquisition"]
-    plan = RecordPlan.from_settings(acq)
-    ADC(1.0, acq["adc_bits"])  # the resolution, before the filter design that depends on it
+    acq = scene.acquisition
+    plan = RecordPlan.from_acquisition(acq)
+    ADC(1.0, acq.adc_bits)  # the resolution, before the filter design that depends on it
     aa = antialias_for(acq, plan)
     seed = check_seed(seed)
     sinks = list(sinks)
@@ -401,7 +402,7 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
     if not math.isclose(the_bench.fs_hz, plan.simulation_rate_hz, rel_tol=1e-12):
         raise ConfigError(f"the bench runs at {the_bench.fs_hz:g} Hz but acquisition."
                           f"simulation_rate_hz = {plan.simulation_rate_hz:g} Hz")
-    channels = channels_for(acq, the_bench.calibrations())
+    channels = channels_for(scene.settings["acquisition"], the_bench.calibrations())
     response = model_response(the_bench, aa, plan, channels)
     blocks = iter(the_bench.blocks())
     first = next(blocks, None)
@@ -409,7 +410,7 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
         raise StreamError("the bench yielded no block")
     keys = getattr(the_bench, "truth_keys", None) or tuple(first.truth)
     truth = tuple(TruthField.from_array(k, np.asarray(first.truth[k])) for k in keys
-                  if k in first.truth) if acq.get("truth", True) else ()
+                  if k in first.truth) if acq.truth else ()
     header = Header(scene=scene, seed=seed, plan=plan, channels=channels, antialias=aa,
                     truth=truth, model_info=the_bench.model_info(), response=response,
                     software_version=software_version(), start_time=utc_now_iso())

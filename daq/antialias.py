@@ -63,6 +63,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rig.acquisition_settings import decimation_factor
 from rig.errors import ConfigError
 from rig.jit import njit
 
@@ -73,28 +74,6 @@ def default_attenuation_db(bits: int) -> float:
     """Stopband attenuation that makes a full-scale alias at most LSB/4 [dB]:
     ``20 log10(2^(bits+1))``."""
     return 20.0 * math.log10(2.0 ** (bits + 1))
-
-
-def decimation_factor(fs_hz: float, rate_hz: float, *, fs_name: str = "simulation_rate_hz",
-                      rate_name: str = "rate_hz") -> int:
-    """``fs_hz / rate_hz`` as an integer >= 2, or :class:`ConfigError` naming both values."""
-    for name, v in ((rate_name, rate_hz), (fs_name, fs_hz)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ConfigError(f"{name} = {v!r} is invalid: expected a finite rate > 0 Hz")
-    if rate_hz > fs_hz:
-        raise ConfigError(f"{rate_name} = {rate_hz:g} Hz is invalid: it is above {fs_name} = "
-                          f"{fs_hz:g} Hz; expected {fs_name} / q for an integer q >= 2")
-    r = fs_hz / rate_hz
-    q = int(round(r))
-    if abs(r - q) > 1e-9 * r:
-        raise ConfigError(f"{rate_name} = {rate_hz:g} Hz is invalid: {fs_name} = {fs_hz:g} Hz is "
-                          f"not an integer multiple of it (ratio {r:.6g}); expected {fs_name} / q "
-                          "for an integer q >= 2")
-    if q < 2:
-        raise ConfigError(f"{rate_name} = {rate_hz:g} Hz is invalid: it equals {fs_name}; the "
-                          "anti-alias filter runs at the simulation rate and needs room above "
-                          f"Nyquist: expected {fs_name} / q for an integer q >= 2")
-    return q
 
 
 @dataclass(frozen=True)

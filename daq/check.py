@@ -319,8 +319,9 @@ class _Checker:
             self.problem("invalid", f"entry/scene/settings_json is not JSON ({exc})")
             return
         try:
-            plan = RecordPlan.from_settings(settings["acquisition"])
-            scene_from_settings(settings, source=_text(e["scene"].attrs.get("source", "")))
+            scene = scene_from_settings(settings,
+                                        origin=_text(e["scene"].attrs.get("source", "")))
+            plan = RecordPlan.from_acquisition(scene.acquisition)
         except (RigError, KeyError, TypeError, ValueError) as exc:
             self.problem("invalid", f"the stored scene does not rebuild: {_first_line(exc)}")
             return

@@ -124,9 +124,9 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
         from daq.pacing import PacingSink
 
         sinks = [PacingSink(pacer)]
-    a = sc.settings["acquisition"]
-    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a["records"],
-                                          record_s=a["record_s"], settle_s=a["settle_s"])
+    a = sc.acquisition
+    bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a.records,
+                                          record_s=a.record_s, settle_s=a.settle_s)
     try:
         with stop_signals_interrupt():  # SIGTERM, SIGHUP end the run like Ctrl-C
             files = [] if out is None else [Hdf5Sink(out, force=force)]  # the file first

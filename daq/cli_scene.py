@@ -53,7 +53,7 @@ def scene_show(scene_name, overrides, as_json, as_toml):
 
         sets = "".join(f" --set {o}" for o in overrides)
         click.echo(scene_toml(sc, header=(
-            f"scene {sc.name} resolved from {sc.source}{sets} by pendulum-daq "
+            f"scene {sc.name} resolved from {sc.origin}{sets} by pendulum-daq "
             f"{version('pendulum-daq')}: every key, as loaded.\n"
             "Edit and load it as a scene file (or start a new file with base = \"NAME\" and "
             "only the keys that differ).")), nl=False)
@@ -117,7 +117,7 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
         from processing.plots import model_bode_figure
 
         fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model",
-                                paper_figures=sc.settings["pendulum"]["kind"] == "ishizaki")
+                                paper_figures=sc.pendulum_kind == "ishizaki")
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
         click.echo(f"wrote {plot_path}")

@@ -459,7 +459,7 @@ class Hdf5Sink(Sink):
                                    "+ b2 z^-2) / (1 + a1 z^-1 + a2 z^-2), z = exp(2 pi i f / fs)")
         _group(inst, "acquisition", "NXcollection", **plan.describe())
 
-        sc = _group(entry, "scene", "NXcollection", name=h.scene.name, source=h.scene.source,
+        sc = _group(entry, "scene", "NXcollection", name=h.scene.name, source=h.scene.origin,
                     description=h.scene.description)
         js = sc.create_dataset("settings_json", data=json.dumps(h.scene.settings, sort_keys=True),
                                dtype=_STR, track_times=False)
@@ -597,8 +597,8 @@ def read_run(path: str | Path, records=None) -> Recording:
                                   f"(0..{n - 1})")
             rows = rows if rows.size else slice(0, 0)
         settings = json.loads(_s(e["scene/settings_json"][()]))
-        scene = scene_from_settings(settings, source=_s(e["scene"].attrs["source"]))
-        plan = RecordPlan.from_settings(settings["acquisition"])
+        scene = scene_from_settings(settings, origin=_s(e["scene"].attrs["source"]))
+        plan = RecordPlan.from_acquisition(scene.acquisition)
         data = e["data"]
         names = [_s(data.attrs["signal"])] + [_s(s) for s in data.attrs["auxiliary_signals"]]
         channels = tuple(Channel.from_attrs(c, data[c].attrs) for c in names)

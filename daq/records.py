@@ -29,32 +29,16 @@ Consequences for comparing the two:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from daq.antialias import AntiAliasFilter, decimation_factor
+from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
-from rig.errors import ConfigError
+from rig.acquisition_settings import AcquisitionSettings, whole_samples
 from rig.scene import Scene
 
-_REL = 1e-9
 STATUSES = ("acquiring", "complete", "interrupted", "failed")
-
-
-def _whole_samples(name: str, seconds, rate_hz: float, *, minimum: int) -> int:
-    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(
-            seconds):
-        raise ConfigError(f"{name} = {seconds!r} is invalid: expected a duration in seconds")
-    r = seconds * rate_hz
-    n = int(round(r))
-    if abs(r - n) > _REL * max(1.0, abs(r)) or n < minimum:
-        what = "at least one sample" if minimum else ">= 0"
-        raise ConfigError(f"{name} = {seconds!r} s is invalid: expected a whole number of samples "
-                          f"at rate_hz = {rate_hz:g} Hz ({what}; a multiple of {1 / rate_hz:g} s), "
-                          f"got {r:.6g} samples")
-    return n
 
 
 @dataclass(frozen=True)
@@ -77,20 +61,15 @@ class RecordPlan:
     settle_samples: int
 
     @classmethod
-    def from_settings(cls, acquisition: dict) -> "RecordPlan":
-        """From ``Scene.settings["acquisition"]``; errors name the key, value and what is valid."""
-        rate = acquisition["rate_hz"]
-        fs = acquisition["simulation_rate_hz"]
-        decimation_factor(fs, rate, fs_name="acquisition.simulation_rate_hz",
-                          rate_name="acquisition.rate_hz")
-        records = acquisition["records"]
-        if isinstance(records, bool) or not isinstance(records, int) or records < 1:
-            raise ConfigError(f"acquisition.records = {records!r} is invalid: expected an integer "
-                              ">= 1")
-        samples = _whole_samples("acquisition.record_s", acquisition["record_s"], rate, minimum=1)
-        settle = _whole_samples("acquisition.settle_s", acquisition["settle_s"], rate, minimum=0)
-        return cls(rate_hz=float(rate), simulation_rate_hz=float(fs), records=records,
-                   samples=samples, settle_samples=settle)
+    def from_acquisition(cls, acquisition: AcquisitionSettings) -> "RecordPlan":
+        """From ``Scene.acquisition`` (validated when the scene was loaded)."""
+        rate = acquisition.rate_hz
+        return cls(rate_hz=float(rate), simulation_rate_hz=float(acquisition.simulation_rate_hz),
+                   records=acquisition.records,
+                   samples=whole_samples("acquisition.record_s", acquisition.record_s, rate,
+                                         minimum=1),
+                   settle_samples=whole_samples("acquisition.settle_s", acquisition.settle_s,
+                                                rate, minimum=0))
 
     @property
     def decimation(self) -> int:

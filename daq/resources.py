@@ -66,10 +66,9 @@ def preflight(plan, scene, out: str | Path | None) -> RunNeeds:
     """Refuse (ConfigError) a run of ``plan`` (daq.records.RecordPlan) for ``scene`` whose
     estimated file exceeds the free space beside ``out`` (if given) or whose memory need exceeds
     the machine's memory; returns the estimates."""
-    acq = scene.settings["acquisition"]
     needs = estimate_needs(records=plan.records, samples=plan.samples,
                            channels=3,  # a, x, y (daq.channels)
-                           bodies=scene.chain.n, truth=bool(acq.get("truth", True)))
+                           bodies=scene.chain.n, truth=scene.acquisition.truth)
     mem = machine_memory_bytes()
     if mem is not None and needs.memory_bytes > mem:
         raise ConfigError(

@@ -50,7 +50,7 @@ def _metadata(traj: Trajectory, scene: Scene) -> dict:
     return {
         "software_version": software_version(),
         "scene": scene.name,
-        "scene_source": scene.source,
+        "scene_source": scene.origin,
         "method": traj.method,
         "settings": traj.settings,
         "n_steps": traj.n_steps,

@@ -548,9 +548,7 @@ class ExpectedEstimate:
 
 
 def _linear_scene(scene):
-    settings = dict(scene.settings)
-    settings["acquisition"] = {**settings["acquisition"], "model": "linear"}
-    return dataclasses.replace(scene, settings=settings)
+    return scene.with_acquisition(model="linear")
 
 
 def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None = None,
@@ -577,9 +575,6 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
 
 def _expected_estimate(header, settings: SpectralSettings, bench: _FastBench, *,
                        n_fft: int | None, fmin_hz: float, fmax_hz: float) -> ExpectedEstimate:
-    from rig.accelerometer import Accelerometer
-    from rig.source import Source
-
     scene = header.scene
     plan = header.plan
     fs = plan.rate_hz
@@ -588,12 +583,11 @@ def _expected_estimate(header, settings: SpectralSettings, bench: _FastBench, *,
     if settings.averaging == "vector":
         raise SettingsError("averaging = 'vector' averages complex spectra: E[H1] as a ratio of "
                             "averaged powers does not apply; expected rms or exponential")
-    st = scene.settings
-    source = Source.from_settings(st["source"], plan.simulation_rate_hz)
+    source = scene.source
     if source.type not in ("random", "pink"):
         raise SettingsError(f"source.type = {source.type!r}: E[H1] is modelled for stationary "
                             "noise sources (random, pink) only")
-    acc = Accelerometer.from_settings(st["accelerometer"])
+    acc = scene.accelerometer
     tau = bench.tau_s
     n = settings.nperseg
     if n_fft is None:
@@ -1214,7 +1208,7 @@ def incomplete_note(a: Analysis) -> str:
 
 def paper_figures(scene) -> bool:
     """Whether the paper's Figs. 9 and 10 show this kind of pendulum (an Ishizaki design)."""
-    return scene.settings["pendulum"]["kind"] == "ishizaki"
+    return scene.pendulum_kind == "ishizaki"
 
 
 def bode_figures(a: Analysis, *, k: float | None = None, phase: str = "wrapped"):

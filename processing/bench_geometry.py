@@ -21,7 +21,8 @@ replay of its file draw the same):
   integral above ~0.05 Hz, without the drift an open integral has. It starts at rest at the
   first record, so the first ~30 s (1 / w0) settle in; it is a drawing, not a measurement;
 - the laser spot on the PSD from the x and y channels' volts: ``u = V_x / (sign_x G)``,
-  ``v = V_y / (sign_y G)`` (``rig.psd``: the detector outputs ``sign G`` times the spot position).
+  ``v = V_y / (sign_y G)`` (``rig.devices.optical_lever``: the detector outputs ``sign G`` times
+  the spot position).
 """
 
 from __future__ import annotations
@@ -66,21 +67,18 @@ class BenchDrawing:
 
     @classmethod
     def from_scene(cls, scene, magnification: float = MAGNIFICATION) -> "BenchDrawing":
-        """From a resolved :class:`rig.scene.Scene` (its chain, mirror and ``[psd]``)."""
+        """From a resolved :class:`rig.scene.Scene` (its chain, mirror and optical lever)."""
         if not (isinstance(magnification, (int, float)) and math.isfinite(magnification)
                 and magnification > 0):
             raise ValueError(f"magnification = {magnification!r} is invalid: expected a "
                              "finite number > 0")
-        chain = scene.chain
-        psd = scene.settings.get("psd") or {}
-        size = psd.get("size_m")
+        chain, lever = scene.chain, scene.lever
         return cls(lengths_mm=tuple(MM * float(v) for v in chain.length_m),
                    com_mm=tuple(MM * float(v) for v in chain.com_m),
                    mirror_body=int(scene.mirror.body),
                    mirror_mm=MM * float(scene.mirror.position_m),
-                   psd_half_mm=None if size is None else MM * float(size) / 2,
-                   psd_gain_vpm=psd.get("gain_vpm"),
-                   psd_signs=(int(psd.get("sign_x", 1)), int(psd.get("sign_y", 1))),
+                   psd_half_mm=MM * lever.size_m / 2, psd_gain_vpm=lever.gain_vpm,
+                   psd_signs=(lever.sign_x, lever.sign_y),
                    magnification=float(magnification))
 
     @property

@@ -7,7 +7,7 @@ the output's (or input's) power not linearly related to the input. On this bench
 lower it, each computable from the bench's exact linear model:
 
 1. **The optical lever's second-order geometry.** The spot position is not linear in the mirror's
-   motion (:mod:`rig.psd`, exact ``u = 2 sin(phi) (dx + dz tan theta) - s sin(2 phi) sin^2
+   motion (:mod:`rig.devices.optical_lever`, exact ``u = 2 sin(phi) (dx + dz tan theta) - s sin(2 phi) sin^2
    theta``, ``v = s cos(phi) sin(2 theta)`` with ``s = D - dx cos(2 phi)/cos(phi) + O(theta^2)``).
    To second order the calibrated channels read
 
@@ -96,16 +96,9 @@ def coherence_budget(header, settings, bench, *, n_fft: int, n_averages: float) 
     functions; ``bench`` evaluates the exact sampled responses per source volt
     (``processing.analysis._FastBench``). Stationary noise sources only (as ``E[H1]``)."""
     from processing.compare import expected_h1_taps
-    from rig.accelerometer import Accelerometer
-    from rig.psd import OpticalLever
-    from rig.source import Source
-
     scene, plan = header.scene, header.plan
     fs = plan.rate_hz
-    st = scene.settings
-    source = Source.from_settings(st["source"], plan.simulation_rate_hz)
-    acc = Accelerometer.from_settings(st["accelerometer"])
-    lever = OpticalLever.from_settings(st["psd"])
+    source, acc, lever = scene.source, scene.accelerometer, scene.lever
     vpu = {c: header.channel(c).volts_per_unit for c in ("a", "x", "y")}
     quant = {c: (header.channel(c).adc.lsb_v / vpu[c]) ** 2 / (6.0 * fs) for c in vpu}
     noise = {"a": (acc.sensitivity_vpmps2 * acc.noise_mps2_rthz / vpu["a"]) ** 2,

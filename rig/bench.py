@@ -9,7 +9,7 @@ accelerometer's charge-amplifier high-pass state (absent for a flat-to-DC accele
 the states of the source's reconstruction filter (absent when it is off). The input is the source
 voltage, a DAC sample held for one sample interval ``h = 1 / simulation_rate_hz`` (SPEC section 8):
 that held staircase is, by definition, the true DAC output; the source's analog reconstruction
-filter smooths it (:mod:`rig.source`) and the stage acceleration ``x0''`` is whatever the
+filter smooths it (:mod:`rig.devices.source`) and the stage acceleration ``x0''`` is whatever the
 continuous amplifier, coil and stage make of that.
 
 Models (``acquisition.model``, ``acquisition.error_budget``)
@@ -17,7 +17,7 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
 ``linear``
     The coil, stage, linearised pendulum (with its reaction on the stage if ``stage.reaction``)
     and the accelerometer's high-pass form one linear system ``z' = A z + B V``
-    (:meth:`rig.stage.Stage.state_space`). It is discretised exactly for the held input with
+    (:meth:`rig.devices.stage.Stage.state_space`). It is discretised exactly for the held input with
     :func:`rig.integrators.discretise` (``z_{k+1} = Phi z_k + Gamma V_k``, Van Loan's matrix
     exponential) and stepped by a compiled loop: exact at the DAC instants up to round-off, ~0.1 us
     per sample for the Ishizaki pendulum. The sensors read the states at the instants. Its error
@@ -109,14 +109,14 @@ Numbers for the defaults (``ishizaki2009``, 0.1 V rms random source 0-12.5 Hz; s
 settle + 30 x 100 s, 3.33 million samples at 1 kHz) takes ~1.4 s of CPU with the linear model in
 10 s blocks (source FIR, sensors and noise included; 1-3 s wall on a shared two-core machine),
 plus ~0.15 s for the model choice;
-levels and signal-to-noise ratios are listed in the docstrings of :mod:`rig.stage`,
-:mod:`rig.accelerometer` and :mod:`rig.psd`.
+levels and signal-to-noise ratios are listed in the docstrings of :mod:`rig.devices.stage`,
+:mod:`rig.devices.accelerometer` and :mod:`rig.devices.optical_lever`.
 
 Sampling at the DAC instants folds the DAC's images
 ---------------------------------------------------
 The held source has images at ``m fs +- f``; sampling the outputs at the DAC instants folds what
 passes of them back onto ``f``, coherent with the drive. The source's reconstruction filter
-(:mod:`rig.source`, 100 Hz 4th-order Butterworth by default) removes them: the exact transfer
+(:mod:`rig.devices.source`, 100 Hz 4th-order Butterworth by default) removes them: the exact transfer
 function of the simulated samples (:func:`expected_response` ``sampled=True``) then equals the
 continuous chain (``sampled=False``: what a real bench with an ideally anti-aliased analyzer reads)
 to better than 2e-5 over the band. With the filter off (``source.reconstruction_hz = 0``, the raw
@@ -132,7 +132,7 @@ Public API: :class:`BenchSimulation`, :class:`BenchModel`, :class:`BenchState`,
 
 from __future__ import annotations
 
-import copy
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -140,7 +140,7 @@ from typing import Iterator
 
 import numpy as np
 
-from rig.accelerometer import Accelerometer
+from rig.devices.accelerometer import Accelerometer
 from rig.blocks import AnalogBlock, Calibration
 from rig import coupled as rcoupled
 from rig.chain import Chain
@@ -148,10 +148,10 @@ from rig.errors import ConfigError, DivergenceError
 from rig.integrators import METHODS, discretise, integrate, to_native
 from rig.jit import njit
 from rig._threads import Prefetch
-from rig.psd import OpticalLever
+from rig.devices.optical_lever import OpticalLever
 from rig.scene import Scene
-from rig.source import NOISE_TYPES, Source, SourceState, generate, start_source
-from rig.stage import Stage
+from rig.devices.source import NOISE_TYPES, Source, SourceState, generate, start_source
+from rig.devices.stage import Stage
 
 MODELS = ("auto", "linear", "nonlinear")  # acquisition.model; "auto" resolves to one of the others
 NONLINEAR_METHODS = ("lawson4", "etdab", "rk4", "gauss4", "dop853")
@@ -248,24 +248,6 @@ class BenchModel:
         return names
 
 
-def _acquisition_rates(acq: dict) -> tuple[float, int]:
-    fs = acq["simulation_rate_hz"]
-    rate = acq["rate_hz"]
-    if not (isinstance(fs, (int, float)) and math.isfinite(fs) and fs > 0):
-        raise ConfigError(f"acquisition.simulation_rate_hz = {fs!r} is invalid: expected a finite "
-                          "rate > 0 Hz")
-    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
-        raise ConfigError(f"acquisition.rate_hz = {rate!r} is invalid: expected a finite rate > 0 "
-                          "Hz")
-    r = fs / rate
-    k = int(round(r))
-    if k < 1 or abs(r - k) > _REL * max(1.0, r):
-        raise ConfigError(f"acquisition.simulation_rate_hz = {fs!r} is invalid: expected a whole "
-                          f"multiple (>= 1) of acquisition.rate_hz = {rate!r} Hz (e.g. "
-                          f"{max(1, math.ceil(r)) * rate:g} Hz)")
-    return float(fs), k
-
-
 def _bench_state_space(stage: Stage, chain: Chain, acc: Accelerometer, with_chain: bool,
                        source: Source):
     """Continuous (a, b, accel_row, slices) of the source's reconstruction filter + stage
@@ -325,18 +307,10 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
     """
     if not isinstance(scene, Scene):
         raise ConfigError(f"scene = {scene!r} is invalid: expected a rig.scene.Scene")
-    st = scene.settings
-    acq = st["acquisition"]
-    fs, decimation = _acquisition_rates(acq)
-    source = Source.from_settings(st["source"], fs)
-    stage = Stage.from_settings(st["stage"])
-    acc = Accelerometer.from_settings(st["accelerometer"])
-    lever = OpticalLever.from_settings(st["psd"])
-    model = acq["model"]
-    if model not in MODELS:
-        raise ConfigError(f"acquisition.model = {model!r} is invalid: expected one of "
-                          f"{', '.join(MODELS)}")
-    _error_budget(acq)
+    acq = scene.acquisition
+    fs, decimation = acq.simulation_rate_hz, acq.decimation
+    source, stage, acc, lever = scene.source, scene.stage, scene.accelerometer, scene.lever
+    model = acq.model
     if method is None:
         method = DEFAULT_METHOD
     if method not in NONLINEAR_METHODS:
@@ -387,14 +361,6 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
                       atol=float(atol), a=a, b=b, phi=np.ascontiguousarray(phi),
                       gamma=np.ascontiguousarray(g0[:, 0]), accel_row=accel_row, slices=slices,
                       selection=selection, **kw)
-
-
-def _error_budget(acq: dict) -> float:
-    e = acq["error_budget"]
-    if isinstance(e, bool) or not isinstance(e, (int, float)) or not (math.isfinite(e) and e > 0):
-        raise ConfigError(f"acquisition.error_budget = {e!r} is invalid: expected a relative RMS "
-                          "error > 0 (e.g. 1e-3)")
-    return float(e)
 
 
 # ================================================================================================
@@ -735,9 +701,8 @@ class BenchSimulation:
         self.seed = root  # seed=None draws OS entropy once; root.entropy is then the record
         self._ahead = None
         if ahead is not None:
-            fs, decimation = _acquisition_rates(scene.settings["acquisition"])
-            source = Source.from_settings(scene.settings["source"], fs)
-            sizes = _block_sizes(fs, decimation, *ahead)
+            acq, source = scene.acquisition, scene.source
+            sizes = _block_sizes(acq.simulation_rate_hz, acq.decimation, *ahead)
             made = Prefetch(_source_blocks(source, start_source(source, children[0]), sizes),
                             self.AHEAD_BLOCKS)
             self._ahead = (tuple(ahead), sizes, made)
@@ -831,10 +796,7 @@ def _calibrations(model: BenchModel) -> dict[str, Calibration]:
 def calibrations(scene: Scene) -> dict[str, Calibration]:
     """Channel calibrations: ``a`` [V per m/s^2] (pass band, polarity included), ``x`` [V per m of
     mirror translation relative to the stage], ``y`` [V per rad of mirror rotation]."""
-    st = scene.settings
-    cal = {"a": Accelerometer.from_settings(st["accelerometer"]).calibration()}
-    cal.update(OpticalLever.from_settings(st["psd"]).calibrations())
-    return cal
+    return {"a": scene.accelerometer.calibration(), **scene.lever.calibrations()}
 
 
 @dataclass(frozen=True, eq=False)
@@ -884,7 +846,7 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
     function of the simulated samples (:class:`BenchResponse`). Both use the linear pendulum and
     the linearised optical lever; both need ``0 <= f < fs / 2``.
     """
-    model = build_model(scene) if scene.settings["acquisition"]["model"] == "linear" else \
+    model = build_model(scene) if scene.acquisition.model == "linear" else \
         build_model(_as_linear(scene))
     f = np.atleast_1d(np.asarray(freqs_hz, float))
     fs = model.fs_hz
@@ -936,11 +898,7 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
 
 
 def _as_linear(scene: Scene) -> Scene:
-    import dataclasses
-
-    settings = copy.deepcopy(scene.settings)
-    settings["acquisition"]["model"] = "linear"
-    return dataclasses.replace(scene, settings=settings)
+    return scene.with_acquisition(model="linear")
 
 
 def _source_psd(source: Source, f: np.ndarray) -> np.ndarray:
@@ -1023,14 +981,14 @@ def signal_to_noise(scene: Scene, freqs_hz) -> dict[str, np.ndarray]:
 def _predictor_rate(scene: Scene, fs: float) -> float:
     """The predictor's reduced rate: the lowest fs / k >= 8 x (the highest source or pendulum
     frequency) at which the scene's source is valid (whole-sample periods)."""
-    src = scene.settings["source"]
-    f_src = src["frequency_hz"] if src["type"] == "sine" else src["fmax_hz"]
+    src = scene.source
+    f_src = src.frequency_hz if src.type == "sine" else src.fmax_hz
     f_modes = scene.chain.modes()[0]
     f_top = max(float(f_src), float(np.max(f_modes)) if f_modes.size else 0.0)
     k_max = max(1, int(fs // (8.0 * f_top))) if f_top > 0 else 1
     for k in range(k_max, 0, -1):
         try:
-            Source.from_settings({**src, "reconstruction_hz": 0.0}, fs / k)
+            dataclasses.replace(src, reconstruction_hz=0.0, fs_hz=fs / k)
         except ConfigError:
             continue
         return fs / k
@@ -1069,14 +1027,13 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
     released far from rest, or a tiny drive on an expensive chain); the statistics come from
     those realisations (``stopped_early``: "under" or "over", else "").
     """
-    st = scene.settings
-    acq = st["acquisition"]
-    fs, _ = _acquisition_rates(acq)
+    acq = scene.acquisition
+    fs = acq.simulation_rate_hz
     chain = scene.chain
     n = chain.n
-    stage = Stage.from_settings(st["stage"])
+    stage = scene.stage
     fr = _predictor_rate(scene, fs)
-    src = Source.from_settings({**st["source"], "reconstruction_hz": 0.0}, fr)
+    src = dataclasses.replace(scene.source, reconstruction_hz=0.0, fs_hz=fr)
     ss = stage.state_space(chain)
     a = ss.a
     nz = a.shape[0]
@@ -1087,7 +1044,7 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
     bf = np.zeros((nz, nf))
     bf[prm.rows, np.arange(nf)] = 1.0
     _, gf0, gf1 = discretise(a, bf, hr, "linear")
-    settle, t_rec = float(acq["settle_s"]), float(acq["records"] * acq["record_s"])
+    settle, t_rec = float(acq.settle_s), float(acq.records * acq.record_s)
     tau = _amplitude_time_constant_s(chain)
     nb_all = PREDICTOR_BATCHES
     if math.isfinite(tau) and t_rec >= 2 * nb_all * tau:
@@ -1205,12 +1162,8 @@ def select_model(scene: Scene) -> dict:
     ``linear_meets_budget``, ``predicted_linear_error`` (the max over bodies), its ``upper``,
     ``reason`` (a sentence), ``prediction`` (the predictor's dict, with ``how``).
     """
-    acq = scene.settings["acquisition"]
-    requested = acq["model"]
-    if requested not in MODELS:
-        raise ConfigError(f"acquisition.model = {requested!r} is invalid: expected one of "
-                          f"{', '.join(MODELS)}")
-    budget = _error_budget(acq)
+    requested = scene.acquisition.model
+    budget = scene.acquisition.error_budget
     tic = time.perf_counter()
     pred = predict_linearisation_error(scene, decide_at=budget)
     e, up = pred["max"], pred["upper"]
@@ -1313,7 +1266,7 @@ def _rel_rms(diff: np.ndarray, ref: np.ndarray) -> float:
 
 def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
     scene = model.scene
-    acq = scene.settings["acquisition"]
+    acq = scene.acquisition
     fs = model.fs_hz
     n = max(1, int(round(probe_s * fs)))
     tic = time.perf_counter()
@@ -1321,7 +1274,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
     budget = sel["error_budget"]
     info = {
         "model": model.model,
-        "requested_model": acq["model"],
+        "requested_model": acq.model,
         "error_budget": budget,
         "reason": sel["reason"],
         "fs_hz": fs,

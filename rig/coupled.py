@@ -4,7 +4,7 @@ The bench state is the one of :mod:`rig.bench` (named slices there)::
 
     z = (i, x0, v0, theta (n), omega (n) [, q] [, r ...])
 
-and its exact linear model is ``z' = A z + B V`` (:meth:`rig.stage.Stage.state_space` plus the
+and its exact linear model is ``z' = A z + B V`` (:meth:`rig.devices.stage.Stage.state_space` plus the
 source's reconstruction filter and the accelerometer's high-pass). The nonlinear bench differs from
 it only in the mechanical accelerations: with ``F_ext = Kf i - k x0 - c v0`` the stage and the
 chain obey::
@@ -19,7 +19,7 @@ and the one per unit ``x0''``, so ``F_chain = F0 + F1 x0''`` and the stage equat
 ``x0'' = (F_ext + F0) / (M - F1)`` (``-F1 = m - S^T M(theta)^-1 S``-like effective mass of the
 swinging chain, >= 0, so the denominator is >= M > 0) before the forward pass gives ``alpha``.
 Linearised, this is exactly the coupled mass matrix ``[[M + m, S^T], [S, H]]`` of
-:mod:`rig.stage`.
+:mod:`rig.devices.stage`.
 
 Write ``z' = A z + B V + f(z)``; the *remainder* ``f`` is the nonlinear minus the linear
 acceleration, non-zero only in the rows of ``v0``, ``omega`` (and ``q``, which integrates
@@ -71,7 +71,7 @@ import scipy.linalg
 
 from rig.chain import Chain
 from rig.jit import njit
-from rig.stage import Stage
+from rig.devices.stage import Stage
 
 
 @dataclass(frozen=True, eq=False)

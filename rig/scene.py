@@ -1,8 +1,11 @@
 """Scenes: a TOML file (or built-in preset) describing the pendulum, its damping, its initial state,
-and the mirror the optical lever looks at; ``--set key=value`` overrides any value.
+the mirror the optical lever looks at, the bench's devices and the acquisition; ``--set
+key=value`` overrides any value. :func:`load_scene` validates every value and returns a frozen,
+typed :class:`Scene` whose parts (chain, mirror, devices, acquisition) are built once, there.
 
 A scene file has the sections below (every key optional unless marked required; SI units, the unit
-is the key's suffix). ``daq scene show NAME`` prints a scene fully resolved.
+is the key's suffix). ``daq scene show NAME`` prints a scene fully resolved, every key with its
+doc.
 
 ``[scene]``      name, description
 ``[pendulum]``   kind = "ishizaki" | "chain" | "rod-chain", damping_mode = "absolute" | "relative",
@@ -13,10 +16,21 @@ is the key's suffix). ``daq scene show NAME`` prints a scene fully resolved.
                  - rod-chain: n, total_length_m, linear_density_kgpm (uniform rods, c = l/2,
                    J = m l^2/12), or rod_lengths_m for unequal rods; damping_nms (per joint).
 ``[mirror]``     body (1-based; default the last body), position_m (distance of the mirror centre
-                 from the body's upper joint along the body; default its centre of mass). The translation channel x is the
-                 horizontal displacement of that point relative to the base, the rotation channel y
-                 is the angle of that body (SPEC section 5).
+                 from the body's upper joint along the body; default its centre of mass). The
+                 translation channel x is the horizontal displacement of that point relative to
+                 the base, the rotation channel y is the angle of that body (SPEC section 5).
 ``[initial]``    theta0_rad, omega0_rad_s: one number for every body or a list of n.
+``[source]``     the analyzer's source (:class:`rig.devices.source.Source`);
+``[stage]``      amplifier, voice coil and X stage (:class:`rig.devices.stage.Stage`);
+``[accelerometer]`` (:class:`rig.devices.accelerometer.Accelerometer`);
+``[psd]``        laser, optical lever and PSD (:class:`rig.devices.optical_lever.OpticalLever`,
+                 ``Scene.lever``; the section keeps its historical name);
+``[acquisition]`` rates, records, ADC, anti-alias filter, model choice
+                 (:class:`rig.acquisition_settings.AcquisitionSettings`).
+
+The keys of the last five sections are the fields of those frozen dataclasses (name, unit,
+default, range and doc written once, :mod:`rig.params`); the pendulum's, mirror's and initial
+state's keys are the tables below.
 
 A top-level ``base = "PRESET"`` (or a TOML file path, relative to the file) inherits every key not
 given (:func:`load_scene`); :func:`rig.scene_toml.scene_toml` writes a resolved scene back as a
@@ -37,22 +51,11 @@ from typing import Any
 
 import numpy as np
 
+from rig.acquisition_settings import AcquisitionSettings
 from rig.chain import DAMPING_MODES, G_STANDARD, Chain
+from rig.devices import Accelerometer, OpticalLever, Source, Stage
 from rig.errors import ConfigError
-
-REQUIRED = object()
-
-
-@dataclass(frozen=True)
-class Key:
-    """One scene key: its type (``float``, ``int``, ``str``, ``floats`` = a number or a list of
-    numbers), its default (``REQUIRED`` if none), allowed choices and a one-line description."""
-
-    type: str
-    default: Any = REQUIRED
-    doc: str = ""
-    choices: tuple = ()
-
+from rig.params import REQUIRED, Key, check_value, keys_of
 
 _COMMON_PENDULUM = {
     "kind": Key("str", REQUIRED, "how the pendulum is given", ("ishizaki", "chain", "rod-chain")),
@@ -97,88 +100,13 @@ SECTIONS: dict[str, dict[str, Key]] = {
                                  "default the body's centre of mass")},
     "initial": {"theta0_rad": Key("floats", 0.0, "initial angles [rad]"),
                 "omega0_rad_s": Key("floats", 0.0, "initial angular velocities [rad/s]")},
-    # -- the bench (issue 3): defaults are owned and documented by the module that uses them --
-    "source": {  # the analyzer's source: a DAC held between samples (rig/source.py)
-        "type": Key("str", "random", "source signal (random: band-limited Gaussian noise)",
-                    ("random", "burst-random", "periodic-chirp", "pink", "sine")),
-        "level_vrms": Key("float", 0.1, "rms source voltage [V] (burst random: while on)"),
-        "fmin_hz": Key("float", 0.0, "lower band edge of random/pink/chirp [Hz], 0 <= fmin < fmax"),
-        "fmax_hz": Key("float", 12.5, "upper band edge (the analysis span) [Hz], <= fs/2"),
-        "frequency_hz": Key("float", 2.0, "frequency of the fixed sine [Hz], 0 < f < fs/2"),
-        "period_s": Key("float", 100.0, "period of chirp and burst random [s], whole samples"),
-        "burst_fraction": Key("float", 0.5, "on-fraction of each burst-random period, (0, 1]"),
-        "reconstruction_hz": Key("float", 100.0, "corner of the source output's smoothing filter "
-                                 "(Butterworth) [Hz]; 0: off, the raw DAC staircase"),
-        "reconstruction_order": Key("int", 4, "order of that filter, 1..8"),
-    },
-    "stage": {  # amplifier, voice-coil motor and X stage (rig/stage.py; defaults justified there)
-        "amplifier_gain_vpv": Key("float", 1.0, "voltage gain of the power amplifier [V/V], > 0"),
-        "force_constant_npa": Key("float", 1.0, "voice-coil force constant = back-EMF constant "
-                                  "[N/A], > 0"),
-        "coil_resistance_ohm": Key("float", 8.0, "coil resistance [ohm], > 0"),
-        "coil_inductance_h": Key("float", 4e-3, "coil inductance [H], > 0 (L/R = 0.5 ms)"),
-        "moving_mass_kg": Key("float", 2.0, "stage moving mass incl. coil, laser and PSD, without "
-                              "the pendulum [kg], > 0"),
-        "stiffness_npm": Key("float", 0.8, "centring stiffness of the guide [N/m], >= 0 "
-                             "(suspension ~0.1 Hz)"),
-        "damping_nspm": Key("float", 1.0, "viscous damping of the guide [N s/m], >= 0"),
-        "reaction": Key("bool", True, "the pendulum's reaction force loads the stage (linear "
-                        "and nonlinear models, rig/coupled.py)"),
-    },
-    "accelerometer": {  # piezoelectric + charge amplifier (rig/accelerometer.py)
-        "sensitivity_vpmps2": Key("float", 1.0, "sensitivity [V per m/s^2] incl. the charge "
-                                  "amplifier, > 0"),
-        "highpass_hz": Key("float", 0.05, "first-order low-frequency corner of the charge "
-                           "amplifier [Hz], >= 0 (0: flat to DC, servo type)"),
-        "noise_mps2_rthz": Key("float", 1e-5, "input-referred white noise density "
-                               "[m/s^2/sqrt(Hz)], >= 0"),
-        "range_mps2": Key("float", 10.0, "measuring range [m/s^2], > 0; the output clips beyond "
-                          "(flagged)"),
-        "sign": Key("int", 1, "polarity of the mounted sensor, +1 or -1", (1, -1)),
-    },
-    "psd": {  # laser, optical lever and position sensitive detector on the stage (rig/psd.py)
-        "incidence_deg": Key("float", 30.0, "angle of incidence on the mirror in the horizontal "
-                             "plane [deg], 0 < phi < 90"),
-        "distance_m": Key("float", 0.2, "mirror to PSD along the reflected beam [m], > 0"),
-        "size_m": Key("float", 0.012, "side of the square detector [m], > 0; the output clips at "
-                      "its edge (flagged)"),
-        "gain_vpm": Key("float", 1000.0, "PSD output per spot displacement [V/m], > 0"),
-        "noise_m_rthz": Key("float", 3e-8, "spot-position noise density per axis "
-                            "[m/sqrt(Hz)], >= 0"),
-        "sign_x": Key("int", 1, "orientation of the PSD x axis, +1 or -1", (1, -1)),
-        "sign_y": Key("int", 1, "orientation of the PSD y axis, +1 or -1", (1, -1)),
-    },
-    "acquisition": {  # synchronous sampling, anti-alias filter, ADC, records (daq/)
-        "rate_hz": Key("float", 100.0, "sample rate of every channel [Hz]"),
-        "simulation_rate_hz": Key("float", 1000.0, "rate of the analog simulation and source DAC "
-                                  "[Hz]; an integer multiple q >= 2 of rate_hz"),
-        "records": Key("int", 30, "number of records (>= 1), taken back to back"),
-        "record_s": Key("float", 100.0, "duration of one record [s]; a whole number of samples"),
-        "settle_s": Key("float", 300.0, "settling time before the first record [s]; a whole "
-                        "number of samples"),
-        "adc_bits": Key("int", 16, "ADC resolution [bits], 2..32"),
-        "antialias": Key("str", "elliptic", "anti-alias low-pass before decimation ('none' "
-                         "decimates unfiltered, to show aliasing)", ("elliptic", "none")),
-        "antialias_passband": Key("float", 0.4, "anti-alias passband edge as a fraction of "
-                                  "rate_hz (< 0.5); the stopband starts at rate_hz / 2"),
-        "antialias_ripple_db": Key("float", 0.01, "anti-alias passband ripple [dB]"),
-        "antialias_attenuation_db": Key("float", None, "anti-alias attenuation at and above "
-                                        "rate_hz / 2 [dB]; default 20 log10(2^(adc_bits+1))"),
-        "range_a_v": Key("float", 1.0, "ADC full scale of channel a, +-[V]"),
-        "range_x_v": Key("float", 10.0, "ADC full scale of channel x, +-[V]"),
-        "range_y_v": Key("float", 10.0, "ADC full scale of channel y, +-[V]"),
-        "model": Key("str", "auto", "pendulum model simulated: 'auto' picks the cheapest that "
-                     "meets error_budget (exact linear where the predicted linearisation error "
-                     "is inside it, else nonlinear); 'linear' or 'nonlinear' force one "
-                     "(rig/bench.py)", ("auto", "linear", "nonlinear")),
-        "error_budget": Key("float", 1e-2, "allowed relative RMS error of the simulated angles "
-                            "over the records (max over the bodies), > 0; decides model = "
-                            "'auto' and is checked for a forced model (the paper's default "
-                            "drive: the linear model is predicted 0.5 % off, rig/bench.py)"),
-        "truth": Key("bool", True, "store the ground truth beside the channels"),
-    },
+    # the bench: each device's keys are its dataclass fields (rig.params.param)
+    "source": keys_of(Source),  # the analyzer's source: a DAC held between samples
+    "stage": keys_of(Stage),  # amplifier, voice-coil motor and X stage
+    "accelerometer": keys_of(Accelerometer),  # piezoelectric + charge amplifier
+    "psd": keys_of(OpticalLever),  # laser, optical lever and position sensitive detector
+    "acquisition": keys_of(AcquisitionSettings),  # sampling, anti-alias, ADC, records (daq/)
 }
-
 
 @dataclass(frozen=True)
 class Mirror:
@@ -190,27 +118,62 @@ class Mirror:
 
 @dataclass(frozen=True)
 class Scene:
-    """A fully resolved scene. ``settings`` is the resolved input (every key, defaults filled) and
-    reloads to the same scene; ``chain`` the resulting physical parameters."""
+    """A fully resolved scene, validated when it is loaded (:func:`load_scene`).
+
+    ``settings`` is the resolved input (every key of every section, defaults filled, in the order
+    of :data:`SECTIONS`): it is what a run file stores and reloads to the same scene
+    (``load_scene(scene.to_dict()) == scene``). The typed parts are built from it once: ``chain``
+    the pendulum's physical parameters, ``mirror`` where the optical lever looks, the initial
+    state, the bench's devices (``source`` at ``acquisition.simulation_rate_hz``, ``stage``,
+    ``accelerometer``, ``lever`` of the ``[psd]`` section) and ``acquisition``. ``origin`` says
+    where the scene came from (``"preset:ishizaki2009"``, a file, ``"settings"``).
+    """
 
     name: str
     description: str
-    source: str
+    origin: str
     settings: dict
     chain: Chain
     mirror: Mirror
     theta0_rad: tuple
     omega0_rad_s: tuple
+    source: Source
+    stage: Stage
+    accelerometer: Accelerometer
+    lever: OpticalLever
+    acquisition: AcquisitionSettings
+
+    @property
+    def pendulum_kind(self) -> str:
+        """How the pendulum was given: ``"ishizaki"`` (the paper's design numbers), ``"chain"``
+        or ``"rod-chain"`` (``pendulum.kind``)."""
+        return self.settings["pendulum"]["kind"]
 
     def mirror_weights(self) -> np.ndarray:
         """Weights w with x_mirror = w . theta (linearised, relative to the base) [m/rad]."""
         return self.chain.point_weights(self.mirror.body, self.mirror.position_m)
 
+    def with_acquisition(self, **changes) -> "Scene":
+        """The same scene with ``[acquisition]`` values changed (e.g. ``model="linear"``),
+        validated like a loaded one; the settings keep their key order."""
+        settings = copy.deepcopy(self.settings)
+        unknown = set(changes) - set(settings["acquisition"])
+        if unknown:
+            raise ConfigError(f"unknown key acquisition.{sorted(unknown)[0]}; valid keys: "
+                              f"{', '.join(sorted(settings['acquisition']))}")
+        settings["acquisition"].update(changes)
+        acquisition = dataclasses.replace(self.acquisition, **changes)
+        return dataclasses.replace(self, settings=settings, acquisition=acquisition,
+                                   source=dataclasses.replace(
+                                       self.source, fs_hz=acquisition.simulation_rate_hz))
+
     def to_dict(self) -> dict:
-        """The scene as plain data: resolved settings, physical chain parameters (SI), mirror."""
+        """The scene as plain data: its origin, the resolved settings, the physical chain
+        parameters (SI), the mirror (1-based body) and the initial state. :func:`load_scene`
+        of it (or of its ``settings``) gives the same scene."""
         c = self.chain
         return {
-            "source": self.source,
+            "origin": self.origin,
             "settings": copy.deepcopy(self.settings),
             "chain": {
                 "n": c.n,
@@ -240,8 +203,13 @@ def preset_text(name: str) -> str:
     return resources.files("rig").joinpath("presets", f"{name}.toml").read_text()
 
 
-def load_scene(scene: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
-    """Load a scene from a preset name or a TOML file path and apply ``key=value`` overrides.
+def load_scene(scene: str | Path | dict, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+    """Load a scene from a preset name, a TOML file path or plain data, and apply ``key=value``
+    overrides; every value is validated here (ConfigError naming the key, the value and what is
+    valid).
+
+    Plain data is either raw scene data (sections of keys, as parsed from TOML) or
+    :meth:`Scene.to_dict` (its ``settings`` and ``origin`` are used).
 
     A scene may start from another: a top-level ``base = "PRESET"`` (or a path to a TOML file,
     relative to the file that names it) inherits every key the scene does not give, section by
@@ -252,10 +220,16 @@ def load_scene(scene: str | Path, overrides: list[str] | tuple[str, ...] = ()) -
     (``initial.theta0_rad[2]=0.1``, 1-based like the bodies) and TOML values (a bare word is
     taken as a string: ``pendulum.damping_mode=relative``). They apply after the inheritance.
     """
-    data, source = read_scene_data(scene)
+    if isinstance(scene, dict):
+        if isinstance(scene.get("settings"), dict):
+            data, origin = copy.deepcopy(scene["settings"]), str(scene.get("origin", "settings"))
+        else:
+            data, origin = copy.deepcopy(scene), "settings"
+    else:
+        data, origin = read_scene_data(scene)
     for item in overrides:
         apply_override(data, item)
-    return resolve_scene(data, source=source)
+    return resolve_scene(data, origin=origin)
 
 
 def read_scene_data(scene: str | Path, *, relative_to: Path | None = None,
@@ -313,9 +287,9 @@ def merge_scene_data(base: dict, child: dict) -> dict:
     return out
 
 
-def scene_from_settings(settings: dict, source: str = "settings") -> Scene:
+def scene_from_settings(settings: dict, origin: str = "settings") -> Scene:
     """Rebuild a scene from ``Scene.settings`` (e.g. read back from a file)."""
-    return resolve_scene(copy.deepcopy(settings), source=source)
+    return resolve_scene(copy.deepcopy(settings), origin=origin)
 
 
 _OVERRIDE = re.compile(r"^(?P<key>[A-Za-z_][\w-]*(?:\.[A-Za-z_][\w-]*)+)(?:\[(?P<idx>\d+)\])?=(?P<val>.*)$")
@@ -357,48 +331,6 @@ def apply_override(data: dict, item: str) -> None:
 
 # -- validation ------------------------------------------------------------------------------
 
-def _check_type(where: str, key: Key, value: Any) -> Any:
-    if value is None and key.default is None:
-        return None
-    def number(v, what):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ConfigError(f"{where} = {v!r} is invalid: expected {what}")
-        if not math.isfinite(float(v)):
-            raise ConfigError(f"{where} = {v!r} is invalid: expected a finite number")
-        return float(v)
-
-    if key.type == "float":
-        return number(value, "a number")
-    if key.type == "bool":
-        if not isinstance(value, bool):
-            raise ConfigError(f"{where} = {value!r} is invalid: expected true or false")
-        return value
-    if key.type == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where} = {value!r} is invalid: expected an integer")
-        if key.choices and value not in key.choices:
-            raise ConfigError(f"{where} = {value!r} is invalid: expected one of "
-                              f"{', '.join(map(str, key.choices))}")
-        return value
-    if key.type == "str":
-        if not isinstance(value, str):
-            raise ConfigError(f"{where} = {value!r} is invalid: expected a string")
-        if key.choices and value not in key.choices:
-            raise ConfigError(f"{where} = {value!r} is invalid: expected one of "
-                              f"{', '.join(key.choices)}")
-        return value
-    if key.type == "floats":
-        if isinstance(value, list):
-            if not value:
-                raise ConfigError(f"{where} = [] is invalid: expected a number or a non-empty list")
-            for i, v in enumerate(value):
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise ConfigError(f"{where} of body {i + 1} = {v!r} is invalid: expected a number")
-            return [number(v, "a finite number") for v in value]
-        return number(value, "a number or a list of numbers")
-    raise AssertionError(key.type)
-
-
 def _validate_section(name: str, raw: dict, keys: dict[str, Key]) -> dict:
     if not isinstance(raw, dict):
         raise ConfigError(f"[{name}] is invalid: expected a table of keys")
@@ -409,7 +341,7 @@ def _validate_section(name: str, raw: dict, keys: dict[str, Key]) -> dict:
     out = {}
     for k, spec in keys.items():
         if k in raw:
-            out[k] = _check_type(f"{name}.{k}", spec, raw[k])
+            out[k] = check_value(f"{name}.{k}", spec, raw[k])
         elif spec.default is REQUIRED:
             raise ConfigError(f"missing required key {name}.{k} ({spec.doc})")
         else:
@@ -506,26 +438,24 @@ def _build_chain(p: dict) -> Chain:
         raise ConfigError(msg if msg.startswith(("pendulum.", "a rod-chain")) else f"pendulum.{msg}") from None
 
 
-def resolve_scene(data: dict, *, source: str) -> Scene:
+def resolve_scene(data: dict, *, origin: str) -> Scene:
     """Validate raw scene data (as parsed from TOML) and build the :class:`Scene`."""
     if not isinstance(data, dict):
-        raise ConfigError(f"scene {source}: expected a table")
+        raise ConfigError(f"scene {origin}: expected a table")
     for section in data:
         if section not in SECTIONS:
-            raise ConfigError(f"unknown section [{section}] in scene {source}; valid sections: "
+            raise ConfigError(f"unknown section [{section}] in scene {origin}; valid sections: "
                               f"{', '.join(SECTIONS)}")
     raw_p = data.get("pendulum")
     if raw_p is None:
-        raise ConfigError(f"scene {source} has no [pendulum] section")
+        raise ConfigError(f"scene {origin} has no [pendulum] section")
     kind = raw_p.get("kind") if isinstance(raw_p, dict) else None
     if not isinstance(kind, str) or kind not in PENDULUM_KINDS:
         raise ConfigError(f"pendulum.kind = {kind!r} is invalid: expected one of "
                           f"{', '.join(PENDULUM_KINDS)}")
-    settings = {}
-    for section, keys in SECTIONS.items():
-        if section == "pendulum":
-            keys = {**keys, **PENDULUM_KINDS[kind]}
-        settings[section] = _validate_section(section, data.get(section, {}), keys)
+    settings = {section: _validate_section(section, data.get(section, {}),
+                                           section_keys(section, kind))
+                for section in SECTIONS}
     chain = _finite_chain(settings["pendulum"], raw_p)
     n = chain.n
 
@@ -546,9 +476,22 @@ def resolve_scene(data: dict, *, source: str) -> Scene:
 
     theta0 = _per_body("initial.theta0_rad", settings["initial"]["theta0_rad"], n)
     omega0 = _per_body("initial.omega0_rad_s", settings["initial"]["omega0_rad_s"], n)
+    acquisition = AcquisitionSettings(**settings["acquisition"])
     return Scene(name=settings["scene"]["name"], description=settings["scene"]["description"],
-                 source=source, settings=settings, chain=chain, mirror=mirror,
-                 theta0_rad=tuple(theta0), omega0_rad_s=tuple(omega0))
+                 origin=origin, settings=settings, chain=chain, mirror=mirror,
+                 theta0_rad=tuple(theta0), omega0_rad_s=tuple(omega0),
+                 source=Source(**settings["source"], fs_hz=acquisition.simulation_rate_hz),
+                 stage=Stage(**settings["stage"]),
+                 accelerometer=Accelerometer(**settings["accelerometer"]),
+                 lever=OpticalLever(**settings["psd"]), acquisition=acquisition)
+
+
+def section_keys(section: str, kind: str) -> dict[str, Key]:
+    """The keys of ``[section]`` for a pendulum of ``kind`` (the pendulum's common keys and its
+    kind's; every other section's keys do not depend on the kind)."""
+    if section == "pendulum":
+        return {**SECTIONS["pendulum"], **PENDULUM_KINDS[kind]}
+    return SECTIONS[section]
 
 
 def describe_keys() -> dict[str, dict[str, str]]:

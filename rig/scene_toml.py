@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import tomli_w
 
-from rig.scene import PENDULUM_KINDS, SECTIONS, Scene
+from rig.scene import SECTIONS, Scene, section_keys
 
 
 def toml_value(value) -> str:
@@ -26,9 +26,8 @@ def scene_toml(scene: Scene, *, header: str = "") -> str:
     """
     settings = scene.settings
     lines = [f"# {line}".rstrip() for line in header.splitlines()]
-    for section, keys in SECTIONS.items():
-        if section == "pendulum":
-            keys = {**keys, **PENDULUM_KINDS[settings["pendulum"]["kind"]]}
+    for section in SECTIONS:
+        keys = section_keys(section, scene.pendulum_kind)
         if lines:
             lines.append("")
         lines.append(f"[{section}]")

@@ -123,7 +123,7 @@ def test_etdab_skipping_the_exact_zeros_changes_no_bit():
     # rig.coupled.etd_ab_sparsity: the weights never reach the reconstruction filter's states,
     # and the remainder's linear rows never read them
     from rig.coupled import etd_ab_kernel
-    from rig.source import generate, start_source
+    from rig.devices.source import generate, start_source
 
     m = build_model(load_scene("ishizaki2009", ["acquisition.model=nonlinear",
                                                 "source.level_vrms=1.0"]))

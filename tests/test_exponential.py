@@ -12,7 +12,7 @@ from rig.integrators import (METHODS, SINCOS_POLY_MAX, _sincos_poly, etd3_kernel
                              etd3_coefficients, integrate, nonlinear_remainder, rhs, to_native)
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
-from rig.source import Source, generate, start_source
+from rig.devices.source import Source, generate, start_source
 
 from chains import blockwise_and_one_shot, random_chain, rod_chain
 

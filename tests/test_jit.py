@@ -25,7 +25,7 @@ def test_first_call_materialises_every_kernel_and_patches_the_module_namespaces(
         "import numpy as np\n"
         "import rig.chain as ch, rig.integrators as it\n"
         "from rig.jit import LazyKernel\n"
-        "from rig.accelerometer import _first_order_recursion as f\n"
+        "from rig.devices.accelerometer import _first_order_recursion as f\n"
         "before = isinstance(it.rk4_kernel, LazyKernel)\n"
         "q = f(0.5, np.ones(3), 2.0)\n"
         "print(json.dumps([before, 'numba' in sys.modules, isinstance(it.rk4_kernel, LazyKernel),"
@@ -35,7 +35,7 @@ def test_first_call_materialises_every_kernel_and_patches_the_module_namespaces(
 
 
 def test_a_lazy_kernel_forwards_to_its_dispatcher():
-    from rig.accelerometer import _first_order_recursion as f
+    from rig.devices.accelerometer import _first_order_recursion as f
 
     q = f(0.25, np.array([1.0, 0.0]), 4.0)
     np.testing.assert_array_equal(q, [2.0, 0.5])

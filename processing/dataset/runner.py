@@ -126,16 +126,16 @@ def plan_runs(sweep: Sweep) -> tuple[PlannedRun, ...]:
     for spec in sweep.runs():
         try:
             sc = load_scene(sweep.scene, spec.overrides)
-            acq = sc.settings["acquisition"]
-            samples = round(acq["record_s"] * acq["rate_hz"])
-            settings.spectral(acq["rate_hz"], samples)
+            acq = sc.acquisition
+            samples = round(acq.record_s * acq.rate_hz)
+            settings.spectral(acq.rate_hz, samples)
         except (ConfigError, SettingsError) as exc:
             out.append(PlannedRun(spec, None, "", f"{type(exc).__name__}: {exc}", 0.0, 0))
             continue
-        sim_s = acq["settle_s"] + acq["records"] * acq["record_s"]
-        n = acq["records"] * samples
-        per = 3 * 2 + (8 * (4 + sc.chain.n) if acq["truth"] and sweep.keep["truth"] else 0)
-        out.append(PlannedRun(spec, sc.settings, sc.source, "", float(sim_s),
+        sim_s = acq.settle_s + acq.records * acq.record_s
+        n = acq.records * samples
+        per = 3 * 2 + (8 * (4 + sc.chain.n) if acq.truth and sweep.keep["truth"] else 0)
+        out.append(PlannedRun(spec, sc.settings, sc.origin, "", float(sim_s),
                               int(n * per + 200_000)))
     return tuple(out)
 

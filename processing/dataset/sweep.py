@@ -365,7 +365,7 @@ def _flatten(section: str, raw: dict, prefix: str = "") -> dict:
 
 def _scene_key(where: str, key: str, base):
     """The :class:`rig.scene.Key` of ``section.name``; ConfigError naming the valid keys."""
-    from rig.scene import PENDULUM_KINDS, SECTIONS
+    from rig.scene import SECTIONS, section_keys
 
     parts = key.split(".")
     if len(parts) != 2:
@@ -375,9 +375,7 @@ def _scene_key(where: str, key: str, base):
     if section not in SECTIONS:
         raise ConfigError(f"{where}.{key}: unknown scene section [{section}]; valid sections: "
                           f"{', '.join(SECTIONS)}")
-    keys = dict(SECTIONS[section])
-    if section == "pendulum":
-        keys.update(PENDULUM_KINDS[base.settings["pendulum"]["kind"]])
+    keys = section_keys(section, base.pendulum_kind)
     if name not in keys:
         raise ConfigError(f"{where}.{key}: unknown key {name!r} of [{section}]; valid keys: "
                           f"{', '.join(sorted(keys))}")
@@ -391,22 +389,11 @@ def _number(where: str, v) -> float:
 
 
 def _check_value(where: str, spec, v) -> Any:
-    t = spec.type
-    if t in ("float", "floats"):
-        return _number(where, v)
-    if t == "int":
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise ConfigError(f"{where} = {v!r} is invalid: expected an integer")
-    elif t == "bool":
-        if not isinstance(v, bool):
-            raise ConfigError(f"{where} = {v!r} is invalid: expected true or false")
-    elif t == "str":
-        if not isinstance(v, str):
-            raise ConfigError(f"{where} = {v!r} is invalid: expected a string")
-    if spec.choices and v not in spec.choices:
-        raise ConfigError(f"{where} = {v!r} is invalid: expected one of "
-                          f"{', '.join(map(str, spec.choices))}")
-    return v
+    """One axis value checked like the scene checks its key (:func:`rig.params.check_value`);
+    a per-body key (``floats``) takes one number per run."""
+    from rig.params import check_value
+
+    return _number(where, v) if spec.type in ("float", "floats") else check_value(where, spec, v)
 
 
 def _pair(where: str, v, *, positive: bool = False, ordered: bool = True) -> tuple:

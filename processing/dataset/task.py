@@ -115,7 +115,7 @@ def _run(job: dict, tmp: Path) -> str:
     from processing.dataset.runfile import write_outputs
     from rig.scene import scene_from_settings
 
-    scene = scene_from_settings(job["settings"], source=job["scene_source"])
+    scene = scene_from_settings(job["settings"], origin=job["scene_source"])
     summary = acquire(scene, seed=job["seed"], sinks=[Hdf5Sink(tmp)])
     settings = AnalyzerSettings(**{k: tuple(v) if isinstance(v, list) else v
                                    for k, v in job["analysis"].items()})

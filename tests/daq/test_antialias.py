@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from daq.adc import ADC
-from daq.antialias import AntiAliasFilter, decimation_factor, default_attenuation_db
+from daq.antialias import AntiAliasFilter, default_attenuation_db
+from rig.acquisition_settings import decimation_factor
 from rig.errors import ConfigError
 
 FS, RATE = 1000.0, 100.0

@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
+import daq
 from daq.acquisition import FunctionBench, acquire
 from daq.hdf5 import Hdf5Sink, open_run, read_run, run_info
 from daq.repair import clear_write_flags
@@ -233,7 +234,7 @@ def test_existing_files_are_replaced_only_with_force_and_only_by_a_complete_run(
 
 WRITER = textwrap.dedent("""
     import sys
-    sys.path.insert(0, {tests!r})
+    sys.path[:0] = [{root!r}, {tests!r}]  # the project first: tests/rig/ is no package
     from test_hdf5 import bench, scene
     from daq.acquisition import acquire
     from daq.hdf5 import Hdf5Sink
@@ -245,7 +246,8 @@ def test_a_killed_writer_leaves_a_readable_file_that_could_be_followed_while_it_
     import xarray as xr
 
     script = tmp_path / "writer.py"
-    script.write_text(WRITER.format(tests=str(Path(__file__).parent)))
+    here = Path(__file__).parent
+    script.write_text(WRITER.format(root=str(Path(daq.__file__).parents[1]), tests=str(here)))
     out = tmp_path / "run.h5"
     proc = subprocess.Popen([sys.executable, str(script), str(out)], stderr=subprocess.PIPE)
     try:

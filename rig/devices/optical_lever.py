@@ -44,23 +44,8 @@ the detector sits at the edge, then the sum current vanishes). We clip each coor
 edge (the output saturates at +-G size/2) and flag the sample (``off_detector``, both channels):
 flagged samples must not be trusted.
 
-Defaults (``ishizaki2009`` with the default drive; numbers from :mod:`rig.bench`)
----------------------------------------------------------------------------------
-``incidence_deg = 30`` (2 sin phi = 1: the spot moves as much as the mirror), ``distance_m = 0.2``
-(a lever that fits on the stage; 2 D cos phi = 0.346 m/rad), ``size_m = 0.012`` (a 12 mm x 12 mm
-two-dimensional PSD), ``gain_vpm = 1000`` (+-6 V at the edges), ``noise_m_rthz = 3e-8`` (laser
-pointing, air and electronics; a shot-noise-limited PSD would be far quieter). The stage-2 mode
-(0.83 Hz, Q2 = 100) dominates v: theta2 = 2.2e-3 rad rms gives v = 0.76 mm rms (analytic,
-stationary); over the paper's run (3000 s after 330 s of settling, seed 7) |v| peaked at 3.2 mm
-(4.1 mm without the stage reaction), inside the 6 mm half-width; u = 0.18 mm rms, peak 0.7 mm.
-Signal-to-noise ratio over 0.1-10 Hz (:func:`rig.bench.signal_to_noise`): x above 21 dB
-everywhere (45 dB at low frequency, 21 dB at 10 Hz); y above 20 dB over 81 % and above 10 dB over
-97 % of the log-frequency band: it drops at the anti-resonance of theta2 (4.68 Hz, where the
-signal vanishes: -12 dB) and is 10.5 dB at 10 Hz. The second-order geometry (module docstring)
-adds to u a term ``-D sin(2 phi) sin^2 theta2`` of 0.4 % of u's rms (rotation leaking into the
-translation channel at twice the rotation's frequencies) and to v 0.07 % (the lever arm changes
-with dx); being quadratic in Gaussian signals they do not bias x/a or y/a, they add a little
-uncorrelated power.
+Defaults: the fields of :class:`OpticalLever`; the spot excursions and signal-to-noise ratios
+they give are in ``docs/devices.md``.
 
 Public API: :class:`OpticalLever`, :class:`PsdReading`.
 """
@@ -75,7 +60,7 @@ import numpy as np
 from rig.blocks import Calibration
 from rig.errors import ConfigError
 from rig.jit import njit
-from rig._check import finite_at_least as _finite
+from rig.params import check_fields, param
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,54 +78,34 @@ class PsdReading:
 
 @dataclass(frozen=True)
 class OpticalLever:
-    """Laser + mirror + PSD (frozen, validated; see the module docstring).
+    """Laser + mirror + PSD (frozen, validated; see the module docstring). The fields are the keys
+    of the scene's ``[psd]`` section (unit, default and range in each field's doc,
+    :func:`rig.params.param`): the angle of incidence phi (at 0 a translation does not move the
+    spot; at 90 the beam grazes the mirror), D, the detector's side, G (the orientation is in the
+    signs), the spot noise and the orientation of the detector axes."""
 
-    Parameters
-    ----------
-    incidence_deg : angle of incidence phi on the mirror [deg], 0 < phi < 90 (at 0 a translation
-        does not move the spot; at 90 the beam grazes the mirror).
-    distance_m : D, mirror to detector along the reflected beam [m], > 0.
-    size_m : side of the square detector [m], > 0.
-    gain_vpm : G, output per spot displacement [V/m], > 0 (orientation: the signs).
-    noise_m_rthz : spot-position noise density per axis [m/rtHz], >= 0.
-    sign_x, sign_y : orientation of the detector axes, +1 or -1.
-    """
-
-    incidence_deg: float = 30.0
-    distance_m: float = 0.2
-    size_m: float = 0.012
-    gain_vpm: float = 1000.0
-    noise_m_rthz: float = 3e-8
-    sign_x: int = 1
-    sign_y: int = 1
+    incidence_deg: float = param(30.0, "angle of incidence on the mirror in the horizontal "
+                                 "plane [deg], 0 < phi < 90")
+    distance_m: float = param(0.2, "mirror to PSD along the reflected beam [m], > 0", unit="m",
+                              lo=0.0, strict=True)
+    size_m: float = param(0.012, "side of the square detector [m], > 0; the output clips at "
+                          "its edge (flagged)", unit="m", lo=0.0, strict=True)
+    gain_vpm: float = param(1000.0, "PSD output per spot displacement [V/m], > 0",
+                            unit="V/m (the orientation is sign_x, sign_y)", lo=0.0, strict=True)
+    noise_m_rthz: float = param(3e-8, "spot-position noise density per axis "
+                                "[m/sqrt(Hz)], >= 0", unit="m/rtHz", lo=0.0)
+    sign_x: int = param(1, "orientation of the PSD x axis, +1 or -1", choices=(1, -1))
+    sign_y: int = param(1, "orientation of the PSD y axis, +1 or -1", choices=(1, -1))
 
     def __post_init__(self):
-        set_ = object.__setattr__
         phi = self.incidence_deg
         ok = not isinstance(phi, bool) and isinstance(phi, (int, float)) and math.isfinite(phi)
         if not ok or not 0 < phi < 90:
             raise ConfigError(f"psd.incidence_deg = {phi!r} is invalid: expected 0 < incidence_deg"
                               " < 90 deg (0: the mirror translation would not move the spot; "
                               ">= 90: the beam misses the mirror)")
-        set_(self, "incidence_deg", float(phi))
-        set_(self, "distance_m", _finite("psd.distance_m", self.distance_m, lo=0.0, strict=True,
-                                         unit="m"))
-        set_(self, "size_m", _finite("psd.size_m", self.size_m, lo=0.0, strict=True, unit="m"))
-        set_(self, "gain_vpm", _finite("psd.gain_vpm", self.gain_vpm, lo=0.0, strict=True,
-                                       unit="V/m (the orientation is sign_x, sign_y)"))
-        set_(self, "noise_m_rthz", _finite("psd.noise_m_rthz", self.noise_m_rthz, lo=0.0,
-                                           strict=False, unit="m/rtHz"))
-        for name in ("sign_x", "sign_y"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or v not in (1, -1):
-                raise ConfigError(f"psd.{name} = {v!r} is invalid: expected +1 or -1")
-
-    @classmethod
-    def from_settings(cls, psd: dict) -> "OpticalLever":
-        """Build from a scene's ``settings["psd"]``."""
-        return cls(**{k: psd[k] for k in (
-            "incidence_deg", "distance_m", "size_m", "gain_vpm", "noise_m_rthz", "sign_x",
-            "sign_y")})
+        object.__setattr__(self, "incidence_deg", float(phi))
+        check_fields(self, "psd")
 
     # -- linear description -----------------------------------------------------------------
     @property

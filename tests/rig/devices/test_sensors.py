@@ -1,4 +1,4 @@
-"""Sensors: the accelerometer (rig/accelerometer.py) and the optical lever + PSD (rig/psd.py)."""
+"""Sensors: the accelerometer (rig/devices/accelerometer.py) and the optical lever + PSD (rig/devices/optical_lever.py)."""
 
 import math
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from rig.accelerometer import Accelerometer
+from rig.devices.accelerometer import Accelerometer
 from rig.errors import ConfigError
-from rig.psd import OpticalLever
+from rig.devices.optical_lever import OpticalLever
 
 FS = 1000.0
 

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from rig.accelerometer import Accelerometer
-from rig.psd import OpticalLever
+from rig.devices.accelerometer import Accelerometer
+from rig.devices.optical_lever import OpticalLever
 
 
 def _walk(seed, n, scale):

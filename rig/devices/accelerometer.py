@@ -21,16 +21,11 @@ kHz) is far above the simulation band and is not modelled.
 
 Output stage: the measured volts are ``front end + noise``, then clipped to ``+-|S| range``.
 
-* ``sensitivity_vpmps2 = 1.0`` V per m/s^2 (charge amplifier gain at 1000 mV/unit): the default
-  drive, 6.5e-3 m/s^2 rms, gives 6.5 mV rms.
-* ``noise_mps2_rthz = 1e-5`` m/s^2/rtHz input-referred, white (a charge amplifier's 1/f rise
-  below ~1 Hz is not modelled): 45 dB below the default drive's acceleration density from 0.1 to
-  10 Hz, 26 dB in the stage's notch at the 2.48 Hz pendulum mode (:func:`rig.bench.
-  signal_to_noise`).
-* ``range_mps2 = 10`` m/s^2: the amplifier's +-10 V output at 1 V per m/s^2. Samples beyond are
-  clipped (flat-topped, as a saturated amplifier does) and flagged (``overrange``).
-* ``sign`` = +1/-1: polarity of the mounting; it is part of the :class:`~rig.blocks.Calibration`,
-  and processing must undo it (SPEC section 5).
+Defaults: the fields of :class:`Accelerometer` (1 V per m/s^2, 0.05 Hz corner, 1e-5 m/s^2/rtHz
+white noise, +-10 m/s^2 range, polarity +1); samples beyond the range are clipped (flat-topped, as
+a saturated amplifier does) and flagged (``overrange``); the polarity is part of the
+:class:`~rig.blocks.Calibration`, and processing must undo it (SPEC section 5). The levels and
+signal-to-noise ratios they give are in ``docs/devices.md``.
 
 The noise is white over the simulation band: each sample gets ``|S| noise sqrt(fs / 2)`` rms (a
 one-sided density ``noise`` up to the Nyquist frequency).
@@ -48,7 +43,7 @@ import numpy as np
 from rig.blocks import Calibration
 from rig.errors import ConfigError
 from rig.jit import njit
-from rig._check import finite_at_least as _finite
+from rig.params import check_fields, param
 from rig.integrators import discretise
 
 
@@ -63,43 +58,24 @@ class AccelerometerState:
 
 @dataclass(frozen=True)
 class Accelerometer:
-    """Piezoelectric accelerometer + charge amplifier (frozen, validated; module docstring).
+    """Piezoelectric accelerometer + charge amplifier (frozen, validated; module docstring). The
+    fields are the keys of the scene's ``[accelerometer]`` section (unit, default and range in
+    each field's doc, :func:`rig.params.param`); the output clips at +-S range."""
 
-    Parameters
-    ----------
-    sensitivity_vpmps2 : S [V per m/s^2] in the pass band, > 0.
-    highpass_hz : first-order low-frequency corner [Hz], >= 0 (0: flat to DC, servo type).
-    noise_mps2_rthz : input-referred white noise density [m/s^2/rtHz], >= 0.
-    range_mps2 : measuring range [m/s^2], > 0; the output clips at +-S range.
-    sign : mounting polarity, +1 or -1.
-    """
-
-    sensitivity_vpmps2: float = 1.0
-    highpass_hz: float = 0.05
-    noise_mps2_rthz: float = 1e-5
-    range_mps2: float = 10.0
-    sign: int = 1
+    sensitivity_vpmps2: float = param(1.0, "sensitivity [V per m/s^2] incl. the charge "
+                                      "amplifier, > 0", unit="V per m/s^2 (the polarity is sign)",
+                                      lo=0.0, strict=True)
+    highpass_hz: float = param(0.05, "first-order low-frequency corner of the charge "
+                               "amplifier [Hz], >= 0 (0: flat to DC, servo type)",
+                               unit="Hz (0: flat to DC)", lo=0.0)
+    noise_mps2_rthz: float = param(1e-5, "input-referred white noise density "
+                                   "[m/s^2/sqrt(Hz)], >= 0", unit="m/s^2/rtHz", lo=0.0)
+    range_mps2: float = param(10.0, "measuring range [m/s^2], > 0; the output clips beyond "
+                              "(flagged)", unit="m/s^2", lo=0.0, strict=True)
+    sign: int = param(1, "polarity of the mounted sensor, +1 or -1", choices=(1, -1))
 
     def __post_init__(self):
-        set_ = object.__setattr__
-        set_(self, "sensitivity_vpmps2", _finite("accelerometer.sensitivity_vpmps2",
-                                                 self.sensitivity_vpmps2, lo=0.0, strict=True,
-                                                 unit="V per m/s^2 (the polarity is sign)"))
-        set_(self, "highpass_hz", _finite("accelerometer.highpass_hz", self.highpass_hz, lo=0.0,
-                                          strict=False, unit="Hz (0: flat to DC)"))
-        set_(self, "noise_mps2_rthz", _finite("accelerometer.noise_mps2_rthz",
-                                              self.noise_mps2_rthz, lo=0.0, strict=False,
-                                              unit="m/s^2/rtHz"))
-        set_(self, "range_mps2", _finite("accelerometer.range_mps2", self.range_mps2, lo=0.0,
-                                         strict=True, unit="m/s^2"))
-        if isinstance(self.sign, bool) or self.sign not in (1, -1):
-            raise ConfigError(f"accelerometer.sign = {self.sign!r} is invalid: expected +1 or -1")
-
-    @classmethod
-    def from_settings(cls, accelerometer: dict) -> "Accelerometer":
-        """Build from a scene's ``settings["accelerometer"]``."""
-        return cls(**{k: accelerometer[k] for k in (
-            "sensitivity_vpmps2", "highpass_hz", "noise_mps2_rthz", "range_mps2", "sign")})
+        check_fields(self, "accelerometer")
 
     # -- description ------------------------------------------------------------------------
     @property

@@ -46,9 +46,9 @@ tapered by a Kaiser window (beta = 8.6, ~ 87 dB stopband). ``n_taps`` is the pow
 ``FILTER_SPAN_S`` = 128 s (131072 taps at 1 kHz), so the band edges are about
 ``2 sqrt(1 + (beta/pi)^2) / span`` = 0.045 Hz wide with -6.02 dB at the nominal edge, the pass
 band is flat to 1e-3 dB and the stop band is below -80 dB 0.05 Hz beyond the edges
-(tests/test_source.py). The filter runs by overlap-save in frames of ``4 n_taps`` samples (FFT), each frame
-producing ``3 n_taps + 1`` outputs that are buffered; a request for any number of samples is
-served from that buffer. Because frames never depend on how the output is requested, blocks of
+(tests/rig/devices/test_source.py). The filter runs by overlap-save in frames of ``4 n_taps``
+samples (FFT), each frame producing ``3 n_taps + 1`` outputs that are buffered; a request for
+any number of samples is served from that buffer. Because frames never depend on how the output is requested, blocks of
 any size reproduce a one-shot run bit for bit, and the signal is continuous across blocks (it is
 one stationary process; there are no joins). The filter's history is primed with ``n_taps - 1``
 white samples before the first output, so the noise is stationary from t = 0. Deterministic types
@@ -70,6 +70,7 @@ from functools import lru_cache
 import numpy as np
 
 from rig.errors import ConfigError
+from rig.params import param
 
 SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine")
 NOISE_TYPES = ("random", "burst-random", "pink")
@@ -117,7 +118,7 @@ def butterworth_poles(order: int) -> np.ndarray:
 def butterworth_state_space(order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Controller-canonical realisation (a, b, c) of the unit-corner Butterworth low-pass,
     ``r' = a r + b v``, output ``c . r`` (the matrices of ``scipy.signal.zpk2ss(*buttap(order))``,
-    tests/test_source.py)."""
+    tests/rig/devices/test_source.py)."""
     den = np.poly(butterworth_poles(order)).real
     a = np.zeros((order, order))
     a[0] = -den[1:]
@@ -133,30 +134,25 @@ def butterworth_state_space(order: int) -> tuple[np.ndarray, np.ndarray, np.ndar
 class Source:
     """The analyzer's source as a DAC (parameters frozen and validated; see the module docstring).
 
-    Parameters
-    ----------
-    type : one of :data:`SOURCE_TYPES`.
-    level_vrms : rms voltage [V], >= 0 (rms while on for burst random).
-    fmin_hz, fmax_hz : band edges [Hz], 0 <= fmin < fmax <= fs / 2.
-    frequency_hz : fixed-sine frequency [Hz], 0 < f < fs / 2.
-    period_s : period of the chirp and of the bursts [s], a whole number of samples.
-    burst_fraction : on-fraction of each burst period, 0 < fraction <= 1.
-    fs_hz : DAC (simulation) rate [Hz], > 0.
-    reconstruction_hz : corner of the source output's analog reconstruction (smoothing) filter
-        [Hz], 0 < corner < fs / 2; 0 switches it off (the raw held staircase drives the amplifier).
-    reconstruction_order : order of that Butterworth low-pass, 1..8.
+    The fields but ``fs_hz`` are the keys of the scene's ``[source]`` section (unit, default and
+    range in each field's doc, :func:`rig.params.param`); ``fs_hz`` is the DAC (simulation) rate
+    [Hz], > 0 (``acquisition.simulation_rate_hz``), which bounds the frequencies (``fmax_hz <=
+    fs/2``, ``frequency_hz`` and ``reconstruction_hz < fs/2``) and makes ``period_s`` a whole
+    number of samples.
     """
 
-    type: str = "random"
-    level_vrms: float = 0.1
-    fmin_hz: float = 0.0
-    fmax_hz: float = 12.5
-    frequency_hz: float = 2.0
-    period_s: float = 100.0
-    burst_fraction: float = 0.5
+    type: str = param("random", "source signal (random: band-limited Gaussian noise)",
+                      choices=SOURCE_TYPES)
+    level_vrms: float = param(0.1, "rms source voltage [V] (burst random: while on)")
+    fmin_hz: float = param(0.0, "lower band edge of random/pink/chirp [Hz], 0 <= fmin < fmax")
+    fmax_hz: float = param(12.5, "upper band edge (the analysis span) [Hz], <= fs/2")
+    frequency_hz: float = param(2.0, "frequency of the fixed sine [Hz], 0 < f < fs/2")
+    period_s: float = param(100.0, "period of chirp and burst random [s], whole samples")
+    burst_fraction: float = param(0.5, "on-fraction of each burst-random period, (0, 1]")
     fs_hz: float = 1000.0
-    reconstruction_hz: float = 100.0
-    reconstruction_order: int = 4
+    reconstruction_hz: float = param(100.0, "corner of the source output's smoothing filter "
+                                     "(Butterworth) [Hz]; 0: off, the raw DAC staircase")
+    reconstruction_order: int = param(4, "order of that filter, 1..8")
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -197,16 +193,6 @@ class Source:
             raise ConfigError(f"source.burst_fraction = {self.burst_fraction!r} is invalid: "
                               f"the burst would be shorter than one sample of the period "
                               f"{self.period_s!r} s")
-
-    @classmethod
-    def from_settings(cls, source: dict, fs_hz: float) -> "Source":
-        """Build from a scene's ``settings["source"]`` and the simulation rate [Hz]."""
-        return cls(type=source["type"], level_vrms=source["level_vrms"],
-                   fmin_hz=source["fmin_hz"], fmax_hz=source["fmax_hz"],
-                   frequency_hz=source["frequency_hz"], period_s=source["period_s"],
-                   burst_fraction=source["burst_fraction"], fs_hz=fs_hz,
-                   reconstruction_hz=source["reconstruction_hz"],
-                   reconstruction_order=source["reconstruction_order"])
 
     # -- the analog output stage ------------------------------------------------------------
     def reconstruction_state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

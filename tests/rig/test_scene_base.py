@@ -25,7 +25,7 @@ def test_base_preset_inherits_every_key_not_given(tmp_path):
         for key, value in values.items():
             if (section, key) not in {("pendulum", "q1"), ("source", "level_vrms")}:
                 assert sc.settings[section][key] == value, (section, key)
-    assert sc.source == f"{p} (base preset:ishizaki2009)"
+    assert sc.origin == f"{p} (base preset:ishizaki2009)"
 
 
 def test_base_file_is_relative_to_the_file_naming_it_and_bases_chain(tmp_path):

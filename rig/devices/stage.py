@@ -1,6 +1,7 @@
 """The X stage: voltage amplifier, voice-coil motor and the moving stage on its guide.
 
-Model (SI; the source voltage ``V`` is the DAC value held between samples, :mod:`rig.source`)::
+Model (SI; the source voltage ``V`` is the DAC value held between samples,
+:mod:`rig.devices.source`)::
 
     coil:   L di/dt + R i = G V - Kf v0                    (Kf v0: back EMF, Kf [N/A] = [V s/m])
     stage:  M x0'' = Kf i - k x0 - c v0 - F_p              (v0 = x0', a = x0'')
@@ -41,29 +42,9 @@ is ``F_p = m x0'' + sum_j S_j (cos th_j th_j'' - sin th_j th_j'^2)``, the rate o
 above; :mod:`rig.coupled` integrates stage and nonlinear pendulum together with it (the chain's
 force is affine in ``x0''``, so the stage equation is solved for ``x0''`` at every evaluation).
 
-Defaults and their justification (``ishizaki2009`` pendulum, default source 0.1 V rms, 0-12.5 Hz)
------------------------------------------------------------------------------------------------
-``G = 1 V/V, Kf = 1 N/A, R = 8 ohm, L = 4 mH, M = 2 kg, k = 0.8 N/m, c = 1 N s/m``: a small voice
-coil (1 N/A, 8 ohm, L/R = 0.5 ms, corner 318 Hz) on a 2 kg aluminium carriage that also carries
-the laser and the PSD, held by soft centring springs (suspension 0.098 Hz with the pendulum on,
-damping ratio 0.43 including the back-EMF damping Kf^2/R = 0.125 N s/m).
-
-* Acceleration: above the suspension the stage is mass controlled, a/V = G Kf / (R (M + m)) =
-  0.0595 (m/s^2)/V (0.0625 without the reaction), flat within +2/-3 dB from 0.076 Hz to 12.5 Hz;
-  with the reaction the pendulum adds a -25 dB notch at 2.479 Hz (its fixed-base mode) and a
-  +21 dB coupled resonance at 2.523 Hz (the same mode on a free stage, 2.479 sqrt(1 + 0.036)).
-  The default source gives a ~ 6.5e-3 m/s^2 rms (6.3e-3 without the reaction), an acceleration
-  density ~ 1.8e-3 m/s^2/rtHz.
-* Linear range: with Q1 = 530, 0.05 m/s^2 rms flat over 0-12.5 Hz would swing theta1 to 0.065
-  rad rms (0.1 rad and more at its peaks) and theta2 to 0.019 rad: a pendulum's frequency falls by
-  ~A^2/16 at amplitude A, at 3 rms 2.4e-3, two and a half times the 2.48 Hz mode's half-power
-  half-bandwidth 1/(2 Q1) = 9.4e-4: visibly nonlinear. The default drive gives theta1 = 6.1e-3
-  rad and theta2 = 2.2e-3 rad rms (stationary, reaction on; 8.2e-3 and 2.4e-3 without it): a
-  shift of 2.1e-5 at 3 rms, 2 % of the half-bandwidth (tests/test_stage.py).
-* Stroke: the spring takes the near-DC part of the source (DC per volt G Kf / (R k) = 0.16 m/V):
-  x0 = 1.9 mm rms.
-* Sensors: the signal-to-noise ratios this gives on every channel are listed in
-  :mod:`rig.accelerometer` and :mod:`rig.psd` (:func:`rig.bench.signal_to_noise`).
+Defaults: ``G = 1 V/V, Kf = 1 N/A, R = 8 ohm, L = 4 mH, M = 2 kg, k = 0.8 N/m, c = 1 N
+s/m`` (the fields of :class:`Stage`); their justification and the levels they give are in
+``docs/devices.md``.
 
 Public API: :class:`Stage`, :class:`StageStateSpace`, :class:`StageResponse`.
 """
@@ -76,63 +57,35 @@ from dataclasses import dataclass
 import numpy as np
 
 from rig.chain import Chain
-from rig.errors import ConfigError
-
-
-def _param(where: str, value, *, strict: bool, unit: str) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
-    if not ok or value < 0 or (strict and value == 0):
-        rel = ">" if strict else ">="
-        raise ConfigError(f"{where} = {value!r} is invalid: expected a finite number {rel} 0 "
-                          f"{unit}")
-    return float(value)
+from rig.params import check_fields, param
 
 
 @dataclass(frozen=True)
 class Stage:
-    """Amplifier, voice coil and stage (frozen, validated; see the module docstring).
+    """Amplifier, voice coil and stage (frozen, validated; see the module docstring). The fields
+    are the keys of the scene's ``[stage]`` section: symbol, unit, default and range in each
+    field's doc (:func:`rig.params.param`): G, Kf (= back-EMF constant [V s/m]), R, L, M (without
+    the pendulum), k, c, and whether the pendulum's reaction loads the stage."""
 
-    Parameters
-    ----------
-    amplifier_gain_vpv : G [V/V], > 0.
-    force_constant_npa : Kf [N/A] (= back-EMF constant [V s/m]), > 0.
-    coil_resistance_ohm : R [ohm], > 0.
-    coil_inductance_h : L [H], > 0.
-    moving_mass_kg : M [kg] without the pendulum, > 0.
-    stiffness_npm : k [N/m], >= 0.
-    damping_nspm : c [N s/m], >= 0.
-    reaction : whether the pendulum's reaction loads the stage.
-    """
-
-    amplifier_gain_vpv: float = 1.0
-    force_constant_npa: float = 1.0
-    coil_resistance_ohm: float = 8.0
-    coil_inductance_h: float = 4e-3
-    moving_mass_kg: float = 2.0
-    stiffness_npm: float = 0.8
-    damping_nspm: float = 1.0
-    reaction: bool = True
+    amplifier_gain_vpv: float = param(1.0, "voltage gain of the power amplifier [V/V], > 0",
+                                      unit="V/V", lo=0.0, strict=True)
+    force_constant_npa: float = param(1.0, "voice-coil force constant = back-EMF constant "
+                                      "[N/A], > 0", unit="N/A", lo=0.0, strict=True)
+    coil_resistance_ohm: float = param(8.0, "coil resistance [ohm], > 0", unit="ohm", lo=0.0,
+                                       strict=True)
+    coil_inductance_h: float = param(4e-3, "coil inductance [H], > 0 (L/R = 0.5 ms)", unit="H",
+                                     lo=0.0, strict=True)
+    moving_mass_kg: float = param(2.0, "stage moving mass incl. coil, laser and PSD, without "
+                                  "the pendulum [kg], > 0", unit="kg", lo=0.0, strict=True)
+    stiffness_npm: float = param(0.8, "centring stiffness of the guide [N/m], >= 0 "
+                                 "(suspension ~0.1 Hz)", unit="N/m", lo=0.0)
+    damping_nspm: float = param(1.0, "viscous damping of the guide [N s/m], >= 0", unit="N s/m",
+                                lo=0.0)
+    reaction: bool = param(True, "the pendulum's reaction force loads the stage (linear "
+                           "and nonlinear models, rig/coupled.py)")
 
     def __post_init__(self):
-        set_ = object.__setattr__
-        for name, strict, unit in (("amplifier_gain_vpv", True, "V/V"),
-                                   ("force_constant_npa", True, "N/A"),
-                                   ("coil_resistance_ohm", True, "ohm"),
-                                   ("coil_inductance_h", True, "H"),
-                                   ("moving_mass_kg", True, "kg"),
-                                   ("stiffness_npm", False, "N/m"),
-                                   ("damping_nspm", False, "N s/m")):
-            set_(self, name, _param(f"stage.{name}", getattr(self, name), strict=strict, unit=unit))
-        if not isinstance(self.reaction, bool):
-            raise ConfigError(f"stage.reaction = {self.reaction!r} is invalid: expected true or "
-                              "false")
-
-    @classmethod
-    def from_settings(cls, stage: dict) -> "Stage":
-        """Build from a scene's ``settings["stage"]``."""
-        return cls(**{k: stage[k] for k in (
-            "amplifier_gain_vpv", "force_constant_npa", "coil_resistance_ohm", "coil_inductance_h",
-            "moving_mass_kg", "stiffness_npm", "damping_nspm", "reaction")})
+        check_fields(self, "stage")
 
     # -- derived constants ------------------------------------------------------------------
     @property

@@ -1,4 +1,4 @@
-"""The analyzer's source (rig/source.py): levels, spectra, periods, continuity across blocks.
+"""The analyzer's source (rig/devices/source.py): levels, spectra, periods, continuity across blocks.
 
 Statistical tolerances: the rms of a Gaussian process of bandwidth B over T seconds has a relative
 standard deviation of about 1 / (2 sqrt(B T)); a Welch PSD bin averaged over K segments has
@@ -13,7 +13,7 @@ import pytest
 import scipy.signal
 
 from rig.errors import ConfigError
-from rig.source import SOURCE_TYPES, Source, generate, start_source
+from rig.devices.source import SOURCE_TYPES, Source, generate, start_source
 
 FS = 1000.0
 
