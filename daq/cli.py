@@ -84,7 +84,7 @@ def scene_list():
 def scene_show(scene_name, overrides, as_json, as_toml):
     """Show SCENE fully resolved: every physical parameter in SI units, the derived design
     parameters and the natural frequencies (--toml: the scene as an editable file)."""
-    from rig.summary import scene_summary
+    from rig.describe import scene_summary
 
     from rig.scene import load_scene
 
@@ -159,7 +159,7 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     x is the mirror translation relative to the stage [m per m/s^2], y the mirror rotation [rad
     per m/s^2] (SPEC section 5).
     """
-    from rig.response import gain_db, log_grid, mirror_response, phase_deg
+    from rig.describe import gain_db, log_grid, mirror_response, phase_deg
     from rig.scene import load_scene
 
     sc = load_scene(scene_name, overrides)
@@ -187,7 +187,7 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
         click.echo(f"wrote {plot_path}")
-    from rig.summary import resonance_table
+    from rig.describe import resonance_table
 
     click.echo(resonance_table(sc))
 
@@ -795,9 +795,9 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     interrupted run is analysed with the records it holds). The run file is only read.
     """
     from daq.hdf5 import read_run
-    from processing.analysis import AnalyzerSettings, write_csv, write_report
-    from processing.analysis import analyze as run_analysis
-    from processing.spectra_hdf5 import write_spectra
+    from processing.analyzer import AnalyzerSettings
+    from processing.analyzer import analyze as run_analysis
+    from processing.writers import write_csv, write_report, write_spectra
     from processing.uff import write_frf_uff
     from processing.views import view_paths, write_views
 

@@ -46,7 +46,7 @@ part coherent with the output), its noise ``N`` and an input sensor ``K`` (the r
 with ``G`` the modal sum, ``nu_j = j fs / n2`` a grid ``M`` times finer than the lines
 (``n2 = M N``) and ``D`` the window's power kernel, the DFT of ``r_w(|tau|)``,
 ``|tau| < N``, on ``n2`` points (real, even, ``sum_j D[j] / n2 = r_w(0) = 1``). This is the sum over
-lags of :mod:`processing.analysis`'s expected estimate written in frequency, exact up to
+lags of :mod:`processing.analyzer`'s expected estimate written in frequency, exact up to
 
 * the time aliasing of the correlations on the fine grid, ``exp(-(n2 - N) / (fs tau))`` for the
   slowest decay time ``tau`` of the modes (``Q / (pi f)``) and of the input (Q = 529 at 2.48 Hz,
@@ -62,7 +62,7 @@ evaluation. Windows whose kernel falls as ``1/L`` (uniform, force, exponential) 
 in the lag domain instead (:class:`_LagInputLeakage`: the correlation of ``S / K`` once, then per
 evaluation a convolution with ``z^n`` over ``|tau| < N`` and the geometric sum of its tail),
 exact whatever the modes' Q, slower. With ``S = 1``, ``N = 0``, ``K = 1`` either equals the
-white-input model above to 1e-8 (tests/test_modal.py).
+white-input model above to 1e-8 (tests/processing/test_modal.py).
 
 On the ``ishizaki2009`` bench the pendulum's reaction notches the stage acceleration at its own
 modes (-16 dB at 2.48 Hz relative to the median over 0.1 - 10 Hz, about 4.7 mHz wide): the
@@ -150,9 +150,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from processing.compare import line_correlation, window_autocorrelation
-from processing.frf import FrequencyResponse
-from processing.spectra import ProcessingError, SpectralSettings, _readonly
+from processing.compare import line_correlation
+from processing.frf import MeasuredResponse
+from processing.spectra import ProcessingError, SpectralSettings, _readonly, window_autocorrelation
 
 __all__ = ["FitError", "Mode", "ModalFit", "InputSpectrum", "fit_modes", "RotationReading",
            "rotation_reading", "METHODS", "DOMAINS", "WEIGHTINGS", "MIN_LINES_PER_BANDWIDTH",
@@ -719,7 +719,7 @@ def _initial_modes(f, h, n_modes, initial, df):
     return sorted(out)
 
 
-def fit_modes(frf: FrequencyResponse, band_hz: tuple[float, float], *, initial=None,
+def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=None,
               n_modes: int | None = None, method: str = "direct", domain: str = "z",
               settings: SpectralSettings | None = None, fs: float | None = None,
               n_residual: int = 2, weighting: str = "coherence",
@@ -728,7 +728,7 @@ def fit_modes(frf: FrequencyResponse, band_hz: tuple[float, float], *, initial=N
 
     Parameters
     ----------
-    frf : FrequencyResponse
+    frf : MeasuredResponse
         Measured H1 (coherence and ``n_effective`` give the weights).
     band_hz : (f_lo, f_hi)
         Lines fitted [Hz].
@@ -1137,7 +1137,7 @@ class RotationReading:
     alpha_db: float
 
 
-def rotation_reading(theta2: FrequencyResponse, theta1, *, band_hz: tuple[float, float],
+def rotation_reading(theta2: MeasuredResponse, theta1, *, band_hz: tuple[float, float],
                      theta1_scale: float = 1.0, model_ratio=None, exact_limit: float | None = None,
                      alpha: float | None = None,
                      settings: SpectralSettings | None = None) -> RotationReading:
@@ -1145,8 +1145,8 @@ def rotation_reading(theta2: FrequencyResponse, theta1, *, band_hz: tuple[float,
 
     Parameters
     ----------
-    theta2 : FrequencyResponse of the rotation channel (rad per input unit).
-    theta1 : FrequencyResponse of a channel proportional to Theta_1 (e.g. the mirror translation
+    theta2 : MeasuredResponse of the rotation channel (rad per input unit).
+    theta1 : MeasuredResponse of a channel proportional to Theta_1 (e.g. the mirror translation
         ``x = l theta_1`` with ``theta1_scale = l``), measured with the same input; or a complex
         array of Theta_1 from the model on ``theta2.freqs_hz`` (then only Theta_2's error enters).
     band_hz : (f_lo, f_hi) [Hz]: above f1 and, to approach the limit, above Theta_2's
@@ -1160,7 +1160,7 @@ def rotation_reading(theta2: FrequencyResponse, theta1, *, band_hz: tuple[float,
     """
     lo, hi = (float(v) for v in band_hz)
     f_all = np.asarray(theta2.freqs_hz, dtype=float)
-    if isinstance(theta1, FrequencyResponse):
+    if isinstance(theta1, MeasuredResponse):
         if theta1.freqs_hz.shape != f_all.shape or not np.allclose(theta1.freqs_hz, f_all):
             raise FitError("theta1 and theta2 must be on the same lines")
         t1 = np.asarray(theta1.h) / theta1_scale

@@ -852,7 +852,7 @@ class BenchResponse:
         the accelerometer's high-pass is in the denominator (at 0.1 Hz +0.97 dB, -26.6 deg for
         the default 0.05 Hz corner).
     h_t_pendulum, theta_2_pendulum : the pendulum alone, mirror_x / stage_accel and
-        mirror_rot / stage_accel (:func:`rig.response.mirror_response`).
+        mirror_rot / stage_accel (:func:`rig.describe.mirror_response`).
     sampled : False: continuous-time chain times the DAC's hold ``(1 - e^{-i w h}) / (i w h)``
         (what an ideally anti-aliased measurement sees); True: the exact transfer function from
         the DAC samples to the simulated samples, ``C (e^{i w h} I - Phi)^-1 Gamma``, which also

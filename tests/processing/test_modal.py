@@ -1,6 +1,6 @@
 """Modal curve fit (direct and leakage-aware) and the rotation-isolation reading.
 
-Synthetic data as in tests/test_compare.py: the ishizaki2009 chain discretised exactly (ZOH) at
+Synthetic data as in tests/processing/test_compare.py: the ishizaki2009 chain discretised exactly (ZOH) at
 100 Hz, white input held over each sample, stationary start, output noise 5e-5 m (x) and 2e-4 rad
 (y), 30 contiguous records of 100 s, one Hann segment per record.
 
@@ -28,8 +28,10 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from processing.compare import LinearModel, expected_h1_taps, simulate_records
-from processing.frf import FrequencyResponse, frequency_response
+from lti import simulate_records
+from processing.leakage import expected_h1_taps, impulse_expected_h1
+from rig.linear import LinearSystem
+from processing.frf import MeasuredResponse, frequency_response
 from processing.modal import (FitError, InputSpectrum, _InputLeakage, _LagInputLeakage,
                               _WhiteLeakage, fit_modes, rotation_reading)
 from processing.spectra import SpectralSettings, segment_ffts
@@ -44,7 +46,7 @@ SETTINGS = SpectralSettings(fs=FS, nperseg=N_SAMP, window="hann")
 
 def _model(overrides=()):
     scene = load_scene("ishizaki2009", list(overrides))
-    return scene, LinearModel.from_scene(scene)
+    return scene, LinearSystem.from_scene(scene)
 
 
 def _measure(dm, seed):
@@ -54,7 +56,8 @@ def _measure(dm, seed):
 
 
 def _noiseless(f, h):
-    return FrequencyResponse(f, h, np.full(f.size, 0.5), N_REC, float(N_REC), "h1")
+    return MeasuredResponse(f, h, coherence=np.full(f.size, 0.5), n_averages=N_REC,
+                            n_effective=float(N_REC), estimator="h1")
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +112,7 @@ def test_noiseless_leakage_fit_recovers_q_from_the_expected_h1(preset):
     window's resolution) and flags both modes unreliable."""
     model = preset["model"]
     f = SETTINGS.freqs_hz
-    e = model.impulse_response(FS, N_SAMP).expected_h1(SETTINGS, "y")
+    e = impulse_expected_h1(model.impulse_response(FS, N_SAMP), SETTINGS, "y")
     data = _noiseless(f, e)
     fit = fit_modes(data, (0.1, 10.0), initial=[0.83, 2.48], settings=SETTINGS,
                     method="leakage", weighting="relative")
