@@ -21,8 +21,9 @@
    weights (the method's own systematic error on this bench, reported, never subtracted). The
    fits use the pendulum's own response: the measured ratio times the accelerometer's exactly
    known high-pass, whose pole at 0 Hz the modal model cannot represent;
-5. the paper's reading ``|Theta_2 / Theta_1|`` above f1 (:func:`processing.modal.rotation_reading`)
-   and the text (:meth:`Analysis.report`, :meth:`Analysis.summary`: :mod:`processing.report`).
+5. the paper's reading ``|Theta_2 / Theta_1|`` above f1
+   (:func:`processing.rotation.rotation_reading`) and the text (:meth:`Analysis.report`,
+   :meth:`Analysis.summary`: :mod:`processing.report`).
 
 Nothing is drawn or written here (:mod:`processing.views`, :mod:`processing.writers`). The
 default window is Hann (the 35670A's for random noise); ``window="uniform"`` is a setting. Cost:
@@ -45,7 +46,8 @@ from daq.blas import single_threaded_blas
 from processing.compare import compare
 from processing.frf import ESTIMATORS, MeasuredResponse, frequency_response
 from processing.leakage import CHANNELS, ExpectedEstimate, expected_estimate
-from processing.modal import FitError, ModalFit, RotationReading, fit_modes, rotation_reading
+from processing.modal import FitError, ModalFit, fit_modes
+from processing.rotation import RotationReading, rotation_reading
 from processing.report import analysis_report, analysis_summary
 from processing.sampled_bench import SampledBench
 from processing.spectra import (AVERAGING, WINDOWS, ChannelDataError, SettingsError,

@@ -94,7 +94,8 @@ def coherence_budget(header, settings, bench, *, n_fft: int, n_averages: float) 
     """The expected coherences of the run's bench under ``settings`` (a
     :class:`processing.spectra.SpectralSettings`) on the FFT length ``n_fft`` of the correlation
     functions; ``bench`` evaluates the exact sampled responses per source volt
-    (:class:`processing.sampled_bench.SampledBench`). Stationary noise sources only (as ``E[H1]``)."""
+    (:class:`processing.sampled_bench.SampledBench`). Stationary noise sources only (as
+    ``E[H1]``)."""
     from processing.leakage import expected_h1_taps
     from rig.accelerometer import Accelerometer
     from rig.psd import OpticalLever

@@ -6,8 +6,8 @@ A measured H1 differs from the exact response ``H`` of the system for two reason
   ``E[H1](f_k) = sum_tau g[tau] r_w(|tau|) exp(-2j pi f_k tau / fs)``, the discrete-time impulse
   response ``g`` tapered by the window's normalised autocorrelation ``r_w`` (zero beyond
   ``nperseg`` lags; :mod:`processing.leakage`). ``bias = E[H1] - H``. It matters where ``H``
-  changes on the scale of a line: at the 2.48 Hz mode of the ``ishizaki2009`` preset (Q ~ 529, half-power bandwidth
-  ``f/Q`` ~ 4.7 mHz) a 100 s record's 10 mHz lines cannot resolve the peak;
+  changes on the scale of a line: at the 2.48 Hz mode of the ``ishizaki2009`` preset (Q ~ 529,
+  half-power bandwidth ``f/Q`` ~ 4.7 mHz) a 100 s record's 10 mHz lines cannot resolve the peak;
 * **random error**: ``measured - E[H1]``, predicted by Bendat & Piersol from the measured coherence
   (:attr:`processing.frf.MeasuredResponse.relative_error`, ``eps``), as standard deviation of the
   relative error along (gain) and across (phase) the response.
@@ -44,8 +44,8 @@ from processing.frf import MeasuredResponse
 from processing.spectra import ProcessingError, SpectralSettings, _readonly
 
 __all__ = [
-    "ModelError", "line_correlation", "expected_fraction_within", "fraction_standard_error", "BandStats",
-    "PeakBias", "Comparison", "compare",
+    "ModelError", "line_correlation", "expected_fraction_within", "fraction_standard_error",
+    "BandStats", "PeakBias", "Comparison", "compare",
 ]
 
 class ModelError(ProcessingError, ValueError):

@@ -36,7 +36,8 @@ optimistic there: trust it where that relative error is below about 10 %.
 
 Leakage bias is separate and systematic: for a white input and ``detrend=None`` the expected H1 is
 the transform of the system's impulse response tapered by the window's normalised
-autocorrelation (:func:`processing.leakage.expected_h1`), which lets a test or a comparison quantify it exactly.
+autocorrelation (:func:`processing.leakage.expected_h1`), which lets a test or a comparison
+quantify it exactly.
 """
 
 from __future__ import annotations

@@ -40,7 +40,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from processing.modal import InputSpectrum
+from processing.modal_model import InputSpectrum
 from processing.sampled_bench import SampledBench
 from processing.spectra import SettingsError, SpectralSettings, _readonly, window_autocorrelation
 

@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from processing.compare import Comparison
-from processing.modal import MIN_LINES_PER_BANDWIDTH, ModalFit, RotationReading
+from processing.modal import MIN_LINES_PER_BANDWIDTH, ModalFit
+from processing.rotation import RotationReading
 from processing.spectra import SpectralSettings
 
 __all__ = ["report_markdown", "analysis_report", "analysis_summary"]

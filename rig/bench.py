@@ -147,6 +147,7 @@ from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
 from rig.integrators import METHODS, discretise, integrate, to_native
 from rig.jit import njit
+from rig.linear import FrequencyResponse
 from rig.prefetch import Prefetch
 from rig.psd import OpticalLever
 from rig.scene import Scene
@@ -873,6 +874,20 @@ class BenchResponse:
     h_t_pendulum: np.ndarray
     theta_2_pendulum: np.ndarray
     sampled: bool
+
+    def response(self, *names: str) -> FrequencyResponse:
+        """The named fields (default ``"h_t", "theta_2"``) as one
+        :class:`rig.linear.FrequencyResponse`, one column per name."""
+        names = names or ("h_t", "theta_2")
+        bad = [n for n in names if n not in _RESPONSE_FIELDS]
+        if bad:
+            raise ConfigError(f"fields {bad} are invalid: expected some of {_RESPONSE_FIELDS}")
+        return FrequencyResponse(self.freqs_hz, np.stack([getattr(self, n) for n in names], -1),
+                                 tuple(names))
+
+
+_RESPONSE_FIELDS = ("a", "x", "y", "stage_accel", "stage_disp", "mirror_x", "mirror_rot", "h_t",
+                    "theta_2", "h_t_pendulum", "theta_2_pendulum")
 
 
 def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> BenchResponse:

@@ -3,10 +3,11 @@
 :func:`scene_summary` (plain data, JSON-serialisable, SI units), :func:`design_dict` (Ishizaki's
 design parameters of a two-body chain) and :func:`resonance_table` (short text) describe the
 scene; :func:`mirror_response` gives the analytic frequency responses of its pendulum per unit
-base acceleration (linear model). The channels follow SPEC section 5: ``x`` is the horizontal displacement of the mirror centre
-relative to the stage [m per m/s^2], ``y`` the rotation of the mirror's body [rad per m/s^2]. Both
-have phase 180 deg at low frequency (x -> -s/g, y -> -1/g). Stage-1 curves (the dotted lines of the
-paper's Figs. 9 and 10) are the centre of mass of body 1 and theta_1.
+base acceleration (linear model). The channels follow SPEC section 5: ``x`` is the horizontal
+displacement of the mirror centre relative to the stage [m per m/s^2], ``y`` the rotation of the
+mirror's body [rad per m/s^2]. Both have phase 180 deg at low frequency (x -> -s/g, y -> -1/g).
+Stage-1 curves (the dotted lines of the paper's Figs. 9 and 10) are the centre of mass of body 1
+and theta_1.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Modal curve fit (direct and leakage-aware) and the rotation-isolation reading.
 
-Synthetic data as in tests/processing/test_compare.py: the ishizaki2009 chain discretised exactly (ZOH) at
-100 Hz, white input held over each sample, stationary start, output noise 5e-5 m (x) and 2e-4 rad
+Synthetic data as in tests/processing/test_compare.py: the ishizaki2009 chain discretised exactly
+(ZOH) at 100 Hz, white input held over each sample, stationary start, output noise 5e-5 m (x) and 2e-4 rad
 (y), 30 contiguous records of 100 s, one Hann segment per record.
 
 Tolerances:
@@ -9,7 +9,8 @@ Tolerances:
   exactly 2 discrete modes; its E[H1] is exactly the leakage-aware model), so the parameters come
   back to the solver's precision; asserted to 1e-6 relative as asked (achieved ~1e-11);
 * noisy fits: each parameter within 3 stated standard deviations of the truth (the stated
-  uncertainties are calibrated for Q, conservative by ~2 for f: see processing.modal); an
+  uncertainties are calibrated for Q, conservative by ~2 for f: see
+  docs/modal-fit-calibration.md); an
   ensemble of 8 seeds checks the calibration of Q: the mean square pull is below the 99.9 %
   point of chi^2_8 / 8 (3.27);
 * coloured input: the expected H1 under an input notched at the 2.48 Hz mode (as the bench's
@@ -32,8 +33,9 @@ from lti import simulate_records
 from processing.leakage import expected_h1_taps, impulse_expected_h1
 from rig.linear import LinearSystem
 from processing.frf import MeasuredResponse, frequency_response
-from processing.modal import (FitError, InputSpectrum, _InputLeakage, _LagInputLeakage,
-                              _WhiteLeakage, fit_modes, rotation_reading)
+from processing.modal import FitError, fit_modes
+from processing.modal_model import InputSpectrum, _InputLeakage, _LagInputLeakage, _WhiteLeakage
+from processing.rotation import rotation_reading
 from processing.spectra import SpectralSettings, segment_ffts
 from rig.ishizaki import design_parameters, rotation_isolation
 from rig.scene import load_scene

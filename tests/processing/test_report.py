@@ -19,7 +19,8 @@ from processing.compare import compare
 from processing.leakage import impulse_expected_h1
 from rig.linear import LinearSystem
 from processing.frf import frequency_response
-from processing.modal import fit_modes, rotation_reading
+from processing.modal import fit_modes
+from processing.rotation import rotation_reading
 from processing.plots import Curve, measured_bode_figure
 from processing.report import report_markdown
 from processing.spectra import SpectralSettings, segment_ffts
