@@ -10,6 +10,12 @@ matching fitted modes to the exact ones):
 5. residual statistics per band (away from resonances, near each one);
 6. the rotation-isolation reading (claim (29)), if given;
 7. the reading: plain sentences derived from the numbers above.
+
+:func:`analysis_report` is the whole report of a :class:`processing.analyzer.Analysis`: the run
+and the model first, then the same sections, with the coherence dips explained
+(:mod:`processing.coherence_model`) and the fits' systematic error on the bench in their places;
+every section is built as lines and the report is their concatenation. :func:`analysis_summary`
+is the plain text ``daq analyze`` prints.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ channel volts, ``stage_accel``, ``mirror_x``, ``mirror_rot``, ``theta``, and the
 the modal form of the bench's exact ZOH step (:meth:`rig.linear.SampledSystem.modal`): O(nz) per
 frequency and output instead of one ``(nz, nz)`` solve. Its round-off differs from the solve's
 only where the modal terms cancel (near 0 Hz and at the anti-resonances; bounded against
-``expected_response`` in tests/processing/test_analysis.py). Used for the dense grids (``E[H1]``'s
+``expected_response`` in tests/processing/test_analyzer.py). Used for the dense grids (``E[H1]``'s
 correlation functions, the fits' input spectrum, the fine grids of the peaks and plots); the model
 at the analyzer's lines stays ``expected_response``'s (or the run file's).
 """

@@ -255,7 +255,7 @@ def _notched(dm, fs, *, shift=1.005):
 
 def _expected_h1(settings, gain, psd, noise=None, sensor=None, n_fft=1 << 19):
     """E[H1] = K_k T[S G / K] / T[S + N] from lag-domain correlations (the way
-    processing.analysis.expected_estimate computes the bench's), an independent route to the
+    processing.leakage.expected_estimate computes the bench's), an independent route to the
     model's frequency-domain kernel."""
     fs, n = settings.fs, settings.nperseg
     f = np.arange(n_fft // 2 + 1) * fs / n_fft

@@ -1,4 +1,4 @@
-"""The analyzer's reading of an emulated run (processing.analysis), against the exact model.
+"""The analyzer's reading of an emulated run (processing.analyzer), against the exact model.
 
 One emulated run of the ishizaki2009 bench, 6 records of 100 s (the paper's 10 mHz lines with 6
 instead of 30 averages), analysed once with the default settings. What each test proves:
