@@ -78,9 +78,9 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     interrupted run is analysed with the records it holds). The run file is only read.
     """
     from daq.hdf5 import read_run
-    from processing.analysis import AnalyzerSettings, write_csv, write_report
-    from processing.analysis import analyze as run_analysis
-    from processing.spectra_hdf5 import write_spectra
+    from processing.analyzer import AnalyzerSettings
+    from processing.analyzer import analyze as run_analysis
+    from processing.writers import write_csv, write_report, write_spectra
     from processing.uff import write_frf_uff
     from processing.views import view_paths, write_views
 

@@ -39,7 +39,7 @@ def scene_list():
 def scene_show(scene_name, overrides, as_json, as_toml):
     """Show SCENE fully resolved: every physical parameter in SI units, the derived design
     parameters and the natural frequencies (--toml: the scene as an editable file)."""
-    from rig.summary import scene_summary
+    from rig.describe import scene_summary
 
     from rig.scene import load_scene
 
@@ -101,7 +101,7 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
     x is the mirror translation relative to the stage [m per m/s^2], y the mirror rotation [rad
     per m/s^2] (SPEC section 5).
     """
-    from rig.response import log_grid, mirror_response, write_csv
+    from rig.describe import log_grid, mirror_response, write_csv
     from rig.scene import load_scene
 
     sc = load_scene(scene_name, overrides)
@@ -121,7 +121,7 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
         click.echo(f"wrote {plot_path}")
-    from rig.summary import resonance_table
+    from rig.describe import resonance_table
 
     click.echo(resonance_table(sc))
 

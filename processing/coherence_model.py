@@ -94,8 +94,10 @@ def coherence_budget(header, settings, bench, *, n_fft: int, n_averages: float) 
     """The expected coherences of the run's bench under ``settings`` (a
     :class:`processing.spectra.SpectralSettings`) on the FFT length ``n_fft`` of the correlation
     functions; ``bench`` evaluates the exact sampled responses per source volt
-    (``processing.analysis._FastBench``). Stationary noise sources only (as ``E[H1]``)."""
-    from processing.compare import expected_h1_taps
+    (:class:`processing.sampled_bench.SampledBench`). Stationary noise sources only (as
+    ``E[H1]``)."""
+    from processing.leakage import expected_h1_taps
+
     scene, plan = header.scene, header.plan
     fs = plan.rate_hz
     source, acc, lever = scene.source, scene.accelerometer, scene.lever

@@ -5,47 +5,16 @@ A measured H1 differs from the exact response ``H`` of the system for two reason
 * **leakage bias**, deterministic: for a white input the expected estimate is
   ``E[H1](f_k) = sum_tau g[tau] r_w(|tau|) exp(-2j pi f_k tau / fs)``, the discrete-time impulse
   response ``g`` tapered by the window's normalised autocorrelation ``r_w`` (zero beyond
-  ``nperseg`` lags; :func:`processing.frf.expected_h1`, extended here to two-sided responses by
-  :func:`expected_h1_taps`). ``bias = E[H1] - H``. It matters where ``H`` changes on the scale of
-  a line: at the 2.48 Hz mode of the ``ishizaki2009`` preset (Q ~ 529, half-power bandwidth
-  ``f/Q`` ~ 4.7 mHz) a 100 s record's 10 mHz lines cannot resolve the peak;
+  ``nperseg`` lags; :mod:`processing.leakage`). ``bias = E[H1] - H``. It matters where ``H``
+  changes on the scale of a line: at the 2.48 Hz mode of the ``ishizaki2009`` preset (Q ~ 529,
+  half-power bandwidth ``f/Q`` ~ 4.7 mHz) a 100 s record's 10 mHz lines cannot resolve the peak;
 * **random error**: ``measured - E[H1]``, predicted by Bendat & Piersol from the measured coherence
-  (:attr:`processing.frf.FrequencyResponse.relative_error`, ``eps``), as standard deviation of the
+  (:attr:`processing.frf.MeasuredResponse.relative_error`, ``eps``), as standard deviation of the
   relative error along (gain) and across (phase) the response.
 
 :func:`compare` takes the measured response, the exact model on the same lines and (optionally)
 ``E[H1]``, and reports residuals normalised by ``eps``, per band, plus the bias and the random
 part at each resonance peak.
-
-The exact discrete-time impulse response
-----------------------------------------
-``E[H1]`` needs the impulse response ``g[tau]`` from the *sampled* input to the *sampled* output,
-which depends on how the input behaves between samples. :class:`LinearModel` (the continuous
-linear model ``z' = A z + B u``, ``y = C z``) offers both cases:
-
-``method="zoh"``
-    The input is held constant over each sample interval and the accelerometer reads the held
-    value (a synthetic measurement driven by a zero-order-hold source). Then exactly
-    ``z[n+1] = Phi z[n] + Gamma u[n]`` with ``Phi = expm(A T)``, ``Gamma = int_0^T expm(A s) ds B``
-    (one :func:`scipy.linalg.expm` of the block matrix ``[[A T, B T], [0, 0]]``, Van Loan), so
-    ``g[0] = 0`` and ``g[n] = C Phi^(n-1) Gamma``. Error: round-off only (``expm`` ~1e-15
-    relative, and ``n`` matrix-vector products accumulate ~``n`` ulp: ~1e-12 at n = 10^4).
-    Its frequency response is ``C (exp(i w T) I - Phi)^-1 Gamma``, which differs from the
-    continuous ``H(i w)`` by the hold (about ``exp(-i w T / 2) sinc(f T)``: -1.8 deg at 1 Hz,
-    -18 deg at 10 Hz for T = 10 ms) and by aliasing: compare such data with
-    :meth:`DiscreteModel.frequency_response`, not with the continuous response.
-``method="bandlimited"``
-    Every channel passed through the same anti-alias filter before sampling (the bench of
-    :mod:`daq`, whose common filter cancels in the ratio), so the sampled input is band-limited
-    and the sampled output is ``g * u`` with ``g`` the inverse DTFT of the continuous ``H(i w)``
-    on ``|f| < fs/2``. Computed by an inverse real FFT of ``H`` sampled on ``n_fft`` points of
-    ``[0, fs/2]`` (the Nyquist bin takes ``Re H(fs/2)``, the midpoint of the jump of the
-    periodic DTFT). ``g`` is two-sided (slightly non-causal: the band limit is an ideal low-pass).
-    Error: sampling the DTFT aliases ``g`` in time with period ``n_fft``. The lightest-damped
-    mode's envelope ``exp(-pi f n_fft / (fs Q))`` bounds one part (``n_fft`` is chosen to make it
-    below 1e-12); the jump of the DTFT at Nyquist leaves a tail falling as ``1/tau`` whose alias
-    is about ``|H(fs/2)| / (pi n_fft / 2)`` relative to ``|H|`` (1e-11 for the broad test chain at
-    n_fft = 16384). The reported ``error`` measures both as the change when ``n_fft`` doubles.
 
 Statistics of normalised residuals
 ----------------------------------
@@ -63,6 +32,7 @@ standard error of a fraction over ``N`` lines is inflated by ``sqrt(1 + 2 sum_j 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -70,397 +40,17 @@ from types import MappingProxyType
 
 import numpy as np
 
-from processing.frf import FrequencyResponse
-from processing.spectra import (ProcessingError, SettingsError, SpectralSettings, _autocorrelation,
-                                _readonly)
+from processing.frf import MeasuredResponse
+from processing.spectra import ProcessingError, SpectralSettings, _readonly
 
 __all__ = [
-    "ModelError", "LinearModel", "DiscreteModel", "ImpulseResponse", "simulate_records",
-    "window_autocorrelation", "expected_h1_taps",
-    "line_correlation", "expected_fraction_within", "fraction_standard_error", "BandStats",
-    "PeakBias", "Comparison", "compare",
+    "ModelError", "line_correlation", "expected_fraction_within", "fraction_standard_error",
+    "BandStats", "PeakBias", "Comparison", "compare",
 ]
-
-IMPULSE_METHODS = ("zoh", "bandlimited")
-
 
 class ModelError(ProcessingError, ValueError):
     """A model, or a model array, that does not fit the measurement (shape, frequencies, NaN)."""
 
-
-def _as_matrix(name: str, value, shape: tuple | None = None) -> np.ndarray:
-    a = np.array(value, dtype=float, ndmin=2)
-    if a.ndim != 2 or not np.all(np.isfinite(a)):
-        raise ModelError(f"{name} has shape {a.shape} or non-finite entries: expected a finite "
-                         "2-D array")
-    if shape is not None:
-        for i, (got, want) in enumerate(zip(a.shape, shape)):
-            if want is not None and got != want:
-                raise ModelError(f"{name} has shape {a.shape}: expected axis {i} of length {want}")
-    a.setflags(write=False)
-    return a
-
-
-def _output_index(outputs: tuple, name) -> int:
-    try:
-        return outputs.index(name)
-    except ValueError:
-        raise ModelError(f"output {name!r} is not present: expected one of {outputs}") from None
-
-
-def _pole_residues(a, b, c_row, key):
-    lam, v = np.linalg.eig(a)
-    res = (c_row @ v) * (np.linalg.inv(v) @ b[:, 0])
-    up = lam.imag > 0
-    lam, res = lam[up], res[up]
-    order = np.argsort(key(lam))
-    return lam[order], res[order]
-
-
-def _poles_to_fq(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Natural frequency [Hz] and Q of the oscillatory continuous poles (Im > 0), ascending."""
-    osc = lam[lam.imag > 0]
-    osc = osc[np.argsort(np.abs(osc))]
-    with np.errstate(divide="ignore"):
-        q = np.abs(osc) / (-2.0 * osc.real)
-    return np.abs(osc) / (2 * np.pi), q
-
-
-# -- the exact model -------------------------------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class LinearModel:
-    """A continuous single-input linear model ``z' = A z + B u``, ``y = C z`` (no feedthrough).
-
-    Parameters
-    ----------
-    a : (nz, nz) state matrix [1/s].
-    b : (nz, 1) input matrix [state unit / (input unit s)].
-    c : (n_out, nz) output matrix: one row per output channel.
-    outputs : tuple of str
-        Names of the output channels (rows of ``c``), e.g. ``("x", "y")``.
-    """
-
-    a: np.ndarray
-    b: np.ndarray
-    c: np.ndarray
-    outputs: tuple = ("y",)
-
-    def __post_init__(self):
-        a = _as_matrix("a", self.a)
-        nz = a.shape[0]
-        if a.shape != (nz, nz):
-            raise ModelError(f"a has shape {a.shape}: expected a square matrix")
-        set_ = object.__setattr__
-        set_(self, "a", a)
-        set_(self, "b", _as_matrix("b", np.reshape(self.b, (nz, -1)), (nz, 1)))
-        set_(self, "c", _as_matrix("c", self.c, (None, nz)))
-        outs = tuple(self.outputs)
-        if len(outs) != self.c.shape[0] or len(set(outs)) != len(outs):
-            raise ModelError(f"outputs = {self.outputs!r} is invalid: expected {self.c.shape[0]} "
-                             "distinct names, one per row of c")
-        set_(self, "outputs", outs)
-
-    @classmethod
-    def from_chain(cls, chain, outputs: Mapping[str, Sequence[float]]) -> LinearModel:
-        """The linearised chain (:meth:`rig.chain.Chain.state_space`) with outputs
-        ``weights . theta`` [output unit per rad], input the base acceleration [m/s^2]."""
-        a, b = chain.state_space()
-        n = chain.n
-        rows = []
-        for name, w in outputs.items():
-            w = np.asarray(w, dtype=float)
-            if w.shape != (n,):
-                raise ModelError(f"output {name!r} has weights of shape {w.shape}: expected ({n},)")
-            rows.append(np.concatenate([w, np.zeros(n)]))
-        return cls(a, b, np.array(rows), tuple(outputs))
-
-    @classmethod
-    def from_scene(cls, scene) -> LinearModel:
-        """SPEC section 5's channels of a scene: ``x`` (mirror translation relative to the stage
-        [m per m/s^2]) and ``y`` (angle of the mirror's body [rad per m/s^2])."""
-        n = scene.chain.n
-        return cls.from_chain(scene.chain, {"x": scene.mirror_weights(),
-                                            "y": np.eye(n)[scene.mirror.body]})
-
-    def output_index(self, output) -> int:
-        """Row of ``output`` in ``c``; :class:`ModelError` if absent."""
-        return _output_index(self.outputs, output)
-
-    def frequency_response(self, freqs_hz, output=None) -> np.ndarray:
-        """``C (i w I - A)^-1 B`` at ``freqs_hz`` [Hz]: shape ``(nf, n_out)``, or ``(nf,)`` for one
-        named ``output``."""
-        w = 2 * np.pi * np.atleast_1d(np.asarray(freqs_hz, dtype=float))
-        nz = self.a.shape[0]
-        m = 1j * w[:, None, None] * np.eye(nz) - self.a
-        x = np.linalg.solve(m, np.broadcast_to(self.b.astype(complex), (w.size, nz, 1)))[..., 0]
-        h = x @ self.c.T
-        return h if output is None else h[:, self.output_index(output)]
-
-    def modes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Natural frequencies [Hz] and Q of the oscillatory modes, ascending."""
-        return _poles_to_fq(np.linalg.eigvals(self.a))
-
-    def pole_residues(self, output) -> tuple[np.ndarray, np.ndarray]:
-        """Poles ``p_r`` (Im > 0, ascending ``|p|``) [rad/s] and residues ``R_r`` of ``output``:
-        ``H(s) = sum_r R_r / (s - p_r) + conj(R_r) / (s - conj(p_r))``."""
-        return _pole_residues(self.a, self.b, self.c[self.output_index(output)], np.abs)
-
-    def discretise(self, fs: float) -> DiscreteModel:
-        """Exact zero-order-hold discretisation at ``fs`` [Hz] (Van Loan block ``expm``)."""
-        if not (math.isfinite(fs) and fs > 0):
-            raise ModelError(f"fs = {fs!r} is invalid: expected a finite rate > 0 Hz")
-        t = 1.0 / fs
-        nz = self.a.shape[0]
-        big = np.zeros((nz + 1, nz + 1))
-        big[:nz, :nz] = self.a * t
-        big[:nz, nz:] = self.b * t
-        from scipy.linalg import expm
-
-        e = expm(big)
-        return DiscreteModel(e[:nz, :nz], e[:nz, nz:], self.c, float(fs), self.outputs)
-
-    def impulse_response(self, fs: float, n_taps: int, *, method: str = "zoh",
-                         n_fft: int | None = None) -> ImpulseResponse:
-        """Discrete-time impulse response from the sampled input to every sampled output.
-
-        Parameters
-        ----------
-        fs : sample rate [Hz].
-        n_taps : number of causal taps ``g[0 .. n_taps-1]`` (use ``settings.nperseg``: the
-            window's autocorrelation is zero beyond).
-        method : {"zoh", "bandlimited"}
-            See the module notes: a held input sampled at the hold instants, or a band-limited
-            input (common anti-alias filter).
-        n_fft : for ``"bandlimited"``: FFT length (default: a power of two making the slowest
-            mode's time aliasing below 1e-12 and at least ``4 n_taps``).
-
-        Returns
-        -------
-        ImpulseResponse
-        """
-        if method not in IMPULSE_METHODS:
-            raise ModelError(f"method = {method!r} is invalid: expected one of {IMPULSE_METHODS}")
-        n_taps = int(n_taps)
-        if n_taps < 2:
-            raise ModelError(f"n_taps = {n_taps} is invalid: expected >= 2")
-        if method == "zoh":
-            taps = self.discretise(fs).impulse_response(n_taps)
-            return ImpulseResponse(_readonly(taps), 0, float(fs), "zoh", 0.0, self.outputs)
-        if n_fft is None:
-            f, q = self.modes()
-            tau = np.max(q / (np.pi * f)) if f.size else 0.0
-            need = max(4 * n_taps, int(math.ceil(fs * tau * math.log(1e12))) if tau > 0 else 0)
-            n_fft = 1 << max(need - 1, 1).bit_length()
-        n_fft = int(n_fft)
-        if n_fft < 2 * n_taps:
-            raise ModelError(f"n_fft = {n_fft} is invalid: expected >= 2 n_taps = {2 * n_taps}")
-        g1 = self._bandlimited(fs, n_fft)
-        g2 = self._bandlimited(fs, 2 * n_fft)
-
-        def two_sided(g):
-            return np.concatenate([g[:, -(n_taps - 1):], g[:, :n_taps]], axis=1)
-
-        t1, t2 = two_sided(g1), two_sided(g2)
-        err = float(np.max(np.abs(t2 - t1)) / np.max(np.abs(t2)))
-        return ImpulseResponse(_readonly(t2), -(n_taps - 1), float(fs), "bandlimited", err,
-                               self.outputs)
-
-    def _bandlimited(self, fs: float, n_fft: int) -> np.ndarray:
-        f = np.fft.rfftfreq(n_fft, 1.0 / fs)
-        h = self.frequency_response(f)  # (nf, n_out)
-        if n_fft % 2 == 0:
-            h[-1] = h[-1].real  # midpoint of the DTFT's jump at Nyquist
-        return np.fft.irfft(h.T, n=n_fft, axis=-1)
-
-
-@dataclass(frozen=True, eq=False)
-class DiscreteModel:
-    """The exact ZOH discretisation ``z[n+1] = Phi z[n] + Gamma u[n]``, ``y[n] = C z[n]``.
-
-    Attributes
-    ----------
-    phi : (nz, nz); gamma : (nz, 1); c : (n_out, nz); fs : sample rate [Hz]; outputs : names.
-    """
-
-    phi: np.ndarray
-    gamma: np.ndarray
-    c: np.ndarray
-    fs: float
-    outputs: tuple = ("y",)
-
-    def output_index(self, output) -> int:
-        """Row of ``output`` in ``c``; :class:`ModelError` if absent."""
-        return _output_index(self.outputs, output)
-
-    def frequency_response(self, freqs_hz, output=None) -> np.ndarray:
-        """``C (exp(i w T) I - Phi)^-1 Gamma`` at ``freqs_hz`` [Hz]: shape ``(nf, n_out)``, or
-        ``(nf,)`` for one named ``output``."""
-        zf = np.exp(2j * np.pi * np.atleast_1d(np.asarray(freqs_hz, dtype=float)) / self.fs)
-        nz = self.phi.shape[0]
-        m = zf[:, None, None] * np.eye(nz) - self.phi
-        x = np.linalg.solve(m, np.broadcast_to(self.gamma.astype(complex), (zf.size, nz, 1)))
-        h = x[..., 0] @ self.c.T
-        return h if output is None else h[:, self.output_index(output)]
-
-    def impulse_response(self, n_taps: int) -> np.ndarray:
-        """``g[0] = 0``, ``g[n] = C Phi^(n-1) Gamma``: shape ``(n_out, n_taps)`` (state stepping,
-        no polynomial forms)."""
-        out = np.zeros((self.c.shape[0], int(n_taps)))
-        v = self.gamma[:, 0].copy()
-        for n in range(1, int(n_taps)):
-            out[:, n] = self.c @ v
-            v = self.phi @ v
-        return out
-
-    def pole_residues(self, output) -> tuple[np.ndarray, np.ndarray]:
-        """Discrete poles ``z_r`` (Im > 0, ascending frequency) and residues ``c_r`` of
-        ``output``: ``G(z) = sum_r c_r / (z - z_r) + conj(c_r) / (z - conj(z_r))``. The
-        continuous-equivalent residue near the pole is ``c_r fs / z_r``."""
-        return _pole_residues(self.phi, self.gamma, self.c[self.output_index(output)],
-                              lambda z: np.abs(np.log(z)))
-
-    def poles(self) -> np.ndarray:
-        """Eigenvalues of ``Phi`` (``exp(p T)`` of the continuous poles ``p``)."""
-        return np.linalg.eigvals(self.phi)
-
-    def modes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Natural frequencies [Hz] and Q of the continuous poles ``log(z) fs``, ascending."""
-        return _poles_to_fq(np.log(self.poles().astype(complex)) * self.fs)
-
-    def stationary_covariance(self, input_variance: float = 1.0) -> np.ndarray:
-        """State covariance ``P = Phi P Phi^T + Gamma Gamma^T var(u)`` of the stationary response
-        to white input (to start a simulation without a transient)."""
-        from scipy.linalg import solve_discrete_lyapunov
-
-        return solve_discrete_lyapunov(self.phi, input_variance * (self.gamma @ self.gamma.T))
-
-    def simulate(self, u, z0=None) -> np.ndarray:
-        """Outputs ``y[n] = C z[n]``, ``n = 0 .. len(u)-1``, for input samples ``u[n]`` held over
-        ``[n T, (n+1) T)``, from state ``z0`` (default 0).
-
-        Exact: the recursion runs in the modal coordinates of ``Phi`` (one first-order complex
-        recursion per eigenvalue, :func:`scipy.signal.lfilter`), which keeps the lightly damped
-        poles exact, unlike polynomial (``ss2tf``) forms. Returns shape ``(n_out, len(u))``.
-        """
-        from scipy.signal import lfilter
-
-        u = np.asarray(u, dtype=float)
-        nz = self.phi.shape[0]
-        z0 = np.zeros(nz) if z0 is None else np.asarray(z0, dtype=float)
-        lam, v = np.linalg.eig(self.phi)
-        vinv = np.linalg.inv(v)
-        gm = vinv @ self.gamma[:, 0]
-        q0 = vinv @ z0
-        cv = self.c @ v
-        y = np.zeros((self.c.shape[0], u.size))
-        for r in range(nz):
-            if lam[r].imag < 0:
-                continue  # the conjugate partner carries it (factor 2 below)
-            q, _ = lfilter([0.0, gm[r]], [1.0, -lam[r]], u.astype(complex), zi=[q0[r]])
-            fac = 2.0 if lam[r].imag > 0 else 1.0
-            y += fac * np.real(np.outer(cv[:, r], q))
-        return y
-
-
-def simulate_records(model: DiscreteModel, *, n_records: int, n_samples: int, seed: int,
-                     input_std: float = 1.0, output_noise: Mapping | None = None,
-                     input_name: str = "a") -> dict:
-    """A synthetic measurement: white input held over each sample, exact response, output noise.
-
-    The input ``u[n] ~ N(0, input_std^2)`` is held over ``[n T, (n+1) T)`` and recorded as it is
-    (channel ``input_name``); the outputs are :meth:`DiscreteModel.simulate` from a state drawn
-    from the stationary covariance (no start-up transient), plus independent white noise of
-    standard deviation ``output_noise[name]``. One continuous run is cut into ``n_records``
-    contiguous records. The same seed gives the same arrays.
-
-    Returns
-    -------
-    dict : ``{input_name: (n_records, n_samples), output name: (n_records, n_samples), ...}``.
-    """
-    n_records, n_samples = int(n_records), int(n_samples)
-    if n_records < 1 or n_samples < 2:
-        raise ModelError(f"n_records = {n_records}, n_samples = {n_samples}: expected >= 1, >= 2")
-    rng = np.random.default_rng(seed)
-    p = model.stationary_covariance(input_std**2)
-    lam, vec = np.linalg.eigh(0.5 * (p + p.T))
-    z0 = vec @ (np.sqrt(np.clip(lam, 0.0, None)) * rng.standard_normal(lam.size))
-    u = input_std * rng.standard_normal(n_records * n_samples)
-    y = model.simulate(u, z0)
-    noise = dict(output_noise or {})
-    out = {input_name: u.reshape(n_records, n_samples)}
-    for i, name in enumerate(model.outputs):
-        yi = y[i]
-        sd = float(noise.pop(name, 0.0))
-        if sd:
-            yi = yi + sd * rng.standard_normal(yi.size)
-        out[name] = yi.reshape(n_records, n_samples)
-    if noise:
-        raise ModelError(f"output_noise names {sorted(noise)} are not outputs {model.outputs}")
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class ImpulseResponse:
-    """Discrete impulse response ``g[tau]`` for ``tau = lag0 .. lag0 + n - 1``.
-
-    Attributes
-    ----------
-    taps : (n_out, n) [output unit / input unit].
-    lag0 : lag of the first tap (0 for causal, negative for two-sided).
-    fs : [Hz]. method : "zoh" or "bandlimited".
-    error : estimated relative error of the taps (0 for "zoh": round-off only).
-    outputs : names of the rows.
-    """
-
-    taps: np.ndarray
-    lag0: int
-    fs: float
-    method: str
-    error: float
-    outputs: tuple
-
-    def output(self, name) -> np.ndarray:
-        return self.taps[_output_index(self.outputs, name)]
-
-    def expected_h1(self, settings: SpectralSettings, output=None) -> np.ndarray:
-        """``E[H1]`` on ``settings.freqs_hz`` (:func:`expected_h1_taps`): ``(nf,)`` for one output,
-        else ``(nf, n_out)``."""
-        if abs(settings.fs - self.fs) > 1e-9 * self.fs:
-            raise ModelError(f"settings.fs = {settings.fs} Hz differs from the impulse response's "
-                             f"fs = {self.fs} Hz")
-        if output is not None:
-            return expected_h1_taps(self.output(output), settings, lag0=self.lag0)
-        return np.stack([expected_h1_taps(t, settings, lag0=self.lag0) for t in self.taps], -1)
-
-
-def window_autocorrelation(settings: SpectralSettings) -> np.ndarray:
-    """``r_w(tau) = sum_n w[n] w[n + tau] / sum w^2`` for ``tau = 0 .. nperseg-1``."""
-    return _autocorrelation(settings.window_array)
-
-
-def expected_h1_taps(taps, settings: SpectralSettings, *, lag0: int = 0) -> np.ndarray:
-    """Expected H1 for white input of a (possibly two-sided) impulse response, leakage included.
-
-    ``E[H1](f_k) = sum_tau g[tau] r_w(|tau|) exp(-2j pi k tau / nperseg)`` over ``|tau| <
-    nperseg``, with ``g[lag0 + i] = taps[i]``. For ``lag0 = 0`` this is
-    :func:`processing.frf.expected_h1`. Exact for ``detrend=None``; the constant detrend changes
-    only the lines whose window transform overlaps 0 Hz (k <= 1 for Hann).
-
-    Returns
-    -------
-    numpy.ndarray : complex, shape ``(n_freqs,)`` on ``settings.freqs_hz``.
-    """
-    g = np.asarray(taps, dtype=float)
-    if g.ndim != 1 or g.size == 0:
-        raise SettingsError(f"taps has shape {g.shape}: expected (n_taps,)")
-    n = settings.nperseg
-    r = window_autocorrelation(settings)
-    lags = np.arange(g.size) + int(lag0)
-    keep = np.abs(lags) < n
-    buf = np.zeros(n)
-    np.add.at(buf, lags[keep] % n, g[keep] * r[np.abs(lags[keep])])
-    return np.fft.rfft(buf)[: settings.freqs_hz.size]
 
 
 # -- statistics of normalised residuals ------------------------------------------------------
@@ -491,7 +81,7 @@ def expected_fraction_within(k: float, n_effective: float) -> float:
 def _betainc(a: float, b: float, x: float) -> float:
     """The regularised incomplete beta function ``I_x(a, b)`` (``P(|t_nu| > t) = I_x(nu/2, 1/2)``
     with ``x = nu / (nu + t^2)``), by its continued fraction (modified Lentz; relative error
-    ~1e-15, tests/test_compare.py checks it against scipy.stats.t)."""
+    ~1e-15, tests/processing/test_compare.py checks it against scipy.stats.t)."""
     if x <= 0.0:
         return 0.0
     if x >= 1.0:
@@ -567,7 +157,7 @@ class BandStats:
     units of the Bendat-Piersol standard deviation ``eps |measured|``. To first order in ``eps``
     these are the gain residual in units of ``sigma_dB`` and the phase residual in units of
     ``sigma_deg``; ``|z_gain| <= k`` is exactly "the reference's gain lies inside the measured
-    ``k``-sigma gain band" (:meth:`FrequencyResponse.gain_band_db`) when ``z`` is small. Both are
+    ``k``-sigma gain band" (:meth:`MeasuredResponse.gain_band_db`) when ``z`` is small. Both are
     Student-t distributed at any coherence (module notes). ``*_total``: reference = exact model;
     ``*_random``: reference = ``E[H1]`` (NaN without it).
 
@@ -669,7 +259,7 @@ class Comparison:
 
     Attributes
     ----------
-    measured : FrequencyResponse, restricted to the compared lines.
+    measured : MeasuredResponse, restricted to the compared lines.
     model : complex (nf,) exact response on ``measured.freqs_hz``.
     expected : complex (nf,) ``E[H1]`` on the same lines, or None.
     k : sigma multiple of the fractions.
@@ -680,7 +270,7 @@ class Comparison:
     settings : the analyzer settings, if given.
     """
 
-    measured: FrequencyResponse
+    measured: MeasuredResponse
     model: np.ndarray
     expected: np.ndarray | None
     k: float
@@ -833,7 +423,7 @@ def _db(x) -> float:
         return float(_DB * np.log(np.abs(x)))
 
 
-def compare(measured: FrequencyResponse, model, *, expected=None,
+def compare(measured: MeasuredResponse, model, *, expected=None,
             resonances: Sequence[tuple[float, float]] = (),
             antiresonances_hz: Sequence[float] = (), settings: SpectralSettings | None = None,
             fmin_hz: float = 0.1, fmax_hz: float = 10.0, k: float = 2.0,
@@ -842,7 +432,7 @@ def compare(measured: FrequencyResponse, model, *, expected=None,
 
     Parameters
     ----------
-    measured : FrequencyResponse
+    measured : MeasuredResponse
         An H1 estimate (its coherence and ``n_effective`` give the Bendat-Piersol error).
     model : complex array (nf,) on ``measured.freqs_hz``, or a callable ``freqs_hz -> complex``
         (then also evaluated on a fine grid for each true peak height). For data sampled from a
@@ -888,10 +478,8 @@ def compare(measured: FrequencyResponse, model, *, expected=None,
     if not np.any(sel):
         raise ModelError(f"no finite measured lines in {fmin_hz} <= f <= {fmax_hz} Hz")
     idx = np.nonzero(sel)[0]
-    meas = FrequencyResponse(f_all[idx], _readonly(measured.h[idx]),
-                             _readonly(measured.coherence[idx]), measured.n_averages,
-                             measured.n_effective, measured.estimator, measured.input,
-                             measured.output, measured.units)
+    meas = dataclasses.replace(measured, freqs_hz=f_all[idx], h=_readonly(measured.h[idx]),
+                               coherence=_readonly(measured.coherence[idx]))
     mod = model_all[idx]
     exp_ = None if expected is None else np.asarray(expected, dtype=complex)[idx]
     for name, arr in (("model", mod), ("expected", exp_)):

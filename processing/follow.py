@@ -85,7 +85,7 @@ def _writer_alive(path: Path) -> bool:
 
 
 def _estimate(recording, settings) -> FollowUpdate:
-    from processing.analysis import CHANNELS, model_at_lines
+    from processing.analyzer import CHANNELS, model_at_lines
     from processing.frf import frequency_response
     from processing.spectra import segment_ffts
 
@@ -121,7 +121,7 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
     :class:`rig.errors.ConfigError` if it does not, and for settings the run cannot take (e.g.
     a time record longer than a record)."""
     from daq.hdf5 import _status, open_run, read_run
-    from processing.analysis import AnalyzerSettings
+    from processing.analyzer import AnalyzerSettings
     from rig.errors import ConfigError
 
     settings = settings if settings is not None else AnalyzerSettings()

@@ -36,14 +36,16 @@ optimistic there: trust it where that relative error is below about 10 %.
 
 Leakage bias is separate and systematic: for a white input and ``detrend=None`` the expected H1 is
 the transform of the system's impulse response tapered by the window's normalised
-autocorrelation (:func:`expected_h1`), which lets a test or a comparison quantify it exactly.
+autocorrelation (:func:`processing.leakage.expected_h1`), which lets a test or a comparison
+quantify it exactly.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -51,14 +53,13 @@ from processing.spectra import (
     SegmentFFTs,
     SettingsError,
     SpectralSettings,
-    _autocorrelation,
     _readonly,
     _require_cross,
-    _wrap_deg,
     averaged_cross,
     coherence,
     segment_ffts,
 )
+from rig.linear import FrequencyResponse
 
 ESTIMATORS = ("h1", "h2", "hv")
 
@@ -84,8 +85,10 @@ def random_error(coherence, n_effective) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class FrequencyResponse:
-    """An estimated frequency response ``output / input`` on the analyzer's lines.
+class MeasuredResponse(FrequencyResponse):
+    """An estimated frequency response ``output / input`` on the analyzer's lines: a
+    :class:`rig.linear.FrequencyResponse` (``freqs_hz``, ``h``, ``names``, ``units``; gain and
+    phase) with the statistics of its estimate.
 
     Attributes
     ----------
@@ -94,6 +97,7 @@ class FrequencyResponse:
     h : numpy.ndarray
         Complex response, shape ``(n_freqs,)`` [output unit / input unit]. NaN where undefined
         (the 0 Hz line when a detrend removed it, or lines where the input has no power).
+    names : ``(output,)``; units : str, units of ``h``, e.g. ``"(m)/(m/s^2)"``.
     coherence : numpy.ndarray
         Magnitude-squared coherence ``gamma^2``, shape ``(n_freqs,)``.
     n_averages : int
@@ -102,43 +106,16 @@ class FrequencyResponse:
         Effective number of independent averages ``n_d`` used by the error bands.
     estimator : {"h1", "h2", "hv"}
     input, output : channel names
-    units : str
-        Units of ``h``, e.g. ``"(m)/(m/s^2)"``.
+
+    The fields after ``units`` are keyword-only.
     """
 
-    freqs_hz: np.ndarray
-    h: np.ndarray
-    coherence: np.ndarray
-    n_averages: int
-    n_effective: float
-    estimator: str
-    input: object = None
-    output: object = None
-    units: str = ""
-
-    @property
-    def magnitude(self) -> np.ndarray:
-        """``|h|`` [output unit / input unit]."""
-        return np.abs(self.h)
-
-    @property
-    def magnitude_db(self) -> np.ndarray:
-        """Gain ``20 log10 |h|`` [dB re 1 output unit / input unit]."""
-        with np.errstate(divide="ignore"):
-            return 20.0 * np.log10(np.abs(self.h))
-
-    @property
-    def phase_deg(self) -> np.ndarray:
-        """Phase wrapped to ``(-180, 180]`` [deg]."""
-        return _wrap_deg(np.degrees(np.angle(self.h)))
-
-    @property
-    def phase_unwrapped_deg(self) -> np.ndarray:
-        """Phase unwrapped along frequency from the lowest finite line [deg] (NaN kept)."""
-        out = np.full(self.h.shape, np.nan)
-        ok = np.isfinite(self.h)
-        out[ok] = np.degrees(np.unwrap(np.angle(self.h[ok])))
-        return out
+    coherence: np.ndarray = field(kw_only=True)
+    n_averages: int = field(kw_only=True)
+    n_effective: float = field(kw_only=True)
+    estimator: str = field(kw_only=True)
+    input: object = field(default=None, kw_only=True)
+    output: object = field(default=None, kw_only=True)
 
     @property
     def relative_error(self) -> np.ndarray:
@@ -168,16 +145,15 @@ class FrequencyResponse:
         s = k * self.phase_std_deg
         return p - s, p + s
 
-    def select(self, fmin_hz: float = 0.0, fmax_hz: float = math.inf) -> FrequencyResponse:
+    def select(self, fmin_hz: float = 0.0, fmax_hz: float = math.inf) -> MeasuredResponse:
         """The lines with ``fmin_hz <= f <= fmax_hz``."""
         m = (self.freqs_hz >= fmin_hz) & (self.freqs_hz <= fmax_hz)
-        return FrequencyResponse(self.freqs_hz[m], self.h[m], self.coherence[m], self.n_averages,
-                                 self.n_effective, self.estimator, self.input, self.output,
-                                 self.units)
+        return dataclasses.replace(self, freqs_hz=self.freqs_hz[m], h=self.h[m],
+                                   coherence=self.coherence[m])
 
 
 def frequency_response(ffts: SegmentFFTs, input, output, *,
-                       estimator: str = "h1") -> FrequencyResponse:
+                       estimator: str = "h1") -> MeasuredResponse:
     """Estimate the frequency response ``output / input`` from shared segment FFTs.
 
     Parameters
@@ -189,7 +165,7 @@ def frequency_response(ffts: SegmentFFTs, input, output, *,
 
     Returns
     -------
-    FrequencyResponse
+    MeasuredResponse
 
     Raises
     ------
@@ -217,12 +193,14 @@ def frequency_response(ffts: SegmentFFTs, input, output, *,
         h[0] = np.nan  # the detrend removed the 0 Hz line: the ratio there is noise over noise
         g2[0] = np.nan
     u_in, u_out = ffts.units[input], ffts.units[output]
-    return FrequencyResponse(ffts.freqs_hz, _readonly(h), _readonly(g2), ffts.n_segments,
-                             ffts.n_effective, est, input, output, f"({u_out})/({u_in})")
+    return MeasuredResponse(ffts.freqs_hz, _readonly(h), (output,), f"({u_out})/({u_in})",
+                            coherence=_readonly(g2), n_averages=ffts.n_segments,
+                            n_effective=ffts.n_effective, estimator=est, input=input,
+                            output=output)
 
 
 def estimate_frf(channels, input, output, *, settings: SpectralSettings, estimator: str = "h1",
-                 units: Mapping | None = None) -> FrequencyResponse:
+                 units: Mapping | None = None) -> MeasuredResponse:
     """One-shot: :func:`processing.spectra.segment_ffts` then :func:`frequency_response`.
 
     Parameters
@@ -236,33 +214,3 @@ def estimate_frf(channels, input, output, *, settings: SpectralSettings, estimat
     """
     return frequency_response(segment_ffts(channels, settings, units=units), input, output,
                               estimator=estimator)
-
-
-def expected_h1(impulse_response, settings: SpectralSettings) -> np.ndarray:
-    """Expected H1 of a discrete LTI system driven by white noise, leakage bias included.
-
-    For white input, ``E[conj(X_k) Y_k] / E[|X_k|^2] = sum_tau h[tau] r_w(tau)
-    exp(-2j pi f_k tau / fs)`` with ``r_w(tau) = sum_n w[n] w[n - tau] / sum_n w[n]^2``: the
-    response of the impulse response tapered by the window's autocorrelation (zero beyond
-    ``nperseg`` samples). This is exact for ``detrend=None`` and any overlap or averaging of
-    powers; it is the ratio of expectations, which differs from the expected ratio only by terms
-    of order ``1 / n_d`` within the random error.
-
-    Parameters
-    ----------
-    impulse_response : array_like
-        ``h[n]``, ``n = 0, 1, ...`` (causal), shape ``(n_taps,)`` [output unit / input unit].
-    settings : SpectralSettings
-
-    Returns
-    -------
-    numpy.ndarray
-        Complex, shape ``(n_freqs,)`` on ``settings.freqs_hz``.
-    """
-    h = np.asarray(impulse_response, dtype=float)
-    if h.ndim != 1 or h.size == 0:
-        raise SettingsError(f"impulse_response has shape {h.shape}: expected (n_taps,)")
-    n = settings.nperseg
-    r = _autocorrelation(settings.window_array)
-    m = min(n, h.size)
-    return np.fft.rfft(h[:m] * r[:m], n=n)[: settings.freqs_hz.size]

@@ -531,7 +531,8 @@ class LiveView(Sink):
         self._status(records=0, state="acquiring")
 
     def _prepare_analyzer(self) -> None:
-        from processing.analysis import expected_estimate, model_at_lines
+        from processing.analyzer import model_at_lines
+        from processing.leakage import expected_estimate
 
         avg = self.average
         f = avg.freqs_hz

@@ -1,7 +1,9 @@
 """Bode diagrams in the style of the paper's Figs. 9 and 10 (gain and phase on a 0.1-10 Hz log axis),
 and the analyzer's other views: Nyquist with real and imaginary parts, coherence.
 
-Plot functions only render result data and return the matplotlib figure; they never show it.
+Plot functions only render result data and return a :class:`matplotlib.figure.Figure` built
+without pyplot: no backend is selected and nothing is registered globally (the caller saves it;
+there is nothing to close).
 Every figure is drawn the way a paper prints it: the legend outside the data, decade ticks
 labelled 0.1 / 1 / 10 Hz, the wrapped phase broken at each wrap (no vertical lines) or unwrapped,
 axis labels naming the quantity, and an incomplete run marked in red in the title.
@@ -11,15 +13,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import matplotlib
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, MultipleLocator, NullFormatter
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from matplotlib.ticker import FuncFormatter, MultipleLocator, NullFormatter  # noqa: E402
-
-from rig.response import MirrorResponse, gain_db, phase_deg  # noqa: E402
+from rig.describe import MirrorResponse, gain_db, phase_deg
 
 PHASES = ("wrapped", "unwrapped")
 
@@ -124,7 +123,7 @@ def model_bode_figure(resp: MirrorResponse, *, title: str = "", paper_figures: b
     """Translation x and rotation y of the mirror per unit stage acceleration (the model), with
     stage 1 dotted; ``paper_figures`` names the paper's Figs. 9 and 10 (for its pendulum)."""
     f = resp.freqs_hz
-    fig = plt.figure(figsize=(12, 7.5), layout="constrained")
+    fig = Figure(figsize=(12, 7.5), layout="constrained")
     fig9, fig10 = (" (cf. the paper's Fig. 9)", " (cf. Fig. 10)") if paper_figures else ("", "")
     blue = {"color": "tab:blue", "ls": ":", "lw": 1.5}
     ax1, _ = bode_axes(fig, 0, 2, f"mirror translation x per stage acceleration{fig9}",
@@ -154,13 +153,13 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
 
     Gain [dB] and phase [deg] panels on a log frequency axis from ``fmin_hz`` to ``fmax_hz``:
     the measured lines as markers with their ``k``-sigma Bendat-Piersol band
-    (:meth:`FrequencyResponse.gain_band_db`, :meth:`~FrequencyResponse.phase_band_deg`) shaded,
+    (:meth:`MeasuredResponse.gain_band_db`, :meth:`~MeasuredResponse.phase_band_deg`) shaded,
     the model as a line, stage 1 dotted, and optionally ``E[H1]`` dashed; a third panel shows
     the coherence gamma^2. The legend is below the panels.
 
     Parameters
     ----------
-    measured : processing.frf.FrequencyResponse
+    measured : processing.frf.MeasuredResponse
     model, stage1, expected : Curve, optional
         Exact model, stage-1 model (dotted, as in the paper) and expected estimate (dashed).
         Default styles apply unless the Curve's ``style`` sets them.
@@ -178,7 +177,7 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     f = np.asarray(measured.freqs_hz)
     sel = (f >= fmin_hz) & (f <= fmax_hz) & np.isfinite(measured.h)
     fs = f[sel]
-    fig = plt.figure(figsize=(8, 9.5), layout="constrained")
+    fig = Figure(figsize=(8, 9.5), layout="constrained")
     ax_g = fig.add_subplot(3, 1, 1)
     ax_p = fig.add_subplot(3, 1, 2, sharex=ax_g)
     ax_c = fig.add_subplot(3, 1, 3, sharex=ax_g)
@@ -226,10 +225,38 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     return fig
 
 
+def bode_figure(response, *, title: str = "", what: str = "", phase: str = "wrapped",
+                fmin_hz: float = 0.1, fmax_hz: float = 10.0, **measured_options):
+    """The Bode diagram of one frequency response of either kind.
+
+    A measured response (:class:`processing.frf.MeasuredResponse`: it has a coherence) goes to
+    :func:`measured_bode_figure` (``measured_options``: ``model``, ``stage1``, ``expected``,
+    ``k``, ``unit``, ``incomplete``); a model response (:class:`rig.linear.MeasuredResponse`,
+    1-D or one column per name) is drawn as gain and phase lines over ``fmin_hz .. fmax_hz``.
+    Returns a :class:`matplotlib.figure.Figure` (no backend selected).
+    """
+    if hasattr(response, "coherence"):
+        return measured_bode_figure(response, title=title, what=what, phase=phase,
+                                    fmin_hz=fmin_hz, fmax_hz=fmax_hz, **measured_options)
+    if measured_options:
+        raise TypeError(f"{sorted(measured_options)}: options of a measured response only")
+    f = np.asarray(response.freqs_hz)
+    h = np.asarray(response.h)
+    cols = h.reshape(f.size, -1)
+    names = tuple(response.names) or (what or "h",)
+    m = (f >= fmin_hz) & (f <= fmax_hz)
+    curves = [Curve(str(n), f[m], cols[m, i]) for i, n in enumerate(names[:cols.shape[1]])]
+    fig = Figure(figsize=(8, 7), layout="constrained")
+    ax_g, _ = bode_axes(fig, 0, 1, "", response.units or "unit", curves, what=what, phase=phase)
+    outside_legend(fig, ax_g)
+    title_with_status(fig, title)
+    return fig
+
+
 @dataclass(frozen=True)
 class Response:
     """One measured response for the Nyquist and coherence views: its symbol, the
-    :class:`processing.frf.FrequencyResponse`, its unit and the model :class:`Curve` (or None)."""
+    :class:`processing.frf.MeasuredResponse`, its unit and the model :class:`Curve` (or None)."""
 
     name: str
     measured: object
@@ -244,7 +271,7 @@ def nyquist_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz: 
     response: measured lines as markers (coloured by frequency in the Nyquist panel), the model
     as a line. Returns the figure."""
     n = len(responses)
-    fig = plt.figure(figsize=(6.5 * n, 11), layout="constrained")
+    fig = Figure(figsize=(6.5 * n, 11), layout="constrained")
     for col, r in enumerate(responses):
         f = np.asarray(r.measured.freqs_hz)
         sel = (f >= fmin_hz) & (f <= fmax_hz) & np.isfinite(r.measured.h)
@@ -260,7 +287,7 @@ def nyquist_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz: 
             ax_r.semilogx(cf[m], r.model.h[m].real, **style)
             ax_i.semilogx(cf[m], r.model.h[m].imag, **style)
         sc = ax_n.scatter(h.real, h.imag, c=fs, s=6, cmap="viridis",
-                          norm=matplotlib.colors.LogNorm(_log_lo(fmin_hz, fs), fmax_hz),
+                          norm=LogNorm(_log_lo(fmin_hz, fs), fmax_hz),
                           label=f"measured {r.name} ({r.measured.estimator.upper()}, "
                                 f"{r.measured.n_averages} averages)")
         cb = fig.colorbar(sc, ax=ax_n, label="frequency [Hz]")
@@ -294,7 +321,7 @@ def coherence_figure(responses: list[Response], *, fmin_hz: float = 0.1, fmax_hz
     """The coherence gamma^2 of every response on one log frequency axis, with optional
     ``marks`` ``(frequency_hz, label)`` (e.g. the frequencies where a known mechanism lowers
     it) as thin vertical lines labelled at the top. Returns the figure."""
-    fig = plt.figure(figsize=(9, 6), layout="constrained")
+    fig = Figure(figsize=(9, 6), layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
     styles = ({"color": "tab:red", "marker": "o"}, {"color": "tab:blue", "marker": "s"},
               {"color": "tab:green", "marker": "^"})

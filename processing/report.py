@@ -10,20 +10,28 @@ matching fitted modes to the exact ones):
 5. residual statistics per band (away from resonances, near each one);
 6. the rotation-isolation reading (claim (29)), if given;
 7. the reading: plain sentences derived from the numbers above.
+
+:func:`analysis_report` is the whole report of a :class:`processing.analyzer.Analysis`: the run
+and the model first, then the same sections, with the coherence dips explained
+(:mod:`processing.coherence_model`) and the fits' systematic error on the bench in their places;
+every section is built as lines and the report is their concatenation. :func:`analysis_summary`
+is the plain text ``daq analyze`` prints.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 
 from processing.compare import Comparison
-from processing.modal import MIN_LINES_PER_BANDWIDTH, ModalFit, RotationReading
+from processing.modal import MIN_LINES_PER_BANDWIDTH, ModalFit
+from processing.rotation import RotationReading
 from processing.spectra import SpectralSettings
 
-__all__ = ["report_markdown"]
+__all__ = ["report_markdown", "analysis_report", "analysis_summary"]
 
 
 def _f(x, fmt=".4g") -> str:
@@ -280,19 +288,236 @@ def report_markdown(comparisons: Mapping[str, Comparison], *,
     str : Markdown, sections "Analyzer settings", "Coherence", "Modal fit", "Leakage bias and
     random error at the peaks", "Residual statistics", "Rotation isolation ..." and "Reading".
     """
-    fits = dict(fits or {})
     exact = [(float(f), float(q)) for f, q in exact_modes]
     lines = [f"# {title}", ""]
-    lines += _settings_section(settings, comparisons)
-    lines += _coherence_section(comparisons)
-    if exact:
-        lines += ["Exact modes of the model: " + ", ".join(
-            f"f = {f:.6g} Hz, Q = {q:.4g} (f/Q = {f / q * 1e3:.3g} mHz)" for f, q in exact), ""]
-    if fits:
-        lines += _fit_section(fits, exact)
-    lines += _peak_section(comparisons)
-    lines += _band_section(comparisons)
-    if rotation is not None:
-        lines += _rotation_section(rotation)
-    lines += _reading(comparisons, fits, exact, rotation, settings)
+    for _, section in _sections(comparisons, dict(fits or {}), exact, settings, rotation):
+        lines += section
     return "\n".join(lines)
+
+
+def _sections(comparisons, fits, exact, settings, rotation) -> list[tuple[str, list[str]]]:
+    """The report's sections in order, as ``(key, lines)``; each section ends with a blank
+    line."""
+    out = [("settings", _settings_section(settings, comparisons)),
+           ("coherence", _coherence_section(comparisons))]
+    if exact:
+        out.append(("exact", ["Exact modes of the model: " + ", ".join(
+            f"f = {f:.6g} Hz, Q = {q:.4g} (f/Q = {f / q * 1e3:.3g} mHz)" for f, q in exact), ""]))
+    if fits:
+        out.append(("fit", _fit_section(fits, exact)))
+    out.append(("peaks", _peak_section(comparisons)))
+    out.append(("bands", _band_section(comparisons)))
+    if rotation is not None:
+        out.append(("rotation", _rotation_section(rotation)))
+    out.append(("reading", _reading(comparisons, fits, exact, rotation, settings)))
+    return out
+
+
+# -- the analyzer's whole report and summary --------------------------------------------------
+
+def _pct(x) -> str:
+    return f"{100 * x:.1f} %"
+
+
+def _settings_line(a) -> str:
+    sp = a.spectral
+    return (f"{sp.window} window, {sp.nperseg}-sample FFT ({sp.nperseg / sp.fs:g} s, "
+            f"{sp.resolution_hz * 1e3:.4g} mHz lines), overlap {sp.overlap_fraction:.0%}, "
+            f"{sp.averaging} averaging, {a.settings.estimator.upper()}: "
+            f"{a.h_t.n_averages} averages (n_eff {a.h_t.n_effective:.3g})")
+
+
+def _run_line(a) -> str:
+    r = a.run
+    state = "complete" if r.complete else f"INCOMPLETE, status {r.status}"
+    return (f"{r.source}: {r.scene}, seed {r.seed}, {r.records} of {r.records_planned} records "
+            f"x {r.record_s:g} s at {r.rate_hz:g} Hz ({state})")
+
+
+def _model_line(a) -> str:
+    db, deg = a.highpass_at_fmin
+    where = ("from the run file (its grid is the FFT lines: exact, not interpolated)"
+             if a.model.source == "file" else
+             "recomputed exactly at the FFT lines (rig.bench.expected_response, sampled)")
+    return (f"model: the whole sampled chain, accelerometer high-pass included ({db:+.2f} dB, "
+            f"{deg:+.1f} deg against the pendulum alone at {a.settings.fmin_hz:g} Hz), {where}")
+
+
+def _fmt_mode(md, check, exact) -> str:
+    txt = f"{md.f_hz:.5f} ± {md.f_std_hz:.1e} Hz, Q {md.q:.4g} ± {md.q_std:.2g}"
+    if not md.reliable:
+        txt += " (leakage-limited: Q biased low)"
+    if check is not None and exact is not None:
+        cm = min(check.modes, key=lambda m: abs(m.f_hz - exact[0]))
+        txt += (f"; method offset on this bench {1e3 * (cm.f_hz - exact[0]):+.3f} mHz, "
+                f"Q {cm.q - exact[1]:+.2f}")
+    return txt
+
+
+def analysis_summary(a) -> str:
+    """A concise plain-text summary of an :class:`processing.analyzer.Analysis` (what ``daq
+    analyze`` prints)."""
+    out = [f"analysed {_run_line(a)}", f"analyzer: {_settings_line(a)}", _model_line(a)]
+    if a.expected is not None:
+        out.append(f"E[H1]: from the bench's exact correlations under its source (n_fft "
+                   f"{a.expected.n_fft}, aliasing < {a.expected.alias_bound:.0e})")
+    for n in a.notes:
+        out.append(f"note: {n}")
+    co = []
+    for label, c in a.comparisons.items():
+        g = c.measured.coherence
+        j = int(np.nanargmin(g))
+        co.append(f"{label.split()[0]} median {np.nanmedian(g):.4f}, min {g[j]:.3g} at "
+                  f"{c.freqs_hz[j]:.4g} Hz")
+    out.append(f"coherence {a.settings.fmin_hz:g}-{a.settings.fmax_hz:g} Hz: " + "; ".join(co))
+    if a.coherence_dips:
+        out.append("coherence dips predicted by the bench's model (expected gamma^2 with the "
+                   "optical lever's second-order geometry, noise floors and leakage):")
+        out += [f"  {d.text}" for d in a.coherence_dips]
+    ok = []
+    for label, c in a.comparisons.items():
+        b = c.bands[0]
+        ok.append(f"{label.split()[0]} {_pct(b.frac_gain_total)} / {_pct(b.frac_phase_total)} "
+                  f"of {b.n_lines} lines")
+        exp_txt = f"{_pct(b.expected_fraction)} ± {_pct(b.fraction_se)}"
+    out.append(f"away from the peaks, gain / phase within {a.settings.k:g} sigma of the exact "
+               f"model: {'; '.join(ok)} (expected {exp_txt})")
+    out.append("peaks (line nearest each mode): exact | E[H1] | measured gain, bias = E[H1] vs "
+               "exact")
+    for label, c in a.comparisons.items():
+        for p in c.peaks:
+            bias = (f"bias {p.bias_db:+.2f} dB {p.bias_deg:+.1f} deg ({p.bias_sigma:.1f} sigma)"
+                    if math.isfinite(p.bias_db) else "bias n/a")
+            out.append(f"  {label.split()[0]:8s} {p.line_hz:.4g} Hz: {p.model_db:.2f} | "
+                       f"{p.expected_db:.2f} | {p.measured_db:.2f} dB, {bias}, "
+                       f"gamma^2 {p.coherence:.3f}")
+    if a.fits:
+        out.append("modes (fit ± 1 sigma; method offset = the same fit of the noiseless E[H1] "
+                   "minus exact):")
+    else:
+        out.append("modes: not fitted (see the notes)")
+    for i, (fe, qe) in enumerate(a.exact_modes):
+        out.append(f"  mode {i + 1}: exact {fe:.5f} Hz, Q {qe:.1f}")
+        for key, fit in a.fits.items():
+            if not fit.modes:
+                continue
+            md = min(fit.modes, key=lambda m: abs(m.f_hz - fe))
+            if abs(md.f_hz - fe) > 0.1 * fe:
+                continue
+            out.append(f"    {key:24s} {_fmt_mode(md, a.fit_checks.get(key), (fe, qe))}")
+    rot = a.rotation
+    if rot is not None:
+        out.append(f"|Theta_2/Theta_1| {rot.band_hz[0]:g}-{rot.band_hz[1]:g} Hz: "
+                   f"{rot.mean_db:.2f} ± {rot.mean_std_db:.2f} dB (model "
+                   f"{rot.model_mean_db:.2f} dB); extrapolated limit {rot.limit_db:.2f} ± "
+                   f"{rot.limit_std_db:.2f} dB (exact {rot.exact_limit_db:.2f} dB, alpha = r2/r1 "
+                   f"{rot.alpha_db:.2f} dB)")
+    return "\n".join(out)
+
+
+def analysis_report(a) -> str:
+    """The whole Markdown report of an :class:`processing.analyzer.Analysis`: the run and the
+    model, then the sections of :func:`report_markdown`, with the coherence dips explained before
+    the modal fit (at the end without one) and the fits' systematic error on this bench before
+    the peaks."""
+    r = a.run
+    title = f"# Analysis of {Path(r.source).name}: {r.scene}, seed {r.seed}"
+    head = ["", "## Run", "", f"- {_run_line(a)}"]
+    if any(r.clipped.values()):
+        head.append("- clipped samples: " + ", ".join(f"{c} {v}" for c, v in r.clipped.items()))
+    else:
+        head.append("- no clipped samples")
+    head += [f"- {n}" for n in a.notes]
+    db, deg = a.highpass_at_fmin
+    head += ["", "## Model", "",
+             "H_t = W_ax/W_aa and Θ₂ = W_ay/W_aa are compared with the exact response of the "
+             "*whole* sampled chain (rig.bench.expected_response, sampled=True): the "
+             "accelerometer's high-pass is in the denominator of both, so at "
+             f"{a.settings.fmin_hz:g} Hz the analyzer reads {db:+.2f} dB and {deg:+.1f}° off "
+             "the pendulum alone; the anti-alias filter, common to all channels, cancels.",
+             ""]
+    if a.model.source == "file":
+        head.append("- model values: the run file's, whose grid (k / record length) is the "
+                    "analyzer's lines: exact, no interpolation.")
+    else:
+        head.append("- model values: recomputed exactly at the analyzer's lines (they are not on "
+                    "the run file's grid; interpolating a 4.7 mHz wide mode would misplace its "
+                    "peak).")
+    e = a.expected
+    if e is not None:
+        notch = ", ".join(f"{v:+.1f} dB at {f:.4g} Hz" for f, v in e.input_notch_db.items())
+        head.append(
+            "- E[H1], the expected estimate for this window and record length, comes from the "
+            "bench's exact auto and cross correlations under its source (input PSD, stage with "
+            "the pendulum's reaction, accelerometer noise, ADC quantisation), tapered by the "
+            f"window's autocorrelation (n_fft = {e.n_fft}, time aliasing < "
+            f"{e.alias_bound:.0e}). The input is not white: relative to its median over the "
+            f"display band the stage acceleration's PSD is {notch}, the notches the pendulum's "
+            "reaction digs into the stage motion at its own modes. A white-input E[H1] would "
+            "misstate the bias at the peaks.")
+    head.append("")
+    exact = [(float(f), float(q)) for f, q in a.exact_modes]
+    sections = _sections(dict(a.comparisons), dict(a.fits), exact, a.spectral, a.rotation)
+    keys = [k for k, _ in sections]
+    if a.coherence_budget is not None:
+        at = keys.index("fit") if "fit" in keys else len(sections)
+        sections.insert(at, ("dips", _dips_section(a)))
+        keys.insert(at, "dips")
+    if a.fit_checks:
+        sections.insert(keys.index("peaks"), ("checks", _checks_section(a)))
+    lines = [title, *head]
+    for _, section in sections:
+        lines += section
+    return "\n".join(lines)
+
+
+def _dips_section(a) -> list[str]:
+    """The report's "Coherence dips explained" section (processing.coherence_model)."""
+    b = a.coherence_budget
+    out = ["## Coherence dips explained", "",
+           "The expected coherence comes from the bench's exact spectra tapered by the window "
+           "(as E[H1]) with every mechanism that lowers it: the optical lever's second-order "
+           f"geometry (calibrated x reads dx - {b.coefficients['x']:.4g} m/rad² θ², y reads "
+           f"θ - {b.coefficients['y']:.4g} /m dx θ: products of Gaussian signals, uncorrelated "
+           "with the input, at the sums and doubles of the frequencies in the motion), the "
+           "accelerometer's and the PSD's noise floors, ADC quantisation and leakage, plus the "
+           f"estimator's own bias (1 - γ²)²/n_d for n_d = {b.n_averages:g}. Each dip's causes "
+           "are the shares of the lost coherence that each mechanism alone removes.", ""]
+    if not a.coherence_dips:
+        out.append(f"- no dip deeper than 1 - γ² = 0.05 is predicted over "
+                   f"{a.settings.fmin_hz:g}-{a.settings.fmax_hz:g} Hz.")
+    out += [f"- {d.text}" for d in a.coherence_dips]
+    return out + [""]
+
+
+def _input_text(a) -> str:
+    for fit in a.fits.values():
+        if fit.method == "leakage":
+            sp = fit.input_spectrum
+            return "a white input" if sp is None else sp.label
+    return "a white input"
+
+
+def _checks_section(a) -> list[str]:
+    lines = ["## Systematic error of the modal fits on this bench", "",
+             "Each fit is repeated on the noiseless E[H1] with the same lines and weights; the "
+             "difference from the exact mode is the method's own error on this bench (the "
+             f"leakage-aware model takes {_input_text(a)}; the direct one ignores leakage). It "
+             "is reported, not subtracted. The fits use the pendulum's own response: the "
+             "measured ratio times the accelerometer's known high-pass, whose pole at 0 Hz the "
+             "modal model cannot represent.", "",
+             "| fit | exact f [Hz] | f of E[H1] fit − exact [mHz] | in σ of the fit | exact Q | "
+             "Q of E[H1] fit − exact | in σ of the fit |",
+             "|---|---|---|---|---|---|---|"]
+    for key, check in a.fit_checks.items():
+        fit = a.fits[key]
+        for md in fit.modes:
+            fe, qe = min(a.exact_modes, key=lambda m: abs(m[0] - md.f_hz))
+            cm = min(check.modes, key=lambda m: abs(m.f_hz - fe))
+            df, dq = cm.f_hz - fe, cm.q - qe
+            zf = df / md.f_std_hz if md.f_std_hz > 0 else math.nan
+            zq = dq / md.q_std if md.q_std > 0 else math.nan
+            lines.append(f"| {key} | {fe:.6g} | {1e3 * df:+.4f} | {zf:+.3f} | {qe:.1f} | "
+                         f"{dq:+.2f} | {zq:+.3f} |")
+    lines.append("")
+    return lines

@@ -57,7 +57,7 @@ class RunningAverage:
     """
 
     def __init__(self, header, settings=None):
-        from processing.analysis import AnalyzerSettings
+        from processing.analyzer import AnalyzerSettings
 
         s = settings if settings is not None else AnalyzerSettings()
         if s.averaging != "rms":

@@ -5,7 +5,7 @@ Data flow
 ``channels (records, samples)`` -> :func:`segment_ffts` -> :class:`SegmentFFTs` (detrended,
 windowed, one-sided, PSD-scaled, computed once) -> :func:`auto_spectrum`, :func:`cross_spectrum`,
 :func:`coherence` here and :func:`processing.frf.frequency_response` -> :class:`Spectrum` /
-``FrequencyResponse``.
+``MeasuredResponse``.
 
 Segmentation
 ------------
@@ -681,6 +681,12 @@ def _replace_values(s: Spectrum, values, **changes) -> Spectrum:
     fields = {k: getattr(s, k) for k in s.__dataclass_fields__}
     fields.update(values=values, **changes)
     return Spectrum(**fields)
+
+
+def window_autocorrelation(settings: SpectralSettings) -> np.ndarray:
+    """``r_w(tau) = sum_n w[n] w[n + tau] / sum w^2`` for ``tau = 0 .. nperseg-1`` (the window's
+    normalised autocorrelation: the taper of the expected estimate, :mod:`processing.leakage`)."""
+    return _autocorrelation(settings.window_array)
 
 
 def _wrap_deg(p: np.ndarray) -> np.ndarray:

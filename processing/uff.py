@@ -14,7 +14,7 @@ from daq.uff import CHANNEL_DOFS, COHERENCE, FRF, UNKNOWN, uff58, write_uff
 
 
 def frf_datasets(a) -> list[dict]:
-    """The UFF 58 sets of an :class:`processing.analysis.Analysis` (module docstring)."""
+    """The UFF 58 sets of an :class:`processing.analyzer.Analysis` (module docstring)."""
     m = a.display
     f = a.freqs_hz[m]
     s = a.settings

@@ -1,6 +1,6 @@
-"""The analyzer's display views of an :class:`processing.analysis.Analysis` as PNG files.
+"""The analyzer's display views of an :class:`processing.analyzer.Analysis` as PNG files.
 
-``bode`` (gain, phase and coherence over the exact model: :func:`processing.analysis.bode_figures`),
+``bode`` (gain, phase and coherence over the exact model: :func:`bode_figures`),
 ``nyquist`` (the Nyquist plot with the real and imaginary parts against frequency) and
 ``coherence`` (both coherences on one axis with their expected curves, each predicted dip
 marked with its cause); ``all`` writes the three.
@@ -10,10 +10,13 @@ marked with its cause); ``all`` writes the three.
 from __future__ import annotations
 
 import io
+import math
 from pathlib import Path
 
 import numpy as np
 
+from processing.analyzer import incomplete_note, paper_figures
+from processing.sampled_bench import SampledBench
 from rig._io import atomic_output, check_writable
 
 VIEWS = ("bode", "nyquist", "coherence", "all")
@@ -30,12 +33,21 @@ def view_paths(path, view: str) -> dict[str, Path]:
     return {v: path.with_name(f"{path.stem}-{v}{path.suffix}") for v in VIEWS[:-1]}
 
 
+def _fine_grid(a) -> np.ndarray:
+    lo, hi = a.settings.fmin_hz, a.settings.fmax_hz
+    parts = [np.geomspace(max(lo, 1e-3), hi, 1500)]
+    for fm, q in a.exact_modes:
+        half = min(8.0 * fm / q, 0.2 * fm) if math.isfinite(q) else 0.01 * fm
+        parts.append(np.linspace(fm - half, fm + half, 401))
+    f = np.unique(np.concatenate(parts))
+    return f[(f >= max(lo, 1e-3)) & (f <= hi)]
+
+
 def _responses(a):
-    from processing.analysis import _FastBench, _fine_grid
     from processing.plots import Curve, Response
 
     f = _fine_grid(a)
-    r = _FastBench(a.scene)(f)
+    r = SampledBench(a.scene)(f)
     b = a.coherence_budget
     ex = {"x": None, "y": None} if b is None else b.expected
     return [Response("H_t", a.h_t, "m/(m/s^2)", Curve("exact model of H_t", f, r["h_t"]),
@@ -68,8 +80,7 @@ def _title(a, what: str) -> str:
 
 
 def view_figures(a, view: str, *, phase: str = "wrapped") -> list:
-    """The matplotlib figures of one view (not ``"all"``); the caller closes them."""
-    from processing.analysis import bode_figures, incomplete_note
+    """The matplotlib figures of one view (not ``"all"``; built without pyplot)."""
     from processing.plots import coherence_figure, nyquist_figure
 
     s, note = a.settings, incomplete_note(a)
@@ -87,20 +98,58 @@ def view_figures(a, view: str, *, phase: str = "wrapped") -> list:
     raise ValueError(f"view = {view!r} is invalid: expected one of {', '.join(VIEWS[:-1])}")
 
 
+def bode_figures(a, *, k: float | None = None, phase: str = "wrapped"):
+    """The measured Bode diagrams (:func:`processing.plots.measured_bode_figure`): translation
+    H_t (cf. the paper's Fig. 9 for an Ishizaki pendulum) and rotation Theta_2 (cf. Fig. 10),
+    measured lines with their Bendat-Piersol band over the exact whole-chain model, stage 1
+    dotted (body 1's centre of mass, resp. theta_1, per unit stage acceleration as the analyzer
+    reads it), E[H1] dashed, and the coherence; titled from the scene, an incomplete run marked.
+    ``phase``: "wrapped" or "unwrapped". Returns ``(fig_translation, fig_rotation)``
+    (matplotlib Figures, no backend selected)."""
+    from processing.plots import Curve, measured_bode_figure
+
+    scene = a.scene
+    chain = scene.chain
+    f = _fine_grid(a)
+    r = SampledBench(scene)(f)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a_eng = r["mirror_x"] / r["h_t"]  # sensed stage acceleration per source volt
+        theta1 = r["theta"][:, 0] / a_eng
+    g1 = theta1 * chain.point_weights(0, chain.com_m[0])[0]
+    kk = a.settings.k if k is None else k
+    paper = paper_figures(scene)
+    figs = []
+    lines = a.freqs_hz
+    est = a.settings.estimator.upper()
+    for frf, model, stage1, e, what, title, s1, unit in (
+            (a.h_t, r["h_t"], g1, None if a.expected is None else a.expected.h_t, "H_t",
+             "mirror translation H_t = W_ax/W_aa" + (" (cf. the paper's Fig. 9)" if paper else ""),
+             "stage 1: translation of its centre of mass G1 (model)", "m/(m/s^2)"),
+            (a.theta_2, r["theta_2"], theta1, None if a.expected is None else a.expected.theta_2,
+             "Θ₂", "mirror rotation Θ₂ = W_ay/W_aa" + (" (cf. the paper's Fig. 10)" if paper
+                                                       else ""),
+             "stage 1: rotation θ₁ (model)", "rad/(m/s^2)")):
+        figs.append(measured_bode_figure(
+            frf, model=Curve(f"exact model of {what} (whole chain)", f, model),
+            stage1=Curve(s1, f, stage1),
+            expected=None if e is None else Curve(f"E[H1] of {what} (expected estimate)", lines,
+                                                  e),
+            k=kk, title=f"{a.run.scene}: {title}\nseed {a.run.seed}, {est}, "
+                        f"{a.settings.window} window, {frf.n_averages} averages",
+            unit=unit, fmin_hz=a.settings.fmin_hz, fmax_hz=a.settings.fmax_hz, what=what,
+            phase=phase, incomplete=incomplete_note(a)))
+    return tuple(figs)
+
+
 def _save_side_by_side(figs, path: Path, *, force: bool, dpi: int) -> None:
     import matplotlib.image
-    import matplotlib.pyplot as plt
 
-    try:
-        imgs = []
-        for fig in figs:
-            buf = io.BytesIO()
-            fig.savefig(buf, dpi=dpi, format="png")
-            buf.seek(0)
-            imgs.append(matplotlib.image.imread(buf, format="png"))
-    finally:
-        for fig in figs:
-            plt.close(fig)
+    imgs = []
+    for fig in figs:
+        buf = io.BytesIO()
+        fig.savefig(buf, dpi=dpi, format="png")
+        buf.seek(0)
+        imgs.append(matplotlib.image.imread(buf, format="png"))
     height = max(i.shape[0] for i in imgs)
     padded = [np.pad(i, ((0, height - i.shape[0]), (0, 0), (0, 0)), constant_values=1.0)
               for i in imgs]

@@ -149,6 +149,7 @@ from rig.integrators import METHODS, discretise, integrate, to_native
 from rig.jit import njit
 from rig._threads import Prefetch
 from rig.devices.optical_lever import OpticalLever
+from rig.linear import FrequencyResponse
 from rig.scene import Scene
 from rig.devices.source import NOISE_TYPES, Source, SourceState, generate, start_source
 from rig.devices.stage import Stage
@@ -814,7 +815,7 @@ class BenchResponse:
         the accelerometer's high-pass is in the denominator (at 0.1 Hz +0.97 dB, -26.6 deg for
         the default 0.05 Hz corner).
     h_t_pendulum, theta_2_pendulum : the pendulum alone, mirror_x / stage_accel and
-        mirror_rot / stage_accel (:func:`rig.response.mirror_response`).
+        mirror_rot / stage_accel (:func:`rig.describe.mirror_response`).
     sampled : False: continuous-time chain times the DAC's hold ``(1 - e^{-i w h}) / (i w h)``
         (what an ideally anti-aliased measurement sees); True: the exact transfer function from
         the DAC samples to the simulated samples, ``C (e^{i w h} I - Phi)^-1 Gamma``, which also
@@ -835,6 +836,20 @@ class BenchResponse:
     h_t_pendulum: np.ndarray
     theta_2_pendulum: np.ndarray
     sampled: bool
+
+    def response(self, *names: str) -> FrequencyResponse:
+        """The named fields (default ``"h_t", "theta_2"``) as one
+        :class:`rig.linear.FrequencyResponse`, one column per name."""
+        names = names or ("h_t", "theta_2")
+        bad = [n for n in names if n not in _RESPONSE_FIELDS]
+        if bad:
+            raise ConfigError(f"fields {bad} are invalid: expected some of {_RESPONSE_FIELDS}")
+        return FrequencyResponse(self.freqs_hz, np.stack([getattr(self, n) for n in names], -1),
+                                 tuple(names))
+
+
+_RESPONSE_FIELDS = ("a", "x", "y", "stage_accel", "stage_disp", "mirror_x", "mirror_rot", "h_t",
+                    "theta_2", "h_t_pendulum", "theta_2_pendulum")
 
 
 def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> BenchResponse:

@@ -217,8 +217,8 @@ def test_analyzer_readings_show_the_pendulum_and_the_accelerometer_corner():
     hp = 1j * 0.1 / (1j * 0.1 + 0.05)
     assert r.h_t[1] / r.h_t_pendulum[1] == pytest.approx(1 / hp, rel=1e-12)
     assert r.theta_2[1] / r.theta_2_pendulum[1] == pytest.approx(1 / hp, rel=1e-12)
-    # and the pendulum part is rig.response's mirror response
-    from rig.response import mirror_response
+    # and the pendulum part is rig.describe's mirror response
+    from rig.describe import mirror_response
 
     mr = mirror_response(sc, [0.1, 1.0])
     np.testing.assert_allclose(r.h_t_pendulum[1:], mr.x, rtol=1e-12)

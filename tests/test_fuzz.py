@@ -51,7 +51,7 @@ VALUES = st.one_of(
 
 def _model_is_finite_or_clear(scene):
     """A resolved scene's exact model: finite, or a clear rig error."""
-    from rig.response import log_grid, mirror_response
+    from rig.describe import log_grid, mirror_response
 
     try:
         r = mirror_response(scene, log_grid(0.1, 10.0, 20))
@@ -139,7 +139,7 @@ ANALYZER = {
 @FUZZ
 @given(kw=st.fixed_dictionaries({}, optional=ANALYZER))
 def test_any_analyzer_settings_are_valid_or_a_settings_error_naming_the_key(kw):
-    from processing.analysis import AnalyzerSettings
+    from processing.analyzer import AnalyzerSettings
     from processing.spectra import SettingsError
 
     _count("analyzer settings")

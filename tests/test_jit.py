@@ -14,7 +14,7 @@ def _run(code: str) -> dict:
 
 def test_importing_the_reader_the_analyzer_and_the_bench_does_not_import_numba():
     got = _run("import sys, json\n"
-               "import daq.cli, daq.hdf5, daq.acquisition, processing.analysis, rig.bench\n"
+               "import daq.cli, daq.hdf5, daq.acquisition, processing.analyzer, rig.bench\n"
                "print(json.dumps('numba' in sys.modules))")
     assert got is False
 

@@ -47,9 +47,6 @@ KNOWN_CYCLES = {
     ("rig.etd4m", "rig.integrators"):
         "etd4m takes the shared kernels from integrators, which dispatches to etd4m: one module "
         "per method behind the solver protocol removes it (rig/solvers/)",
-    ("processing.analysis", "processing.views"):
-        "views takes analysis's private figures and fast bench, analysis writes the views: the "
-        "analysis split (analyzer / writers) removes it",
 }
 
 

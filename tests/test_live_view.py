@@ -144,7 +144,7 @@ def test_status_says_record_k_of_n_counts_model_and_seed(run):
 
 
 def test_running_average_equals_the_analyzer_over_the_same_records(run):
-    from processing.analysis import AnalyzerSettings
+    from processing.analyzer import AnalyzerSettings
     from processing.frf import frequency_response
     from processing.running_average import RunningAverage
     from processing.spectra import segment_ffts

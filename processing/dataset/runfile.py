@@ -34,7 +34,7 @@ __all__ = ["write_outputs", "check_run_file", "RunFileCheck", "sha256_file", "mo
            "FIT_LABELS"]
 
 _STR = h5py.string_dtype()
-#: Fit labels of processing.analysis and their names in the file.
+#: Fit labels of processing.analyzer and their names in the file.
 FIT_LABELS = {"Theta_2 leakage-aware": "theta_2_leakage", "Theta_2 direct": "theta_2_direct",
               "H_t leakage-aware": "h_t_leakage", "H_t direct": "h_t_direct"}
 
@@ -140,7 +140,7 @@ def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None
         if keep.get("modal", True):
             m = g.create_group("modal")
             m.attrs["NX_class"] = "NXcollection"
-            m.attrs["note"] = ("fits of the pendulum's own response (processing.analysis); "
+            m.attrs["note"] = ("fits of the pendulum's own response (processing.analyzer); "
                                "absent: the fit was not made (see ../@notes_json)")
             for name, (value, unit) in modal_table(a).items():
                 d = m.create_dataset(name, data=float(value), track_times=False)

@@ -19,7 +19,7 @@ A sweep file names a base scene, the settings every run shares and the parameter
     "stage.damping_nspm" = { uniform = [0.5, 2.0] }
     "accelerometer.noise_mps2_rthz" = { normal = [1e-5, 2e-6], bounds = [0.0, 1e-4] }
 
-    [analysis]                           # processing.analysis.AnalyzerSettings fields
+    [analysis]                           # processing.analyzer.AnalyzerSettings fields
     window = "hann"
 
     [keep]                               # what each run file keeps besides the run itself
@@ -170,8 +170,8 @@ class Sweep:
                 "analysis": dict(self.analysis), "keep": dict(self.keep)}
 
     def analyzer_settings(self):
-        """The :class:`processing.analysis.AnalyzerSettings` of every run."""
-        from processing.analysis import AnalyzerSettings
+        """The :class:`processing.analyzer.AnalyzerSettings` of every run."""
+        from processing.analyzer import AnalyzerSettings
 
         return AnalyzerSettings(**_analysis_kwargs(self.analysis))
 
@@ -487,7 +487,7 @@ def _analysis_kwargs(analysis: dict) -> dict:
 def _check_analysis(analysis: dict) -> None:
     import dataclasses
 
-    from processing.analysis import AnalyzerSettings
+    from processing.analyzer import AnalyzerSettings
     from processing.spectra import SettingsError
 
     names = [f.name for f in dataclasses.fields(AnalyzerSettings)]

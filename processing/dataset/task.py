@@ -111,7 +111,7 @@ def _run(job: dict, tmp: Path) -> str:
     """Acquire and analyse into ``tmp``; returns the model that ran."""
     from daq.acquisition import acquire
     from daq.hdf5 import Hdf5Sink, read_run
-    from processing.analysis import AnalyzerSettings, analyze
+    from processing.analyzer import AnalyzerSettings, analyze
     from processing.dataset.runfile import write_outputs
     from rig.scene import scene_from_settings
 

@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from daq.cli import main
-from rig.response import mirror_response
+from rig.describe import mirror_response
 from rig.scene import load_scene
 
 

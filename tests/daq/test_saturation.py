@@ -8,7 +8,7 @@ import pytest
 
 from daq.acquisition import _interval_any, acquire
 from daq.hdf5 import Hdf5Sink, read_run, run_info
-from processing.analysis import analyze
+from processing.analyzer import analyze
 from rig.bench import BenchSimulation
 from rig.scene import load_scene
 

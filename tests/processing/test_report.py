@@ -1,5 +1,5 @@
 """The Markdown report and the measured Bode figure, from one synthetic 30 x 100 s measurement of
-the ishizaki2009 bench (ZOH-exact, as in tests/test_compare.py).
+the ishizaki2009 bench (ZOH-exact, as in tests/processing/test_compare.py).
 
 The report is checked for its sections and for numbers that are exact properties of the model and
 the analyzer settings (bias at the 2.48 Hz peak -8.35 dB, exact Q 528.9, 0.47 lines per
@@ -14,9 +14,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from processing.compare import LinearModel, compare, simulate_records
+from lti import simulate_records
+from processing.compare import compare
+from processing.leakage import impulse_expected_h1
+from rig.linear import LinearSystem
 from processing.frf import frequency_response
-from processing.modal import fit_modes, rotation_reading
+from processing.modal import fit_modes
+from processing.rotation import rotation_reading
 from processing.plots import Curve, measured_bode_figure
 from processing.report import report_markdown
 from processing.spectra import SpectralSettings, segment_ffts
@@ -30,7 +34,7 @@ SETTINGS = SpectralSettings(fs=FS, nperseg=10_000, window="hann")
 @pytest.fixture(scope="module")
 def results():
     scene = load_scene("ishizaki2009")
-    model = LinearModel.from_scene(scene)
+    model = LinearSystem.from_scene(scene)
     dm = model.discretise(FS)
     ch = simulate_records(dm, n_records=30, n_samples=10_000, seed=5,
                           output_noise={"x": 5e-5, "y": 2e-4})
@@ -38,7 +42,7 @@ def results():
     hx, hy = frequency_response(ff, "a", "x"), frequency_response(ff, "a", "y")
     f = SETTINGS.freqs_hz
     h = dm.frequency_response(f)
-    e = model.impulse_response(FS, SETTINGS.nperseg).expected_h1(SETTINGS)
+    e = impulse_expected_h1(model.impulse_response(FS, SETTINGS.nperseg), SETTINGS)
     modes = list(zip(*model.modes()))
     notch = [float(scene.chain.antiresonances_hz(np.eye(2)[1])[0])]
     cmps = {

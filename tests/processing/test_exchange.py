@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-import processing.analysis
+import processing.analyzer
 from daq.acquisition import acquire
 from daq.cli import main
 from daq.eu import to_xarray
 from daq.hdf5 import Hdf5Sink, read_run
-from processing.analysis import AnalyzerSettings, analyze
+from processing.analyzer import AnalyzerSettings, analyze
 from rig.scene import load_scene
 
 SHORT = ["acquisition.records=3", "acquisition.record_s=20.0", "acquisition.settle_s=20.0"]
@@ -45,13 +45,13 @@ def runner():
 
 def test_eu_arrays_are_the_ones_the_analyzer_transforms(run_file, monkeypatch):
     seen = {}
-    real = processing.analysis.segment_ffts
+    real = processing.analyzer.segment_ffts
 
     def spy(data, *args, **kwargs):
         seen.update(data)
         return real(data, *args, **kwargs)
 
-    monkeypatch.setattr(processing.analysis, "segment_ffts", spy)
+    monkeypatch.setattr(processing.analyzer, "segment_ffts", spy)
     rec = read_run(run_file)
     analyze(rec, AnalyzerSettings())
     ds = to_xarray(rec)
@@ -161,7 +161,7 @@ def test_analyze_uff_writes_ht_theta2_and_coherence_that_pyuff_reads(run_file, r
 
 
 def _readme_recipe() -> str:
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     m = re.search(r"<!-- h5py-recipe -->\n```python\n(.*?)```", text, re.S)
     assert m, "README.md has no h5py-only recipe"
     return m.group(1)

@@ -15,12 +15,12 @@ import pytest
 import scipy.signal
 
 from processing.frf import (
-    FrequencyResponse,
+    MeasuredResponse,
     estimate_frf,
-    expected_h1,
     frequency_response,
     random_error,
 )
+from processing.leakage import expected_h1
 from processing.spectra import SettingsError, SpectralSettings, segment_ffts
 
 FS = 100.0
@@ -187,7 +187,8 @@ def test_error_band_helpers():
     """gamma^2 = 0.5, n_d = 50: eps = sqrt(0.5) / (sqrt(0.5) sqrt(100)) = 0.1."""
     f = np.array([1.0, 2.0, 3.0])
     h = np.array([-1.0 + 0j, 10j, -2.0 - 1e-12j])
-    fr = FrequencyResponse(f, h, np.full(3, 0.5), 60, 50.0, "h1")
+    fr = MeasuredResponse(f, h, coherence=np.full(3, 0.5), n_averages=60, n_effective=50.0,
+                          estimator="h1")
     np.testing.assert_allclose(fr.relative_error, 0.1)
     lo, hi = fr.gain_band_db()
     np.testing.assert_allclose(lo, fr.magnitude_db + 20 * np.log10(0.9))

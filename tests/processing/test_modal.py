@@ -1,7 +1,7 @@
 """Modal curve fit (direct and leakage-aware) and the rotation-isolation reading.
 
-Synthetic data as in tests/test_compare.py: the ishizaki2009 chain discretised exactly (ZOH) at
-100 Hz, white input held over each sample, stationary start, output noise 5e-5 m (x) and 2e-4 rad
+Synthetic data as in tests/processing/test_compare.py: the ishizaki2009 chain discretised exactly
+(ZOH) at 100 Hz, white input held over each sample, stationary start, output noise 5e-5 m (x) and 2e-4 rad
 (y), 30 contiguous records of 100 s, one Hann segment per record.
 
 Tolerances:
@@ -9,7 +9,8 @@ Tolerances:
   exactly 2 discrete modes; its E[H1] is exactly the leakage-aware model), so the parameters come
   back to the solver's precision; asserted to 1e-6 relative as asked (achieved ~1e-11);
 * noisy fits: each parameter within 3 stated standard deviations of the truth (the stated
-  uncertainties are calibrated for Q, conservative by ~2 for f: see processing.modal); an
+  uncertainties are calibrated for Q, conservative by ~2 for f: see
+  docs/modal-fit-calibration.md); an
   ensemble of 8 seeds checks the calibration of Q: the mean square pull is below the 99.9 %
   point of chi^2_8 / 8 (3.27);
 * coloured input: the expected H1 under an input notched at the 2.48 Hz mode (as the bench's
@@ -28,10 +29,13 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from processing.compare import LinearModel, expected_h1_taps, simulate_records
-from processing.frf import FrequencyResponse, frequency_response
-from processing.modal import (FitError, InputSpectrum, _InputLeakage, _LagInputLeakage,
-                              _WhiteLeakage, fit_modes, rotation_reading)
+from lti import simulate_records
+from processing.leakage import expected_h1_taps, impulse_expected_h1
+from rig.linear import LinearSystem
+from processing.frf import MeasuredResponse, frequency_response
+from processing.modal import FitError, fit_modes
+from processing.modal_model import InputSpectrum, _InputLeakage, _LagInputLeakage, _WhiteLeakage
+from processing.rotation import rotation_reading
 from processing.spectra import SpectralSettings, segment_ffts
 from rig.ishizaki import design_parameters, rotation_isolation
 from rig.scene import load_scene
@@ -44,7 +48,7 @@ SETTINGS = SpectralSettings(fs=FS, nperseg=N_SAMP, window="hann")
 
 def _model(overrides=()):
     scene = load_scene("ishizaki2009", list(overrides))
-    return scene, LinearModel.from_scene(scene)
+    return scene, LinearSystem.from_scene(scene)
 
 
 def _measure(dm, seed):
@@ -54,7 +58,8 @@ def _measure(dm, seed):
 
 
 def _noiseless(f, h):
-    return FrequencyResponse(f, h, np.full(f.size, 0.5), N_REC, float(N_REC), "h1")
+    return MeasuredResponse(f, h, coherence=np.full(f.size, 0.5), n_averages=N_REC,
+                            n_effective=float(N_REC), estimator="h1")
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +114,7 @@ def test_noiseless_leakage_fit_recovers_q_from_the_expected_h1(preset):
     window's resolution) and flags both modes unreliable."""
     model = preset["model"]
     f = SETTINGS.freqs_hz
-    e = model.impulse_response(FS, N_SAMP).expected_h1(SETTINGS, "y")
+    e = impulse_expected_h1(model.impulse_response(FS, N_SAMP), SETTINGS, "y")
     data = _noiseless(f, e)
     fit = fit_modes(data, (0.1, 10.0), initial=[0.83, 2.48], settings=SETTINGS,
                     method="leakage", weighting="relative")
@@ -250,7 +255,7 @@ def _notched(dm, fs, *, shift=1.005):
 
 def _expected_h1(settings, gain, psd, noise=None, sensor=None, n_fft=1 << 19):
     """E[H1] = K_k T[S G / K] / T[S + N] from lag-domain correlations (the way
-    processing.analysis.expected_estimate computes the bench's), an independent route to the
+    processing.leakage.expected_estimate computes the bench's), an independent route to the
     model's frequency-domain kernel."""
     fs, n = settings.fs, settings.nperseg
     f = np.arange(n_fft // 2 + 1) * fs / n_fft

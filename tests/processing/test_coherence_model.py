@@ -18,7 +18,7 @@ import pytest
 
 from daq.acquisition import acquire
 from daq.hdf5 import Hdf5Sink, read_run
-from processing.analysis import AnalyzerSettings, analyze
+from processing.analyzer import AnalyzerSettings, analyze
 from processing.coherence_model import quadratic_spectra
 from rig.scene import load_scene
 

@@ -1,6 +1,12 @@
-"""The analyzer's spectra as a self-describing HDF5 file that xarray opens.
+"""The files of an analysis: CSV of the responses, Bode PNG, Markdown report, HDF5 spectra.
 
-:func:`write_spectra` writes an :class:`processing.analysis.Analysis` into its own file (never into
+:func:`write_csv` writes the measured H_t (x) and Theta_2 (y) over the display band
+(:data:`CSV_COLUMNS`, full float precision), :func:`write_bode_png` both Bode diagrams side by
+side, :func:`write_report` the Markdown report (:func:`processing.report.analysis_report`).
+Every file is written under a temporary name and renamed when complete; an existing file is
+replaced only with ``force``.
+
+:func:`write_spectra` writes an :class:`processing.analyzer.Analysis` into its own file (never into
 the run file), one group (:data:`GROUP`, ``"spectra"``) laid out as netCDF-4 would be, so
 ``xarray.open_dataset(path, group="spectra", engine="h5netcdf")`` returns labelled arrays::
 
@@ -30,6 +36,7 @@ renamed when complete; an existing file is replaced only with ``force``. HDF5 1.
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
@@ -38,7 +45,13 @@ import numpy as np
 
 from rig._io import atomic_output
 
-__all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "write_spectra"]
+__all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "CSV_COLUMNS", "write_spectra", "write_csv",
+           "write_bode_png", "write_report"]
+
+#: The CSV columns (SPEC section 5): x in m per m/s^2, y in rad per m/s^2, gain in dB re 1 unit,
+#: phase in degrees wrapped to (-180, 180], coherence gamma^2 in [0, 1].
+CSV_COLUMNS = ("frequency_hz", "x_re", "x_im", "x_gain_db", "x_phase_deg", "x_coherence",
+               "y_re", "y_im", "y_gain_db", "y_phase_deg", "y_coherence")
 
 GROUP = "spectra"
 FORMAT = "pendulum-daq spectra"
@@ -83,7 +96,7 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
 
     Parameters
     ----------
-    analysis : processing.analysis.Analysis
+    analysis : processing.analyzer.Analysis
     path : output file (refused if it exists, unless ``force``).
     force : replace an existing file (only once the new one is complete).
     group : name of the group (default :data:`GROUP`).
@@ -161,4 +174,40 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
                     _complex(g, f"expected_{name}", getattr(a.expected, name.lower()), fr,
                              units=unit, long_name=f"expected estimate E[H1] of {name} "
                                                    "(leakage bias included)")
+    return path
+
+
+def write_bode_png(a, path, *, force: bool = False, dpi: int = 100,
+                   phase: str = "wrapped") -> Path:
+    """Both Bode diagrams side by side in one PNG (translation left, rotation right): the
+    ``bode`` view of :func:`processing.views.write_views`."""
+    from processing.views import write_views
+
+    return write_views(a, path, "bode", phase=phase, force=force, dpi=dpi)[0]
+
+
+def write_csv(a, path, *, force: bool = False) -> Path:
+    """The measured H_t (x) and Theta_2 (y) over the display band as CSV (:data:`CSV_COLUMNS`;
+    x in m per m/s^2, y in rad per m/s^2, SPEC section 5); full float precision."""
+    path = Path(path)
+    m = a.display
+    cols = [a.freqs_hz[m]]
+    for frf in (a.h_t, a.theta_2):
+        cols += [frf.h.real[m], frf.h.imag[m], frf.magnitude_db[m], frf.phase_deg[m],
+                 frf.coherence[m]]
+    with atomic_output(path, force=force) as tmp:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(CSV_COLUMNS)
+            for row in zip(*cols):
+                w.writerow([repr(float(v)) for v in row])
+    return path
+
+
+def write_report(a, path, *, force: bool = False) -> Path:
+    """The Markdown report (:meth:`processing.analyzer.Analysis.report`)."""
+    path = Path(path)
+    text = a.report()
+    with atomic_output(path, force=force) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
     return path

@@ -33,7 +33,8 @@ from click.testing import CliRunner
 from daq.acquisition import AcquisitionInterrupted, acquire
 from daq.cli import main
 from daq.hdf5 import Hdf5Sink, read_run
-from processing.analysis import CSV_COLUMNS, analyze
+from processing.analyzer import analyze
+from processing.writers import CSV_COLUMNS
 from rig.scene import load_scene
 
 SHORT = ["acquisition.records=6", "acquisition.record_s=20.0", "acquisition.settle_s=60.0"]
@@ -215,7 +216,7 @@ def test_an_interrupted_run_is_analysed_with_its_finished_records(runner, tmp_pa
 def test_the_analyzer_imports_scipy_and_matplotlib_only_when_needed(run_file):
     code = (
         "import sys\n"
-        "import processing, processing.analysis, processing.compare, processing.modal\n"
+        "import processing, processing.analyzer, processing.compare, processing.modal\n"
         "import processing.report, processing.frf, processing.spectra\n"
         "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'matplotlib'})\n"
         "from click.testing import CliRunner\n"

@@ -16,7 +16,8 @@ from click.testing import CliRunner
 from daq.acquisition import acquire
 from daq.cli import main
 from daq.hdf5 import Hdf5Sink, read_run
-from processing.analysis import AnalyzerSettings, analyze, bode_figures
+from processing.analyzer import AnalyzerSettings, analyze
+from processing.views import bode_figures
 from processing.views import view_figures, view_paths
 from rig.scene import load_scene
 
@@ -161,7 +162,7 @@ def test_an_incomplete_run_is_marked_on_every_view(analysis):
 
 def test_model_plot_of_another_pendulum_is_not_titled_like_the_papers_figures(runner, tmp_path):
     from processing.plots import model_bode_figure
-    from rig.response import log_grid, mirror_response
+    from rig.describe import log_grid, mirror_response
 
     sc = load_scene("rod-chain", ["pendulum.n=3"])
     fig = model_bode_figure(mirror_response(sc, log_grid(0.1, 10, 50)), title=sc.name)

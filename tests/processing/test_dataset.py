@@ -1,12 +1,15 @@
 """``daq dataset``: sweep files, runs on local processes and on Dask, resume, failures, manifest.
 
 The sweeps are tiny (runs of 2 records of 10 s after 10 s of settling) so that the process
-starts dominate; every test that runs a sweep spawns its own workers.
+starts dominate. One 3-run sweep, made on 1 worker, 2 workers and a Dask cluster, is shared by
+the tests that read it (identity, manifest) and is the starting point of the rerun test (a copy);
+the tests of interruption and failure run their own.
 """
 
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -244,36 +247,41 @@ def test_an_invalid_parameter_set_is_recorded_and_the_sweep_goes_on(tmp_path):
 
 
 def test_a_rerun_skips_finished_runs_redoes_damaged_ones_and_a_changed_sweep_needs_force(
-        tmp_path):
-    path = sweep_file(tmp_path, '[grid]\n"pendulum.q1" = [300.0, 400.0]\n')
+        tmp_path, three_ways):
+    # starts from a copy of the shared 3-run sweep made on 1 worker (no sweep of its own first)
+    src_path, done = three_ways
+    path = tmp_path / src_path.name
+    shutil.copyfile(src_path, path)
     out = tmp_path / "ds"
-    assert invoke("dataset", path, "--out", out, "--workers", "1").exit_code == 0
+    shutil.copytree(done["one"], out)
     first = {p.name: (p.stat().st_mtime_ns, p.stat().st_ino) for p in (out / "runs").iterdir()}
     res = invoke("dataset", path, "--out", out, "--workers", "1")
-    assert res.exit_code == 0 and "2 of 2 runs complete (2 already there)" in res.output
+    assert res.exit_code == 0 and "3 of 3 runs complete (3 already there)" in res.output
     assert {p.name: (p.stat().st_mtime_ns, p.stat().st_ino)
             for p in (out / "runs").iterdir()} == first
-    path.write_text(path.read_text().replace("[300.0, 400.0]", "[300.0, 450.0]"))
+    # runs 1 and 2 change (0.10, 0.15 -> 0.15, 0.25 V rms), run 0 keeps its 0.05
+    path.write_text(path.read_text().replace("linspace = [0.05, 0.15]", "linspace = [0.05, 0.25]"))
     res = invoke("dataset", path, "--out", out, "--workers", "1")
     assert res.exit_code == 1
     assert "holds another version of this sweep; changed: grid: " in res.output
-    assert '"values": [300.0, 400.0]' in res.output and '"values": [300.0, 450.0]' in res.output
+    assert '"args": [0.05, 0.15, 3]' in res.output and '"args": [0.05, 0.25, 3]' in res.output
     assert "Pass --force" in res.output
     res = invoke("dataset", path, "--out", out, "--workers", "1", "--force")
     assert res.exit_code == 0, res.output
-    assert "2 of 2 runs complete (1 already there)" in res.output
+    assert "3 of 3 runs complete (1 already there)" in res.output
     now = {p.name: (p.stat().st_mtime_ns, p.stat().st_ino) for p in (out / "runs").iterdir()}
     assert now["run_000000.h5"] == first["run_000000.h5"]  # unchanged run: kept
-    assert now["run_000001.h5"] != first["run_000001.h5"]  # changed run: redone
-    with h5py.File(out / "runs/run_000001.h5", "r") as f:
-        assert json.loads(f["entry/dataset"].attrs["parameters_json"]) == {"pendulum.q1": 450.0}
+    assert now["run_000002.h5"] != first["run_000002.h5"]  # changed run: redone
+    with h5py.File(out / "runs/run_000002.h5", "r") as f:
+        assert json.loads(f["entry/dataset"].attrs["parameters_json"]) == {
+            "source.level_vrms": 0.25}
     # a damaged file (one flipped byte: its sha256 no longer agrees) is set aside and redone
     f = out / "runs/run_000000.h5"
     data = bytearray(f.read_bytes())
     data[len(data) // 2] ^= 0xFF
     f.write_bytes(bytes(data))
     res = invoke("dataset", path, "--out", out, "--workers", "1", "--force")
-    assert res.exit_code == 0 and "2 of 2 runs complete (1 already there)" in res.output
+    assert res.exit_code == 0 and "3 of 3 runs complete (2 already there)" in res.output
     assert (out / "runs/run_000000.h5.invalid-0").read_bytes() == bytes(data)
     assert check_run_file(f, sha256=rows(out)[0]["sha256"]).ok
 
@@ -304,7 +312,7 @@ def _alive(pid: int) -> bool:
 
 
 def test_sigkill_of_the_parent_then_the_same_command_completes_every_run_exactly_once(tmp_path):
-    path = sweep_file(tmp_path, '[random]\ncount = 4\n"pendulum.q2" = { uniform = [80.0, 120.0] }')
+    path = sweep_file(tmp_path, '[random]\ncount = 3\n"pendulum.q2" = { uniform = [80.0, 120.0] }')
     out = tmp_path / "ds"
     cmd = _daq("dataset", path, "--out", out, "--workers", "1")
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -315,15 +323,15 @@ def test_sigkill_of_the_parent_then_the_same_command_completes_every_run_exactly
     p.wait()
     _wait_for(lambda: not any(_alive(w) for w in workers), 30)  # they die with the parent
     done_before = len(journal.read_text().splitlines())
-    assert done_before < 4
+    assert done_before < 3
     res = subprocess.run(cmd, capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
-    assert f"4 of 4 runs complete ({done_before} already there)" in res.stdout
+    assert f"3 of 3 runs complete ({done_before} already there)" in res.stdout
     t = rows(out)
-    assert [int(r["run"]) for r in t] == list(range(4)) and {r["status"] for r in t} == {
+    assert [int(r["run"]) for r in t] == list(range(3)) and {r["status"] for r in t} == {
         "complete"}
     names = sorted(p.name for p in (out / "runs").iterdir())
-    assert names == [f"run_{i:06d}.h5" for i in range(4)]  # no partial or duplicate left
+    assert names == [f"run_{i:06d}.h5" for i in range(3)]  # no partial or duplicate left
     for r in t:
         assert check_run_file(out / "runs" / r["file"], sha256=r["sha256"]).ok
 
