@@ -64,7 +64,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.errors import ConfigError
-from rig.jit import njit
+from rig._jit import njit
 
 KINDS = ("elliptic", "none")
 

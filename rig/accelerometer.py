@@ -47,9 +47,9 @@ import numpy as np
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
-from rig.jit import njit
+from rig._jit import njit
 from rig.validate import finite_at_least as _finite
-from rig.integrators import discretise
+from rig.solvers.exact import discretise
 
 
 @dataclass(frozen=True, eq=False)

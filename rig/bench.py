@@ -18,7 +18,7 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     The coil, stage, linearised pendulum (with its reaction on the stage if ``stage.reaction``)
     and the accelerometer's high-pass form one linear system ``z' = A z + B V``
     (:meth:`rig.stage.Stage.state_space`). It is discretised exactly for the held input with
-    :func:`rig.integrators.discretise` (``z_{k+1} = Phi z_k + Gamma V_k``, Van Loan's matrix
+    :func:`rig.solvers.exact.discretise` (``z_{k+1} = Phi z_k + Gamma V_k``, Van Loan's matrix
     exponential) and stepped by a compiled loop: exact at the DAC instants up to round-off, ~0.1 us
     per sample for the Ishizaki pendulum. The sensors read the states at the instants. Its error
     is the linearisation (a model error, predicted by :func:`predict_linearisation_error`).
@@ -39,7 +39,7 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     drive (round-off), 1e-10 at 1 V (theta1 ~ 0.06 rad); halving the step divides it by 25-50.
     ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the stage is
     discretised exactly at ``h / oversample`` and the pendulum's nonlinear equations are
-    integrated through :func:`rig.integrators.integrate` on that prescribed stage acceleration,
+    integrated through :func:`rig.solvers.integrate` on that prescribed stage acceleration,
     linear between the sub-instants (``hold="linear"``, O((h/oversample)^2)); its error estimate
     adds the input interpolation (the linearised pendulum through the same interpolated input
     against the exact linear bench) to the integrator's (Richardson). For ``ishizaki2009``
@@ -133,6 +133,7 @@ Public API: :class:`BenchSimulation`, :class:`BenchModel`, :class:`BenchState`,
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -145,8 +146,9 @@ from rig.blocks import AnalogBlock, Calibration
 from rig import coupled as rcoupled
 from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
-from rig.integrators import METHODS, discretise, integrate, to_native
-from rig.jit import njit
+from rig.solvers import Exact, integrate, solver_named
+from rig.solvers.exact import discretise
+from rig._jit import njit
 from rig.prefetch import Prefetch
 from rig.psd import OpticalLever
 from rig.scene import Scene
@@ -229,6 +231,12 @@ class BenchModel:
     def chain(self) -> Chain:
         """The pendulum."""
         return self.scene.chain
+
+    @functools.cached_property
+    def solver(self):
+        """The prescribed-stage nonlinear path's solver (:data:`rig.solvers.SOLVERS`: ``method``
+        at ``substeps`` steps per sub-interval, dop853 at ``rtol``, ``atol``)."""
+        return solver_named(self.method, substeps=self.substeps, rtol=self.rtol, atol=self.atol)
 
     @property
     def n_states(self) -> int:
@@ -449,8 +457,7 @@ def start(model: BenchModel, seed=0) -> BenchState:
             for name, child in zip(STREAMS[1:], children[1:])}
     native = None
     if model.model == "nonlinear" and model.method not in COUPLED_METHODS:
-        native = to_native(model.chain, model.method,
-                           np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
+        native = model.solver.init(model.chain, np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
     entropy = root.entropy if isinstance(root.entropy, int) else None
     return BenchState(index=0, z=_readonly(z), source=src, rng_states=rngs, native=native,
                       seed_entropy=entropy)
@@ -614,9 +621,8 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
         stage_fine_kernel(model.stage_phi, model.stage_gamma, model.stage_accel_row, v, m, zs,
                           zs_out, a_fine)
         run = integrate(chain, native, a_fine, None, hold="linear", h_in=1.0 / (fs * m),
-                        n_intervals=n * m, out_every=m, method=model.method,
-                        substeps=model.substeps, rtol=model.rtol, atol=model.atol,
-                        h0_s=h_next, t0_s=t0)
+                        n_intervals=n * m, out_every=m, solver=model.solver, h0_s=h_next,
+                        t0_s=t0)
         native, h_next = run.native_end, run.h_next_s
         y = run.y_out  # (n + 1, 2n): theta, omega at the DAC instants
         z_out = np.empty((n, z.size))
@@ -1415,7 +1421,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
             "remainder: the linear part is exact). 'probe_nonlinear_minus_linear' is the model "
             "difference on the probe (the run's is predicted in 'selection')")
     else:
-        mi = METHODS[model.method]
+        mi = model.solver
         info["method"] = (f"nonlinear pendulum via rig.integrators {model.method} "
                           f"({mi.description}), {model.substeps} step(s) per sub-interval; stage "
                           f"and accelerometer exact (ZOH) at {model.oversample} sub-instants per "
@@ -1432,7 +1438,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
                           np.empty((n, zs.size)), a_fine)
         y0 = np.concatenate([scene.theta0_rad, scene.omega0_rad_s])
         lin = integrate(scene.chain, y0, a_fine, None, hold="linear", h_in=1 / (fs * m),
-                        n_intervals=n * m, out_every=m, method="linear")
+                        n_intervals=n * m, out_every=m, solver=Exact())
         d_input = lin.y_out[:n, :scene.chain.n] - theta_exact
         e_input = float(np.max(np.abs(d_input)))
         # (2) integrator: Richardson against twice the steps
@@ -1440,7 +1446,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
                            substeps=2 * model.substeps, rtol=model.rtol / 100,
                            atol=model.atol / 100, selection=model.selection)
         theta_f = _probe_theta(fine, n, seed)
-        if mi.order is not None and mi.kind != "adaptive":
+        if mi.order is not None and not mi.adaptive:
             factor = 2.0**mi.order / (2.0**mi.order - 1.0)
             how_int = (f"Richardson |theta - theta(2x steps)| 2^{mi.order}/(2^{mi.order} - 1)")
         else:

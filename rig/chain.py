@@ -27,7 +27,7 @@ import numpy as np
 import scipy.linalg
 
 from rig.errors import ConfigError
-from rig.jit import njit
+from rig._jit import njit
 
 G_STANDARD = 9.80665  # m/s^2
 DAMPING_MODES = ("absolute", "relative")

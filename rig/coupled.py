@@ -70,7 +70,7 @@ import numpy as np
 import scipy.linalg
 
 from rig.chain import Chain
-from rig.jit import njit
+from rig._jit import njit
 from rig.stage import Stage
 
 

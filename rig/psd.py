@@ -74,7 +74,7 @@ import numpy as np
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
-from rig.jit import njit
+from rig._jit import njit
 from rig.validate import finite_at_least as _finite
 
 

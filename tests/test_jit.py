@@ -1,4 +1,4 @@
-"""rig.jit: numba is imported when a kernel is first called, not when the modules are imported."""
+"""rig._jit: numba is imported when a kernel is first called, not when the modules are imported."""
 
 import json
 import subprocess
@@ -23,8 +23,8 @@ def test_first_call_materialises_every_kernel_and_patches_the_module_namespaces(
     got = _run(
         "import sys, json\n"
         "import numpy as np\n"
-        "import rig.chain as ch, rig.integrators as it\n"
-        "from rig.jit import LazyKernel\n"
+        "import rig.chain as ch, rig.solvers._kernels as it\n"
+        "from rig._jit import LazyKernel\n"
         "from rig.accelerometer import _first_order_recursion as f\n"
         "before = isinstance(it.rk4_kernel, LazyKernel)\n"
         "q = f(0.5, np.ones(3), 2.0)\n"

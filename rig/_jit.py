@@ -5,18 +5,19 @@ command that reads a run file and analyses it (``daq analyze``), lists scenes or
 calls one and should not pay for it. ``@njit(cache=True, ...)`` here takes numba's options and
 returns a :class:`LazyKernel`; the first call of any lazy kernel imports numba, turns *every*
 registered kernel into its numba dispatcher (the same options, the same on-disk cache) and
-replaces the lazy objects by the dispatchers in the namespaces of the project's modules, so that
-kernels calling kernels see dispatchers when numba compiles them. Calls through a reference taken
-before that (``from rig.x import kernel``) are forwarded (about 0.3 us each).
+replaces the lazy objects by the dispatchers in the namespaces of the modules of the packages
+that define kernels (the packages of the registered functions, found at run time: this module
+names none), so that kernels calling kernels see dispatchers when numba compiles them. Calls
+through a reference held elsewhere are forwarded (about 0.3 us each).
+
+numba's on-disk cache (``cache=True``) checks a function's own source file only, so kernels that
+call each other are kept in one file (:mod:`rig.solvers._kernels`).
 """
 
 from __future__ import annotations
 
 import sys
 import threading
-
-#: packages whose module namespaces are patched (their kernels call each other by global name)
-PACKAGES = ("rig", "daq", "processing")
 
 _registry: list["LazyKernel"] = []
 _lock = threading.RLock()
@@ -76,8 +77,9 @@ def materialise() -> None:
         for k in _registry:
             if k._dispatcher is None:
                 k._dispatcher = numba.njit(**k.options)(k.py_func)
+        packages = kernel_packages()
         for name, mod in list(sys.modules.items()):
-            if name.split(".")[0] not in PACKAGES or mod is None:
+            if name.split(".")[0] not in packages or mod is None:
                 continue
             space = getattr(mod, "__dict__", None)
             if not space:
@@ -85,3 +87,8 @@ def materialise() -> None:
             for key, value in list(space.items()):
                 if isinstance(value, LazyKernel) and value._dispatcher is not None:
                     space[key] = value._dispatcher
+
+
+def kernel_packages() -> set[str]:
+    """The top-level packages of the modules that define registered kernels."""
+    return {k.__module__.split(".")[0] for k in _registry}
