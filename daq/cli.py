@@ -20,7 +20,7 @@ from daq.bench_cmd import bench
 from daq.cli_errors import ErrorsAsMessages
 from daq.files import atomic_output, check_writable
 from rig.errors import RigError
-from rig.solvers import SOLVERS
+from rig.solvers import PENDULUM, SOLVERS, names_for
 
 
 def _library_errors(fn):
@@ -297,7 +297,7 @@ def _floats(ctx, param, value):
 @click.option("--omega0", callback=_floats, metavar="A,B,...",
               help="Initial angular velocities [rad/s] (default: the scene's).")
 @click.option("--method", default="dop853", show_default=True,
-              type=click.Choice(list(SOLVERS)),
+              type=click.Choice(names_for(PENDULUM)),
               help="Integrator (rig.solvers.SOLVERS; etd3m and etd4m step over held input "
                    "samples, so they need a moving base: on this fixed base use etd3).")
 @click.option("--rtol", type=float, help="Relative tolerance of dop853 [default 1e-10].")

@@ -10,14 +10,22 @@ that define kernels (the packages of the registered functions, found at run time
 names none), so that kernels calling kernels see dispatchers when numba compiles them. Calls
 through a reference held elsewhere are forwarded (about 0.3 us each).
 
-numba's on-disk cache (``cache=True``) checks a function's own source file only, so kernels that
-call each other are kept in one file (:mod:`rig.solvers._kernels`).
+numba's on-disk cache (``cache=True``) checks a function's own source file only (numba/numba#1833):
+a kernel that calls one in another file would keep its stale compiled code when only the callee
+changes. So before importing numba, :func:`materialise` points ``NUMBA_CACHE_DIR`` at a directory
+named after a hash of the source of every kernel file (:func:`cache_dir`): any change to any
+kernel starts a fresh cache, and kernels may call kernels across files. A ``NUMBA_CACHE_DIR``
+set by the caller is kept (the caller owns it, e.g. a cold-start benchmark), and so is numba's
+default if numba was imported before (it reads the variable at import).
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 import sys
 import threading
+from pathlib import Path
 
 _registry: list["LazyKernel"] = []
 _lock = threading.RLock()
@@ -72,6 +80,8 @@ def njit(**options):
 def materialise() -> None:
     """Import numba, make every registered kernel's dispatcher and patch the namespaces."""
     with _lock:
+        if "numba" not in sys.modules and "NUMBA_CACHE_DIR" not in os.environ:
+            os.environ["NUMBA_CACHE_DIR"] = str(cache_dir())
         import numba
 
         for k in _registry:
@@ -92,3 +102,24 @@ def materialise() -> None:
 def kernel_packages() -> set[str]:
     """The top-level packages of the modules that define registered kernels."""
     return {k.__module__.split(".")[0] for k in _registry}
+
+
+def kernel_sources() -> list[Path]:
+    """Every ``.py`` file that defines lazy kernels, in the packages of the registered ones
+    (found by the decorator's name in the source, so files not yet imported count too)."""
+    files = set()
+    for top in sorted(kernel_packages()):
+        for root in getattr(sys.modules.get(top), "__path__", []):
+            files.update(p for p in Path(root).rglob("*.py")
+                         if "__pycache__" not in p.parts and "@njit(" in p.read_text("utf-8"))
+    return sorted(files)
+
+
+def cache_dir() -> Path:
+    """``<this package>/__pycache__/numba-<hash>``: the hash (SHA-256, 16 hex digits) of the
+    kernel files' names and contents and of the Python version."""
+    h = hashlib.sha256(sys.version.encode())
+    for p in kernel_sources():
+        h.update(str(p).encode())
+        h.update(p.read_bytes())
+    return Path(__file__).resolve().parent / "__pycache__" / f"numba-{h.hexdigest()[:16]}"

@@ -146,7 +146,8 @@ from rig.blocks import AnalogBlock, Calibration
 from rig import coupled as rcoupled
 from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
-from rig.solvers import Exact, integrate, solver_named
+from rig.solvers import COUPLED_BENCH, Exact, ExactBench, integrate, solver_named
+from rig.solvers.etdab import ETDAB_ORDER
 from rig.solvers.exact import discretise
 from rig._jit import njit
 from rig.prefetch import Prefetch
@@ -159,7 +160,6 @@ MODELS = ("auto", "linear", "nonlinear")  # acquisition.model; "auto" resolves t
 NONLINEAR_METHODS = ("lawson4", "etdab", "rk4", "gauss4", "dop853")
 COUPLED_METHODS = ("lawson4", "etdab")  # rig.coupled: the whole bench as one system
 DEFAULT_METHOD = "etdab"
-ETDAB_ORDER = 4  # past remainder values per etdab step (the order of the method)
 PRESCRIBED_STAGE_METHODS = ("rk4", "gauss4", "dop853")  # rig.integrators on a given stage motion
 PREDICTOR_ENTROPY = 20090005  # the predictor's own random stream (the choice is the scene's)
 PREDICTOR_BATCHES = 8
@@ -234,8 +234,12 @@ class BenchModel:
 
     @functools.cached_property
     def solver(self):
-        """The prescribed-stage nonlinear path's solver (:data:`rig.solvers.SOLVERS`: ``method``
-        at ``substeps`` steps per sub-interval, dop853 at ``rtol``, ``atol``)."""
+        """The solver this model runs (:mod:`rig.solvers`): the exact linear bench for the linear
+        model, else ``method`` at ``substeps`` steps per DAC interval (lawson4, etdab: the
+        coupled bench) or per sub-interval (the prescribed-stage methods; dop853 at ``rtol``,
+        ``atol``)."""
+        if self.model == "linear":
+            return ExactBench()
         return solver_named(self.method, substeps=self.substeps, rtol=self.rtol, atol=self.atol)
 
     @property
@@ -584,34 +588,15 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     chain = model.chain
     z = np.array(state.z, dtype=float)
     native, h_next = state.native, state.h_next_s
-    if model.model == "linear":
-        z_out = np.empty((n, z.size))
-        linear_bench_kernel(np.ascontiguousarray(model.phi.T), model.gamma, v, z, z_out)
+    solver = model.solver
+    if COUPLED_BENCH in solver.systems:  # the whole bench as one system
+        z_out, accel, native = solver.advance_bench(model, z, native, v)
         _check_finite(model, state, z_out, z, t0, n)
         theta = z_out[:, sl["theta_rad"]]
         omega = z_out[:, sl["omega_rad_s"]]
-        accel = z_out @ model.accel_row
-    elif model.method == "lawson4":
-        z_out = np.empty((n, z.size))
-        accel = np.empty(n)
-        e_h, e_2, g_h, g_2 = model.lawson
-        rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
-                               1.0 / (fs * model.substeps), model.substeps, v, z, z_out, accel)
-        _check_finite(model, state, z_out, z, t0, n)
-        theta = z_out[:, sl["theta_rad"]]
-        omega = z_out[:, sl["omega_rad_s"]]
-    elif model.method == "etdab":
-        z_out = np.empty((n, z.size))
-        accel = np.empty(n)
-        hist = (np.zeros((ETDAB_ORDER, model.coupled.rows.size)) if native is None
-                else np.array(native, dtype=float))
-        rcoupled.etd_ab_kernel(*model.coupled.args(), *model.etdab, model.substeps,
-                               native is not None, hist, v, z, z_out, accel)
-        native = hist
-        _check_finite(model, state, z_out, z, t0, n)
-        theta = z_out[:, sl["theta_rad"]]
-        omega = z_out[:, sl["omega_rad_s"]]
-    else:
+        if accel is None:
+            accel = z_out @ model.accel_row
+    else:  # the pendulum on the exactly stepped stage's motion
         n2 = 2 * chain.n  # the stage-only system is z without theta, omega (same order)
         stage_idx = np.r_[0:3, 3 + n2:z.size]
         zs = z[stage_idx].copy()
@@ -621,8 +606,7 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
         stage_fine_kernel(model.stage_phi, model.stage_gamma, model.stage_accel_row, v, m, zs,
                           zs_out, a_fine)
         run = integrate(chain, native, a_fine, None, hold="linear", h_in=1.0 / (fs * m),
-                        n_intervals=n * m, out_every=m, solver=model.solver, h0_s=h_next,
-                        t0_s=t0)
+                        n_intervals=n * m, out_every=m, solver=solver, h0_s=h_next, t0_s=t0)
         native, h_next = run.native_end, run.h_next_s
         y = run.y_out  # (n + 1, 2n): theta, omega at the DAC instants
         z_out = np.empty((n, z.size))
@@ -1274,19 +1258,7 @@ def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
 
 def _kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarray:
     """Angles at the DAC instants of the linear, lawson4 or etdab kernel alone (no sensors)."""
-    z = z0.copy()
-    z_out = np.empty((v.size, z.size))
-    if model.model == "linear":
-        linear_bench_kernel(np.ascontiguousarray(model.phi.T), model.gamma, v, z, z_out)
-    elif model.method == "etdab":
-        rcoupled.etd_ab_kernel(*model.coupled.args(), *model.etdab, model.substeps, False,
-                               np.zeros((ETDAB_ORDER, model.coupled.rows.size)), v, z, z_out,
-                               np.empty(v.size))
-    else:
-        e_h, e_2, g_h, g_2 = model.lawson
-        rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
-                                1.0 / (model.fs_hz * model.substeps), model.substeps, v, z, z_out,
-                                np.empty(v.size))
+    z_out, _, _ = model.solver.advance_bench(model, z0.copy(), None, v)
     return z_out[:, model.slices["theta_rad"]]
 
 

@@ -71,6 +71,7 @@ import scipy.linalg
 
 from rig.chain import Chain
 from rig._jit import njit
+from rig.solvers._kernels import SINCOS_POLY_MAX, _sincos_poly
 from rig.stage import Stage
 
 
@@ -498,27 +499,6 @@ def etd_ab_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, lag: i
     return np.ascontiguousarray(w.transpose(0, 2, 1))
 
 
-@njit(cache=True, inline="always")
-def _sincos_small(x):
-    """(sin x, cos x) by their Taylor polynomials through x^15 and x^16, within 2 ulp of libm
-    for |x| <= 0.8 (the copy of rig.integrators._sincos_poly: numba's cache is per file)."""
-    x2 = x * x
-    x4 = x2 * x2
-    x8 = x4 * x4
-    s01 = 1.0 + x2 * (-1.0 / 6.0)
-    s23 = 1.0 / 120.0 + x2 * (-1.0 / 5040.0)
-    s45 = 1.0 / 362880.0 + x2 * (-1.0 / 39916800.0)
-    s67 = 1.0 / 6227020800.0 + x2 * (-1.0 / 1307674368000.0)
-    sn = x * ((s01 + x4 * s23) + x8 * (s45 + x4 * s67))
-    c01 = 1.0 + x2 * (-0.5)
-    c23 = 1.0 / 24.0 + x2 * (-1.0 / 720.0)
-    c45 = 1.0 / 40320.0 + x2 * (-1.0 / 3628800.0)
-    c67 = 1.0 / 479001600.0 + x2 * (-1.0 / 87178291200.0)
-    c8 = 1.0 / 20922789888000.0
-    cs = (c01 + x4 * c23) + x8 * ((c45 + x4 * c67) + x8 * c8)
-    return sn, cs
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows,
                      a_cols, z, f):
@@ -527,9 +507,9 @@ def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx
     its first ``a_cols`` columns (the others are zero). Returns x0''."""
     t1 = z[th0]
     t2 = z[th0 + 1]
-    if max(abs(t1), abs(t2)) <= 0.8:
-        s1, c1 = _sincos_small(t1)
-        s2, c2 = _sincos_small(t2)
+    if max(abs(t1), abs(t2)) <= SINCOS_POLY_MAX:
+        s1, c1 = _sincos_poly(t1)
+        s2, c2 = _sincos_poly(t2)
     else:
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
     w1 = z[th0 + 2]

@@ -27,7 +27,7 @@ import numpy as np
 
 from rig.chain import Chain
 from rig.errors import ConfigError
-from rig.solvers import HOLDS, SOLVERS, integrate, output_rows, solver_named
+from rig.solvers import HOLDS, PENDULUM, integrate, names_for, output_rows, solver_named
 from rig.solvers.rhs import rhs_algorithm
 
 STEPS_PER_PERIOD = 100  # default fixed-step resolution: steps per period of the fastest linear mode
@@ -464,8 +464,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     if not isinstance(chain, Chain):
         raise ConfigError(f"chain = {chain!r} is invalid: expected a rig.chain.Chain")
     duration = _finite_number("duration_s", duration_s)
-    if method not in SOLVERS:
-        raise ConfigError(f"method = {method!r} is invalid: expected one of {', '.join(SOLVERS)}")
+    if method not in names_for(PENDULUM):
+        raise ConfigError(f"method = {method!r} is invalid: expected one of "
+                          f"{', '.join(names_for(PENDULUM))}")
     try:
         rtol_f = float(rtol)
     except (TypeError, ValueError):

@@ -308,7 +308,7 @@ def _canon_n(hc, s, cm, g, y, ax, ay, f, r, w):
 
 # Taylor polynomials of sin and cos: on |x| <= SINCOS_POLY_MAX the truncated series (through x^15
 # and x^16) are within 2 ulp of math.sin/math.cos (the next terms are below 6e-18);
-# tests/test_exponential.py checks this on a dense grid.
+# tests/rig/solvers/test_exponential.py checks this on a dense grid.
 SINCOS_POLY_MAX = 0.8
 
 

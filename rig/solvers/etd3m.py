@@ -70,7 +70,7 @@ def _expm(a):
 # (du_i from the samples next to the node's interval, within the step). At m = 1 the Gauss nodes
 # have f (1 - f) / 2 = 1/12 exactly (no shift: etd3, where the input inside a step is constant);
 # with the linear hold omega has no sawtooth at this order (no shift either). Measured on the
-# paper's run the error then falls with H at order 3 to 4.5 (tests/test_etd_multisample.py).
+# paper's run the error then falls with H at order 3 to 4.5 (tests/rig/solvers/test_etd_multisample.py).
 # Native state as etd3's (theta, omega, valid flag, step H, the remainder at the two stages).
 
 ETD3M_BLOCKS = 4  # weight sets per sample: end node 0, end node 1, stage 1, stage 0

@@ -32,7 +32,7 @@ rows continue bit for bit.
 
 Error: order 4 in H (the stages' error O(H^4) through the quadratic prediction; the quadrature
 through three nodes is of order 6 for a smooth remainder); measured on the paper's run in
-``tests/test_etd4m.py`` and BENCHMARKS.md.
+``tests/rig/solvers/test_etd4m.py`` and BENCHMARKS.md.
 """
 
 from __future__ import annotations

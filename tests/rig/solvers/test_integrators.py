@@ -8,7 +8,7 @@ import pytest
 import scipy.linalg
 
 from rig.chain import G_STANDARD, Chain
-from rig.solvers import SOLVERS, integrate, solver_named
+from rig.solvers import COUPLED_BENCH, PENDULUM, SOLVERS, integrate, names_for, solver_named
 from rig.solvers.exact import discretise
 from rig.solvers.rhs import rhs
 from rig.simulate import BaseInput, simulate
@@ -66,11 +66,14 @@ def test_canonical_rhs_is_theta_dot_and_the_time_derivative_of_momentum(n):
 
 def test_registry_states_order_kind_and_description_of_every_method():
     assert set(SOLVERS) == {"rk4", "dop853", "gauss4", "midpoint", "linear", "etd3", "etd3m",
-                            "etd4m"}
+                            "etd4m", "lawson4", "etdab"}
     assert {k: (v.order, v.kind) for k, v in SOLVERS.items()} == {
         "rk4": (4, "fixed"), "dop853": (8, "adaptive"), "gauss4": (4, "implicit"),
         "midpoint": (2, "implicit"), "linear": (None, "exact"), "etd3": (3, "exponential"),
-        "etd3m": (3, "exponential"), "etd4m": (4, "exponential")}
+        "etd3m": (3, "exponential"), "etd4m": (4, "exponential"), "lawson4": (4, "exponential"),
+        "etdab": (4, "exponential")}
+    assert names_for(COUPLED_BENCH) == ["lawson4", "etdab"]
+    assert names_for(PENDULUM) == [k for k in SOLVERS if k not in ("lawson4", "etdab")]
     assert [k for k, v in SOLVERS.items() if v.multisample] == ["etd3m", "etd4m"]
     assert all(v.description and v.name == k for k, v in SOLVERS.items())
     assert [k for k, v in SOLVERS.items() if v.symplectic] == ["gauss4", "midpoint"]

@@ -25,7 +25,7 @@ def paper():
 @pytest.fixture(scope="module")
 def piece(paper):
     """100 s of the paper's drive and fixed-step DOP853 at 2 steps per sample on it (every
-    0.01 s; within 1e-12 of 4 steps per sample, tests/test_exponential.py)."""
+    0.01 s; within 1e-12 of 4 steps per sample, tests/rig/solvers/test_exponential.py)."""
     base = paper_input(100.0)
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
                     n_intervals=base.n_intervals, out_every=10, solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
