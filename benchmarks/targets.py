@@ -82,7 +82,9 @@ def main(argv=None):
     chain = load_scene("ishizaki2009").chain
     base = paper_input(3000.0)
     ref_runs = [integrate(chain, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                          n_intervals=base.n_intervals, out_every=10, solver=solver_named("dop853", substeps=k, adaptive_steps=False)).y_out[:, :2] for k in (2, 4)]
+                          n_intervals=base.n_intervals, out_every=10,
+                          solver=solver_named("dop853", substeps=k, adaptive_steps=False)
+                          ).y_out[:, :2] for k in (2, 4)]
     ref = ref_runs[0]
     print(f"paper's run, 3000 s: reference DOP853 2 steps/sample, its error against 4 "
           f"steps/sample: {rel_rms_error(ref_runs[1], ref):.1e}")

@@ -503,7 +503,9 @@ def scene_paper(ctx: _Ctx) -> SceneResult:
 
     def dop(k):
         return integrate(chain, y0, base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                         n_intervals=n_int, out_every=10, solver=solver_named("dop853", substeps=k, adaptive_steps=False)).y_out[:, :2]
+                         n_intervals=n_int, out_every=10,
+                         solver=solver_named("dop853", substeps=k, adaptive_steps=False)
+                         ).y_out[:, :2]
 
     ref = dop(2)
     ref_err = rel_rms_error(dop(4), ref)
@@ -693,7 +695,8 @@ def _dop_fixed_free(chain, z0, duration, dt, out_dt, omega=False):
     per = round(out_dt / dt)
     n_out = round(duration / out_dt)
     y = integrate(chain, z0, np.zeros(n_out), None, hold="zoh", h_in=out_dt, n_intervals=n_out,
-                  out_every=1, solver=solver_named("dop853", substeps=per, adaptive_steps=False)).y_out
+                  out_every=1,
+                  solver=solver_named("dop853", substeps=per, adaptive_steps=False)).y_out
     return y[:, chain.n:] if omega else y[:, :chain.n]
 
 
@@ -791,7 +794,8 @@ def rhs_cost(ns=(2, 3, 5, 10, 20, 50, 100), repeats=5) -> dict:
         for alg in ("dense", "recursive"):
             def go():
                 integrate(chain, y0, np.zeros(1), None, hold="zoh", h_in=1e-6 * steps,
-                          n_intervals=1, out_every=1, solver=solver_named("rk4", substeps=steps, algorithm=alg))
+                          n_intervals=1, out_every=1,
+                          solver=solver_named("rk4", substeps=steps, algorithm=alg))
             go()
             walls, _, _ = _timed(go, repeats, 5.0)
             row[alg] = min(walls) / steps / 4 * 1e9
@@ -941,7 +945,9 @@ def scene_degenerate(ctx: _Ctx) -> SceneResult:
 
         def dop(kk, chain=chain):
             return integrate(chain, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                             n_intervals=base.n_intervals, out_every=10, solver=solver_named("dop853", substeps=kk, adaptive_steps=False)).y_out[:, :2]
+                             n_intervals=base.n_intervals, out_every=10,
+                             solver=solver_named("dop853", substeps=kk, adaptive_steps=False)
+                             ).y_out[:, :2]
 
         ref = dop(k)
         ref_errs.append(rel_rms_error(dop(2 * k), ref))

@@ -52,8 +52,11 @@ acceleration, non-zero only in the rows of ``v0``, ``omega`` (and ``q``, which i
     predictor of the linearisation error used by :func:`rig.bench.select_model`.
 
 All kernels are ``numba.njit(cache=True, error_model="numpy")`` (a blow-up gives non-finite
-numbers, checked once per block by the caller, not a ZeroDivisionError inside a step) and have
-their own copy of the recursion: numba's per-file cache does not follow calls into other files.
+numbers, checked once per block by the caller, not a ZeroDivisionError inside a step). They share
+the solvers' polynomial sines (:func:`rig.solvers._kernels._sincos_poly`; cross-file calls are safe
+with the keyed cache of :mod:`rig._jit`); their recursion (:func:`_accel`) carries the base-force
+split the pendulum-only one (:func:`rig.solvers._kernels._rhs_rec`) does not, so it is its own.
+The drivers are :mod:`rig.solvers.lawson4` and :mod:`rig.solvers.etdab`.
 
 Public API: :class:`CoupledParams`, :func:`coupled_params`, :func:`accelerations`,
 :func:`remainder`, :func:`lawson_matrices`, :func:`lawson4_kernel`, :func:`etd_ab_weights`,
@@ -322,6 +325,18 @@ def _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_sta
     return ax
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
+               m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha, f):
+    """The remainder f and the nonlinear x0'': :func:`_remainder2` where ``two`` (n = 2, inlined),
+    else :func:`_remainder_n` (a call)."""
+    if two:
+        return _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
+                           a_rows, z, alpha, f)
+    return _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage,
+                        reaction, th0, q_idx, wc, a_rows, z, work, alpha, f)
+
+
 def accelerations(params: CoupledParams, z, *, recursive: bool = False
                   ) -> tuple[float, np.ndarray]:
     """Nonlinear stage acceleration x0'' [m/s^2] and theta'' (n,) [rad/s^2] at bench state z
@@ -400,13 +415,9 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
         for col in range(nz):
             z_out[kk, col] = z[col]
         for sub in range(nsub):
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, z, alpha, f1)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                                  alpha, f1)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
+                            alpha, f1)
             if sub == 0:
                 ax_out[kk] = ax
             for r in range(nz):
@@ -423,38 +434,26 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f1[i]
                 zt[r] = p2[r] + 0.5 * h * acc
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, zt, alpha, f2)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                                  alpha, f2)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
+                            alpha, f2)
             # stage 3
             for r in range(nz):
                 zt[r] = p2[r]
             for i in range(nf):
                 zt[rows[i]] += 0.5 * h * f2[i]
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, zt, alpha, f3)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                                  alpha, f3)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
+                            alpha, f3)
             # stage 4
             for r in range(nz):
                 acc = 0.0
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f3[i]
                 zt[r] = ph[r] + h * acc
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, zt, alpha, f4)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                                  alpha, f4)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
+                            alpha, f4)
             # the step
             for r in range(nz):
                 acc = 0.0
@@ -674,13 +673,9 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     dt = np.empty(nz)
     n_s = v.shape[0]
     n_rec = n_s - k_rec
-    if two:
-        ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                         wc, a_rows, z, alpha, f)
-    else:
-        ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                          m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                          alpha, f)
+    ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                    mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
+                    alpha, f)
     for kk in range(n_s):
         for j in range(n):
             if abs(z[th0 + j]) > peaks[0, j]:
@@ -707,13 +702,9 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
             zt[r] = acc
         for r in range(nz):
             z[r] = zt[r]
-        if two:
-            ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                             wc, a_rows, z, alpha, fn)
-        else:
-            ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                              m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                              alpha, fn)
+        ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                        mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
+                        alpha, fn)
         for r in range(nz):
             acc = 0.0
             for col in range(nz):

@@ -437,7 +437,8 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         ``theta0``/``omega0`` (same method: bit for bit as one longer run; the next block's input
         starts at this state's time).
     algorithm : right-hand side of rk4 and dop853: ``"auto"`` (default: scalar code for n = 2,
-        the O(n) articulated-body recursion from :data:`rig.solvers._kernels.RECURSIVE_FROM_N` bodies),
+        the O(n) articulated-body recursion from
+        :data:`rig.solvers._kernels.RECURSIVE_FROM_N` bodies),
         ``"dense"`` (mass-matrix Cholesky solve, O(n^3)) or ``"recursive"``; the same equations
         (tests: equal to round-off).
 

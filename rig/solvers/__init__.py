@@ -99,6 +99,7 @@ def integrate(chain, native0, ax, ay, *, hold: str, h_in: float, n_intervals: in
     return solver.advance(chain, np.array(native0, dtype=float), held, h0_s=h0_s)
 
 
-__all__ = ["SOLVERS", "COUPLED_BENCH", "PENDULUM", "names_for", "HOLDS", "HeldInput", "Refinement", "Run", "Solver", "integrate",
+__all__ = ["SOLVERS", "COUPLED_BENCH", "PENDULUM", "names_for", "HOLDS", "HeldInput", "Refinement",
+           "Run", "Solver", "integrate",
            "output_rows", "solver_named", "RK4", "Dop853", "Gauss4", "Midpoint", "Exact", "Etd3",
            "Etd3m", "Etd4m", "Lawson4", "Etdab", "ExactBench"]

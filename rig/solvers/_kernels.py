@@ -17,9 +17,10 @@ Non-finite values are looked for once per output sample (not per step); a kernel
 turns into :class:`rig.errors.DivergenceError`. Some are compiled with ``fastmath={"contract"}``
 (fused multiply-adds only: no reassociation, the same results for any block split).
 
-Why one file: numba's on-disk cache of a function is invalidated by changes to its own file only
-(numba/numba#1833), so kernels that call each other live together and the cache cannot go stale.
-Tests hold the right-hand sides to :func:`rig.chain.accel_kernel`.
+The shared primitives here are also called from :mod:`rig.chain` (the Cholesky solve) and
+:mod:`rig.coupled` (the polynomial sines); numba's on-disk cache would not see a change here from
+there (numba/numba#1833), so :mod:`rig._jit` keys the cache directory by a hash of every kernel
+file. Tests hold the right-hand sides to :func:`rig.chain.accel_kernel`.
 
 References
 ----------
@@ -2180,21 +2181,21 @@ def etd4m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, w
             ok = _store(y, y_out, row)
             row += 1
             if not ok:
-                _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00,
-                       d01, d10, d11, d20, d21)
+                _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21,
+                             d00, d01, d10, d11, d20, d21)
                 return NONFINITE, row, (k + 1) * m, nev
     y[0] = z0
     y[1] = z1
     y[2] = z2
     y[3] = z3
-    _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10, d11,
-           d20, d21)
+    _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
+                 d11, d20, d21)
     return OK, row, n_steps * m, nev
 
 
 @njit(cache=True)
-def _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10, d11,
-           d20, d21):
+def _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
+                 d11, d20, d21):
     hist[0, 0], hist[0, 1], hist[0, 2], hist[0, 3], hist[0, 4], hist[0, 5] = (
         a00, a01, a10, a11, a20, a21)
     hist[1, 0], hist[1, 1], hist[1, 2], hist[1, 3], hist[1, 4], hist[1, 5] = (

@@ -1,4 +1,4 @@
-"""The solver interface: what every method of :mod:`rig.solvers` provides, and its inputs and result.
+"""The solver interface: what every method of :mod:`rig.solvers` provides, its input and result.
 
 A solver steps the chain on a prescribed, *held* base input (:class:`HeldInput`): input interval
 ``k`` is ``[k h_in, (k+1) h_in)`` and inside it the base accelerations are ``u(t_k + s) = u_k``

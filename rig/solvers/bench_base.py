@@ -7,7 +7,8 @@ model's ``substeps`` (:func:`rig.bench.build_model`), so the solver's ``substeps
 model's: :meth:`BenchSolver.advance_bench` checks it. ``advance_bench(model, z, native, v)``
 steps ``z`` (in place, to the end of the block) over ``len(v)`` DAC intervals and returns
 ``(z_out, accel, native)``: the states at the DAC instants, the stage acceleration x0'' [m/s^2]
-at them (``None`` for the linear bench: ``z_out @ model.accel_row``) and the method's state for the next block (``None`` where it keeps none).
+at them (``None`` for the linear bench: ``z_out @ model.accel_row``) and the method's state for
+the next block (``None`` where it keeps none).
 """
 
 from __future__ import annotations

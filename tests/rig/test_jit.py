@@ -41,3 +41,34 @@ def test_a_lazy_kernel_forwards_to_its_dispatcher():
     np.testing.assert_array_equal(q, [2.0, 0.5])
     assert f.py_func(0.25, np.array([1.0, 0.0]), 4.0).tolist() == [2.0, 0.5]
     assert len(f.signatures) >= 1  # a dispatcher attribute, through the lazy object
+
+
+def test_the_cache_directory_is_keyed_by_every_kernel_source(tmp_path, monkeypatch):
+    """numba's cache checks a kernel's own file only; rig._jit keys the whole cache by a hash of
+    every kernel file, so a change in a callee's file (rig.solvers._kernels, called from rig.chain
+    and rig.coupled) starts a fresh cache."""
+    import rig.chain  # noqa: F401  (registers kernels that call rig.solvers._kernels)
+    import rig.coupled  # noqa: F401
+    from rig import _jit
+
+    names = {p.relative_to(p.parents[1]).as_posix() for p in _jit.kernel_sources()}
+    assert {"rig/chain.py", "rig/coupled.py", "solvers/_kernels.py"} <= names
+    src = tmp_path / "k.py"
+    src.write_text("@njit(cache=True)\ndef f(x):\n    return x + 1.0\n")
+    monkeypatch.setattr(_jit, "kernel_sources", lambda: [src])
+    before = _jit.cache_dir()
+    assert before == _jit.cache_dir()  # a pure function of the sources
+    src.write_text("@njit(cache=True)\ndef f(x):\n    return x + 2.0\n")
+    after = _jit.cache_dir()
+    assert after != before and after.parent == before.parent
+
+
+def test_the_lazy_loader_names_no_package_of_its_own():
+    """rig._jit patches the packages of the registered kernels (found at run time), never a
+    package named in its source (rig must not know daq or processing)."""
+    from pathlib import Path
+
+    import rig._jit
+
+    text = Path(rig._jit.__file__).read_text()
+    assert '"daq"' not in text and '"processing"' not in text

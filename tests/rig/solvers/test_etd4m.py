@@ -27,7 +27,8 @@ def piece(paper):
     0.01 s; within 1e-12 of 4 steps per sample, tests/rig/solvers/test_exponential.py)."""
     base = paper_input(100.0)
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10, solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
+                    n_intervals=base.n_intervals, out_every=10,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
     return base, ref
 
 
@@ -109,7 +110,8 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
     for m in (1, 5, 10):
         for hold in ("zoh", "linear"):
             run = integrate(paper, solver_named("etd4m").init(paper, y0), ax, ay, hold=hold, h_in=h,
-                            n_intervals=n_int, out_every=10, solver=solver_named("etd4m", samples_per_step=m))
+                            n_intervals=n_int, out_every=10,
+                            solver=solver_named("etd4m", samples_per_step=m))
             co = etd4m_coefficients(paper, h, m, hold)
             y = y0.copy()
             y_out = np.empty((n_int // 10 + 1, 4))
@@ -146,7 +148,8 @@ def test_strongly_nonlinear_chain_converges_at_order_4_with_the_generic_kernel()
     base = BaseInput(ax, 5e-3, "linear", ay)
     y0 = (0.3, -0.2, 0.1, 0.0, 0.0, 0.0)
     ref = integrate(chain, np.array(y0), ax, ay, hold="linear", h_in=5e-3, n_intervals=2000,
-                    out_every=20, solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
+                    out_every=20,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
     e4 = [rel_rms_error(_run(chain, base, "etd4m", m, 20, y0).y_out[:, :3], ref)
           for m in (1, 2, 4)]
     e3 = [rel_rms_error(_run(chain, base, "etd3m", m, 20, y0).y_out[:, :3], ref)
@@ -164,7 +167,8 @@ def test_one_sample_per_step_estimates_against_a_tight_dop853_run(paper):
                   output_dt_s=0.01)
     assert "dop853 at rtol = 1e-12" in tr.error_method
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10, solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
+                    n_intervals=base.n_intervals, out_every=10,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
     err = np.sqrt(np.mean((tr.theta_rad - ref) ** 2))
     est = np.sqrt(np.mean(tr.error_estimate_rad ** 2))
     assert 1 / 3 < err / est < 3, (err, est)

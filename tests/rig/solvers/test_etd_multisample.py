@@ -28,7 +28,8 @@ def piece(paper):
     0.01 s; within 1e-12 of 4 steps per sample, tests/rig/solvers/test_exponential.py)."""
     base = paper_input(100.0)
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10, solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
+                    n_intervals=base.n_intervals, out_every=10,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
     return base, ref
 
 
@@ -45,7 +46,8 @@ def test_etd3m_order_from_a_step_halving_sequence(paper):
     3.8)."""
     base = paper_input(20.0)
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=16, solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
+                    n_intervals=base.n_intervals, out_every=16,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
     ms = np.array([2, 4, 8, 16])
     errors = np.array([rel_rms_error(_run(paper, base, m, 16).y_out[:, :2], ref) for m in ms])
     slope = np.polyfit(np.log(ms), np.log(errors), 1)[0]
@@ -125,7 +127,8 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
     y0 = np.array([0.01, -0.02, 0.0, 0.1])
     for hold in ("zoh", "linear"):
         run = integrate(paper, solver_named("etd3m").init(paper, y0), ax, ay, hold=hold, h_in=h,
-                        n_intervals=n_int, out_every=10, solver=solver_named("etd3m", samples_per_step=m))
+                        n_intervals=n_int, out_every=10,
+                        solver=solver_named("etd3m", samples_per_step=m))
         co = etd3m_coefficients(paper, h, m, hold)
         y = y0.copy()
         y_out = np.empty((n_int // 10 + 1, 4))
@@ -149,7 +152,8 @@ def test_linear_hold_and_vertical_input_track_etd3_and_converge():
     base = BaseInput(ax, 5e-3, "linear", ay)
     y0 = (0.3, -0.2, 0.1, 0.0, 0.0, 0.0)
     ref = integrate(chain, np.array(y0), ax, ay, hold="linear", h_in=5e-3, n_intervals=2000,
-                    out_every=20, solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
+                    out_every=20,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
     etd = integrate(chain, solver_named("etd3").init(chain, y0), ax, ay, hold="linear", h_in=5e-3,
                     n_intervals=2000, out_every=20, solver=solver_named("etd3")).y_out[:, :3]
     e_etd = rel_rms_error(etd, ref)
@@ -193,10 +197,12 @@ def test_bad_steps_are_refused_with_the_valid_ones(paper):
         simulate(paper, 1.0, theta0=0.0, method="etd3m")
     with pytest.raises(ConfigError, match=r"samples_per_step = 3 \(dt_s = 0\.003 s\) is invalid"):
         integrate(paper, solver_named("etd3m").init(paper, np.zeros(4)), base.ax_mps2, None, hold="zoh",
-                  h_in=1e-3, n_intervals=1000, out_every=10, solver=solver_named("etd3m", samples_per_step=3))
+                  h_in=1e-3, n_intervals=1000, out_every=10,
+                  solver=solver_named("etd3m", samples_per_step=3))
     with pytest.raises(ConfigError, match="samples_per_step = 0 is invalid"):
         integrate(paper, solver_named("etd3m").init(paper, np.zeros(4)), base.ax_mps2, None, hold="zoh",
-                  h_in=1e-3, n_intervals=1000, out_every=10, solver=solver_named("etd3m", samples_per_step=0))
+                  h_in=1e-3, n_intervals=1000, out_every=10,
+                  solver=solver_named("etd3m", samples_per_step=0))
     # the default: the longest step dividing the output interval within 1/(100 f_max)
     tr = simulate(paper, 1.0, estimate_error=False, **kw)
     assert tr.settings["samples_per_step"] == 2

@@ -22,7 +22,8 @@ from chains import blockwise_and_one_shot, random_chain, rod_chain
 def dop_fixed(chain, base, y0, substeps):
     """DOP853 driven with fixed steps (no error control): the reference."""
     return integrate(chain, y0, base.ax_mps2, base.ay_mps2, hold=base.hold, h_in=base.dt_s,
-                     n_intervals=base.n_intervals, out_every=1, solver=solver_named("dop853", substeps=substeps, adaptive_steps=False)).y_out
+                     n_intervals=base.n_intervals, out_every=1,
+                     solver=solver_named("dop853", substeps=substeps, adaptive_steps=False)).y_out
 
 
 @pytest.fixture(scope="module")
@@ -180,7 +181,8 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
         for kernel in ("scalar", "generic"):
             if kernel == "scalar":
                 run = integrate(paper, solver_named("etd3").init(paper, [0.01, -0.02, 0.0, 0.1]), ax, ay,
-                                hold=hold, h_in=h, n_intervals=n_int, out_every=10, solver=solver_named("etd3"))
+                                hold=hold, h_in=h, n_intervals=n_int, out_every=10,
+                                solver=solver_named("etd3"))
                 outs.append(run.y_out)
                 continue
             y = np.array([0.01, -0.02, 0.0, 0.1])

@@ -90,7 +90,8 @@ def _forced_rod_problem():
 
 def _dop_fixed(chain, base, y0, substeps):
     return integrate(chain, y0, base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                     n_intervals=base.n_intervals, out_every=1, solver=solver_named("dop853", substeps=substeps, adaptive_steps=False)).y_out
+                     n_intervals=base.n_intervals, out_every=1,
+                     solver=solver_named("dop853", substeps=substeps, adaptive_steps=False)).y_out
 
 
 def _fitted_order(errors, steps):
@@ -174,7 +175,8 @@ def test_dop853_estimate_is_honest_when_the_sample_grid_sets_the_step(dt_s):
     tr = simulate(chain, 20.0, theta0=0.0, base=base, method="dop853", rtol=1e-8,
                   output_dt_s=10 * dt_s)
     ref = integrate(chain, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=dt_s, n_intervals=n,
-                    out_every=10, solver=solver_named("dop853", substeps=8, adaptive_steps=False)).y_out
+                    out_every=10,
+                    solver=solver_named("dop853", substeps=8, adaptive_steps=False)).y_out
     true = np.abs(tr.theta_rad - ref[:, :2]).max()
     assert tr.n_steps < 2.1 * n
     assert 0.5 < true / tr.max_error_rad < 2.0, (true, tr.max_error_rad)

@@ -40,7 +40,8 @@ def _per_substep(chain, base, seconds, out_every, substeps, y0=None):
     """The reference: the per-substep kernel (integrate(..., lift=False)), (theta, omega) rows."""
     y0 = np.zeros(2 * chain.n) if y0 is None else np.asarray(y0, float)
     return integrate(chain, y0, base.ax_mps2, None, hold=base.hold, h_in=base.dt_s,
-                     n_intervals=round(seconds / base.dt_s), out_every=out_every, solver=solver_named("linear", substeps=substeps, lift=False)).y_out
+                     n_intervals=round(seconds / base.dt_s), out_every=out_every,
+                     solver=solver_named("linear", substeps=substeps, lift=False)).y_out
 
 
 # -- the lifted map ------------------------------------------------------------------------------
