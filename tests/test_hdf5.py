@@ -230,7 +230,7 @@ def test_existing_files_are_replaced_only_with_force_and_only_by_a_complete_run(
 
 WRITER = textwrap.dedent("""
     import sys
-    sys.path.insert(0, {tests!r})
+    sys.path[:0] = [{tests!r}, {root!r}]  # the root too: tests/rig/ is not the rig package
     from test_hdf5 import bench, scene
     from daq.acquisition import acquire
     acquire(scene(200, 1.0, 0.5), seed=11, out=sys.argv[1], bench=bench(delay_s=0.03))
@@ -241,7 +241,10 @@ def test_a_killed_writer_leaves_a_readable_file_that_could_be_followed_while_it_
     import xarray as xr
 
     script = tmp_path / "writer.py"
-    script.write_text(WRITER.format(tests=str(Path(__file__).parent)))
+    import rig
+
+    script.write_text(WRITER.format(tests=str(Path(__file__).parent),
+                                    root=str(Path(rig.__file__).resolve().parent.parent)))
     out = tmp_path / "run.h5"
     proc = subprocess.Popen([sys.executable, str(script), str(out)], stderr=subprocess.PIPE)
     try:
