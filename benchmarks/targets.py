@@ -12,7 +12,7 @@
    DOP853 at 2 fixed steps per sample (whose own error, against 4 steps per sample, is printed).
    Target: <= 1e-6 in <= 0.3 s (stretch: 0.06 s). The linear model is timed twice: as
    ``simulate`` runs it (lifted to the 100 Hz output rate: one step of Phi^10 and a FIR of the
-   input per row) and stepped once per 1 ms input interval (``integrate(..., lift=False)``, the
+   input per row) and stepped once per 1 ms input interval (``Exact(lift=False)``, the
    path before lifting), with the round-off between the two; "kernel" is
    ``Trajectory.wall_time_s`` (the integration alone, without ``simulate``'s planning around
    it), and once against ``scipy.signal.lsim`` (zero-order hold, the same state space and input;
@@ -36,6 +36,7 @@ The machine is shared (2 vCPUs): the load average is printed before and after.
 """
 
 import argparse
+import dataclasses
 import functools
 import os
 import sys
@@ -48,7 +49,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.work_precision import paper_input, rel_rms_error  # noqa: E402
-from rig.integrators import integrate  # noqa: E402
+from rig.solvers import integrate, solver_named  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 from rig.simulate import simulate  # noqa: E402
 
@@ -82,8 +83,9 @@ def main(argv=None):
     chain = load_scene("ishizaki2009").chain
     base = paper_input(3000.0)
     ref_runs = [integrate(chain, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                          n_intervals=base.n_intervals, out_every=10, method="dop853",
-                          substeps=k, adaptive=False).y_out[:, :2] for k in (2, 4)]
+                          n_intervals=base.n_intervals, out_every=10,
+                          solver=solver_named("dop853", substeps=k, adaptive_steps=False)
+                          ).y_out[:, :2] for k in (2, 4)]
     ref = ref_runs[0]
     print(f"paper's run, 3000 s: reference DOP853 2 steps/sample, its error against 4 "
           f"steps/sample: {rel_rms_error(ref_runs[1], ref):.1e}")
@@ -110,7 +112,9 @@ def main(argv=None):
              cpus, f"error {err:.2g}; {3000 / np.median(walls):,.0f}x real time")
         if method == "linear":
             lifted_wall = np.median(walls)
-            per_interval = functools.partial(integrate, lift=False)
+            def per_interval(*args, solver, **kwargs):  # the linear method with lift=False
+                return integrate(*args, solver=dataclasses.replace(solver, lift=False), **kwargs)
+
             with mock.patch("rig.simulate.integrate", per_interval):
                 walls, cpus, tr_pi = timed(lambda: simulate(chain, 3000.0, **kw), args.repeats)
             line("paper 3000 s linear per 1 ms interval", walls, cpus,

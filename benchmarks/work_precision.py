@@ -66,8 +66,9 @@ from scipy.integrate import solve_ivp
 
 from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
-from rig.integrators import (RECURSIVE_FROM_N, _rhs, bodies_array, integrate, rhs_algorithm,
-                             to_native)
+from rig.solvers import integrate, solver_named
+from rig.solvers._kernels import RECURSIVE_FROM_N, _rhs
+from rig.solvers.rhs import bodies_array, rhs_algorithm
 from rig.ishizaki import chain_from_design
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
@@ -503,8 +504,9 @@ def scene_paper(ctx: _Ctx) -> SceneResult:
 
     def dop(k):
         return integrate(chain, y0, base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                         n_intervals=n_int, out_every=10, method="dop853", substeps=k,
-                         adaptive=False).y_out[:, :2]
+                         n_intervals=n_int, out_every=10,
+                         solver=solver_named("dop853", substeps=k, adaptive_steps=False)
+                         ).y_out[:, :2]
 
     ref = dop(2)
     ref_err = rel_rms_error(dop(4), ref)
@@ -694,7 +696,8 @@ def _dop_fixed_free(chain, z0, duration, dt, out_dt, omega=False):
     per = round(out_dt / dt)
     n_out = round(duration / out_dt)
     y = integrate(chain, z0, np.zeros(n_out), None, hold="zoh", h_in=out_dt, n_intervals=n_out,
-                  out_every=1, method="dop853", substeps=per, adaptive=False).y_out
+                  out_every=1,
+                  solver=solver_named("dop853", substeps=per, adaptive_steps=False)).y_out
     return y[:, chain.n:] if omega else y[:, :chain.n]
 
 
@@ -792,7 +795,8 @@ def rhs_cost(ns=(2, 3, 5, 10, 20, 50, 100), repeats=5) -> dict:
         for alg in ("dense", "recursive"):
             def go():
                 integrate(chain, y0, np.zeros(1), None, hold="zoh", h_in=1e-6 * steps,
-                          n_intervals=1, out_every=1, method="rk4", substeps=steps, algorithm=alg)
+                          n_intervals=1, out_every=1,
+                          solver=solver_named("rk4", substeps=steps, algorithm=alg))
             go()
             walls, _, _ = _timed(go, repeats, 5.0)
             row[alg] = min(walls) / steps / 4 * 1e9
@@ -942,8 +946,9 @@ def scene_degenerate(ctx: _Ctx) -> SceneResult:
 
         def dop(kk, chain=chain):
             return integrate(chain, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                             n_intervals=base.n_intervals, out_every=10, method="dop853",
-                             substeps=kk, adaptive=False).y_out[:, :2]
+                             n_intervals=base.n_intervals, out_every=10,
+                             solver=solver_named("dop853", substeps=kk, adaptive_steps=False)
+                             ).y_out[:, :2]
 
         ref = dop(k)
         ref_errs.append(rel_rms_error(dop(2 * k), ref))
@@ -995,7 +1000,7 @@ import json, sys, time
 import numpy as np
 t = time.perf_counter()
 from rig.chain import Chain
-from rig.integrators import integrate, to_native
+from rig.solvers import integrate, solver_named
 imp = time.perf_counter() - t
 two = Chain((1.0, 1.0), (1.0, 1.0), (0.5, 0.5), (1 / 12, 1 / 12), (0.01, 0.01), "relative")
 five = Chain((1.0,) * 5, (1.0,) * 5, (0.5,) * 5, (1 / 12,) * 5, (0.01,) * 5, "relative")
@@ -1003,9 +1008,9 @@ out = {"import": imp}
 for method in sys.argv[1:]:
     t = time.perf_counter()
     for ch in (two, five):
-        y0 = to_native(ch, method, np.concatenate([np.full(ch.n, 0.1), np.zeros(ch.n)]))
+        y0 = solver_named(method).init(ch, np.concatenate([np.full(ch.n, 0.1), np.zeros(ch.n)]))
         integrate(ch, y0, np.zeros(11), None, hold="linear", h_in=1e-3, n_intervals=10,
-                  out_every=1, method=method)
+                  out_every=1, solver=solver_named(method))
     out[method] = time.perf_counter() - t
 print(json.dumps(out))
 """

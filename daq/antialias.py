@@ -65,7 +65,7 @@ import numpy as np
 
 from rig.acquisition_settings import decimation_factor
 from rig.errors import ConfigError
-from rig.jit import njit
+from rig._jit import njit
 
 KINDS = ("elliptic", "none")
 

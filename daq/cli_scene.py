@@ -12,6 +12,7 @@ import numpy as np
 from daq.cli_common import fmt, force_option, set_option
 from daq.cli_live import viewer_stream
 from rig._io import atomic_output, check_writable
+from rig.solvers import PENDULUM, SOLVERS, names_for
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -146,10 +147,9 @@ def _floats(ctx, param, value):
 @click.option("--omega0", callback=_floats, metavar="A,B,...",
               help="Initial angular velocities [rad/s] (default: the scene's).")
 @click.option("--method", default="dop853", show_default=True,
-              type=click.Choice(["dop853", "rk4", "gauss4", "midpoint", "etd3", "etd3m",
-                                 "linear"]),
-              help="Integrator (rig.integrators.METHODS; etd3m steps over held input samples, "
-                   "so it needs a moving base: on this fixed base use etd3).")
+              type=click.Choice(names_for(PENDULUM)),
+              help="Integrator (rig.solvers.SOLVERS; etd3m and etd4m step over held input "
+                   "samples, so they need a moving base: on this fixed base use etd3).")
 @click.option("--rtol", type=float, help="Relative tolerance of dop853 [default 1e-10].")
 @click.option("--dt", "dt_s", type=float, help="Step of the fixed-step methods [s].")
 @click.option("--output-dt", "output_dt_s", type=float,
@@ -177,8 +177,8 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
 
     if rtol is not None and dt_s is not None:
         raise click.UsageError("give --rtol (adaptive dop853) or --dt (fixed step), not both")
-    if method == "etd3m":
-        raise click.UsageError("--method etd3m steps over several held samples of a moving "
+    if SOLVERS[method].multisample:
+        raise click.UsageError(f"--method {method} steps over several held samples of a moving "
                                "base's input; daq simulate runs the pendulum on a fixed base: "
                                "use --method etd3 (the same exponential integrator)")
     if out is None and not (live or rrd):

@@ -18,7 +18,7 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     The coil, stage, linearised pendulum (with its reaction on the stage if ``stage.reaction``)
     and the accelerometer's high-pass form one linear system ``z' = A z + B V``
     (:meth:`rig.devices.stage.Stage.state_space`). It is discretised exactly for the held input with
-    :func:`rig.integrators.discretise` (``z_{k+1} = Phi z_k + Gamma V_k``, Van Loan's matrix
+    :func:`rig.solvers.exact.discretise` (``z_{k+1} = Phi z_k + Gamma V_k``, Van Loan's matrix
     exponential) and stepped by a compiled loop: exact at the DAC instants up to round-off, ~0.1 us
     per sample for the Ishizaki pendulum. The sensors read the states at the instants. Its error
     is the linearisation (a model error, predicted by :func:`predict_linearisation_error`).
@@ -39,7 +39,7 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     drive (round-off), 1e-10 at 1 V (theta1 ~ 0.06 rad); halving the step divides it by 25-50.
     ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the stage is
     discretised exactly at ``h / oversample`` and the pendulum's nonlinear equations are
-    integrated through :func:`rig.integrators.integrate` on that prescribed stage acceleration,
+    integrated through :func:`rig.solvers.integrate` on that prescribed stage acceleration,
     linear between the sub-instants (``hold="linear"``, O((h/oversample)^2)); its error estimate
     adds the input interpolation (the linearised pendulum through the same interpolated input
     against the exact linear bench) to the integrator's (Richardson). For ``ishizaki2009``
@@ -133,6 +133,7 @@ Public API: :class:`BenchSimulation`, :class:`BenchModel`, :class:`BenchState`,
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -145,8 +146,10 @@ from rig.blocks import AnalogBlock, Calibration
 from rig import coupled as rcoupled
 from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
-from rig.integrators import METHODS, discretise, integrate, to_native
-from rig.jit import njit
+from rig.solvers import COUPLED_BENCH, Exact, ExactBench, integrate, solver_named
+from rig.solvers.etdab import ETDAB_ORDER
+from rig.solvers.exact import discretise
+from rig._jit import njit
 from rig._threads import Prefetch
 from rig.devices.optical_lever import OpticalLever
 from rig.linear import FrequencyResponse
@@ -158,7 +161,6 @@ MODELS = ("auto", "linear", "nonlinear")  # acquisition.model; "auto" resolves t
 NONLINEAR_METHODS = ("lawson4", "etdab", "rk4", "gauss4", "dop853")
 COUPLED_METHODS = ("lawson4", "etdab")  # rig.coupled: the whole bench as one system
 DEFAULT_METHOD = "etdab"
-ETDAB_ORDER = 4  # past remainder values per etdab step (the order of the method)
 PRESCRIBED_STAGE_METHODS = ("rk4", "gauss4", "dop853")  # rig.integrators on a given stage motion
 PREDICTOR_ENTROPY = 20090005  # the predictor's own random stream (the choice is the scene's)
 PREDICTOR_BATCHES = 8
@@ -230,6 +232,16 @@ class BenchModel:
     def chain(self) -> Chain:
         """The pendulum."""
         return self.scene.chain
+
+    @functools.cached_property
+    def solver(self):
+        """The solver this model runs (:mod:`rig.solvers`): the exact linear bench for the linear
+        model, else ``method`` at ``substeps`` steps per DAC interval (lawson4, etdab: the
+        coupled bench) or per sub-interval (the prescribed-stage methods; dop853 at ``rtol``,
+        ``atol``)."""
+        if self.model == "linear":
+            return ExactBench()
+        return solver_named(self.method, substeps=self.substeps, rtol=self.rtol, atol=self.atol)
 
     @property
     def n_states(self) -> int:
@@ -416,8 +428,7 @@ def start(model: BenchModel, seed=0) -> BenchState:
             for name, child in zip(STREAMS[1:], children[1:])}
     native = None
     if model.model == "nonlinear" and model.method not in COUPLED_METHODS:
-        native = to_native(model.chain, model.method,
-                           np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
+        native = model.solver.init(model.chain, np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
     entropy = root.entropy if isinstance(root.entropy, int) else None
     return BenchState(index=0, z=_readonly(z), source=src, rng_states=rngs, native=native,
                       seed_entropy=entropy)
@@ -433,36 +444,6 @@ def _rng(state: dict) -> np.random.Generator:
     bg = np.random.PCG64(0)  # a fixed seed: cheaper than OS entropy, overwritten at once
     bg.state = state
     return np.random.Generator(bg)
-
-
-@njit(cache=True, nogil=True)
-def linear_bench_kernel(phi_t, gamma, v, z, z_out):
-    """z_out[k] = z_k, z_{k+1} = phi z_k + gamma v_k for k < len(v) (>= 1); z (in/out) ends at
-    z_N; ``phi_t`` is phi transposed (C order).
-
-    Row r of z_{k+1} is summed as ``gamma[r] v_k + phi[r, 0] z_k[0] + phi[r, 1] z_k[1] + ...`` in
-    that order whatever the block split (bit-exact blocks); the loop runs over columns outside and
-    rows inside, so the rows' independent sums proceed together in vector registers (1.5x faster
-    than a row-by-row dot product, with the same rounding)."""
-    nz = z.shape[0]
-    n = v.shape[0]
-    for r in range(nz):
-        z_out[0, r] = z[r]
-    for k in range(n - 1):
-        vk = v[k]
-        for r in range(nz):
-            z_out[k + 1, r] = gamma[r] * vk
-        for c in range(nz):
-            zc = z_out[k, c]
-            for r in range(nz):
-                z_out[k + 1, r] += phi_t[c, r] * zc
-    vk = v[n - 1]
-    for r in range(nz):
-        z[r] = gamma[r] * vk
-    for c in range(nz):
-        zc = z_out[n - 1, c]
-        for r in range(nz):
-            z[r] += phi_t[c, r] * zc
 
 
 @njit(cache=True, nogil=True)
@@ -544,34 +525,15 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     chain = model.chain
     z = np.array(state.z, dtype=float)
     native, h_next = state.native, state.h_next_s
-    if model.model == "linear":
-        z_out = np.empty((n, z.size))
-        linear_bench_kernel(np.ascontiguousarray(model.phi.T), model.gamma, v, z, z_out)
+    solver = model.solver
+    if COUPLED_BENCH in solver.systems:  # the whole bench as one system
+        z_out, accel, native = solver.advance_bench(model, z, native, v)
         _check_finite(model, state, z_out, z, t0, n)
         theta = z_out[:, sl["theta_rad"]]
         omega = z_out[:, sl["omega_rad_s"]]
-        accel = z_out @ model.accel_row
-    elif model.method == "lawson4":
-        z_out = np.empty((n, z.size))
-        accel = np.empty(n)
-        e_h, e_2, g_h, g_2 = model.lawson
-        rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
-                               1.0 / (fs * model.substeps), model.substeps, v, z, z_out, accel)
-        _check_finite(model, state, z_out, z, t0, n)
-        theta = z_out[:, sl["theta_rad"]]
-        omega = z_out[:, sl["omega_rad_s"]]
-    elif model.method == "etdab":
-        z_out = np.empty((n, z.size))
-        accel = np.empty(n)
-        hist = (np.zeros((ETDAB_ORDER, model.coupled.rows.size)) if native is None
-                else np.array(native, dtype=float))
-        rcoupled.etd_ab_kernel(*model.coupled.args(), *model.etdab, model.substeps,
-                               native is not None, hist, v, z, z_out, accel)
-        native = hist
-        _check_finite(model, state, z_out, z, t0, n)
-        theta = z_out[:, sl["theta_rad"]]
-        omega = z_out[:, sl["omega_rad_s"]]
-    else:
+        if accel is None:
+            accel = z_out @ model.accel_row
+    else:  # the pendulum on the exactly stepped stage's motion
         n2 = 2 * chain.n  # the stage-only system is z without theta, omega (same order)
         stage_idx = np.r_[0:3, 3 + n2:z.size]
         zs = z[stage_idx].copy()
@@ -581,9 +543,7 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
         stage_fine_kernel(model.stage_phi, model.stage_gamma, model.stage_accel_row, v, m, zs,
                           zs_out, a_fine)
         run = integrate(chain, native, a_fine, None, hold="linear", h_in=1.0 / (fs * m),
-                        n_intervals=n * m, out_every=m, method=model.method,
-                        substeps=model.substeps, rtol=model.rtol, atol=model.atol,
-                        h0_s=h_next, t0_s=t0)
+                        n_intervals=n * m, out_every=m, solver=solver, h0_s=h_next, t0_s=t0)
         native, h_next = run.native_end, run.h_next_s
         y = run.y_out  # (n + 1, 2n): theta, omega at the DAC instants
         z_out = np.empty((n, z.size))
@@ -1236,19 +1196,7 @@ def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
 
 def _kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarray:
     """Angles at the DAC instants of the linear, lawson4 or etdab kernel alone (no sensors)."""
-    z = z0.copy()
-    z_out = np.empty((v.size, z.size))
-    if model.model == "linear":
-        linear_bench_kernel(np.ascontiguousarray(model.phi.T), model.gamma, v, z, z_out)
-    elif model.method == "etdab":
-        rcoupled.etd_ab_kernel(*model.coupled.args(), *model.etdab, model.substeps, False,
-                               np.zeros((ETDAB_ORDER, model.coupled.rows.size)), v, z, z_out,
-                               np.empty(v.size))
-    else:
-        e_h, e_2, g_h, g_2 = model.lawson
-        rcoupled.lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
-                                1.0 / (model.fs_hz * model.substeps), model.substeps, v, z, z_out,
-                                np.empty(v.size))
+    z_out, _, _ = model.solver.advance_bench(model, z0.copy(), None, v)
     return z_out[:, model.slices["theta_rad"]]
 
 
@@ -1383,7 +1331,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
             "remainder: the linear part is exact). 'probe_nonlinear_minus_linear' is the model "
             "difference on the probe (the run's is predicted in 'selection')")
     else:
-        mi = METHODS[model.method]
+        mi = model.solver
         info["method"] = (f"nonlinear pendulum via rig.integrators {model.method} "
                           f"({mi.description}), {model.substeps} step(s) per sub-interval; stage "
                           f"and accelerometer exact (ZOH) at {model.oversample} sub-instants per "
@@ -1400,7 +1348,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
                           np.empty((n, zs.size)), a_fine)
         y0 = np.concatenate([scene.theta0_rad, scene.omega0_rad_s])
         lin = integrate(scene.chain, y0, a_fine, None, hold="linear", h_in=1 / (fs * m),
-                        n_intervals=n * m, out_every=m, method="linear")
+                        n_intervals=n * m, out_every=m, solver=Exact())
         d_input = lin.y_out[:n, :scene.chain.n] - theta_exact
         e_input = float(np.max(np.abs(d_input)))
         # (2) integrator: Richardson against twice the steps
@@ -1408,7 +1356,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
                            substeps=2 * model.substeps, rtol=model.rtol / 100,
                            atol=model.atol / 100, selection=model.selection)
         theta_f = _probe_theta(fine, n, seed)
-        if mi.order is not None and mi.kind != "adaptive":
+        if mi.order is not None and not mi.adaptive:
             factor = 2.0**mi.order / (2.0**mi.order - 1.0)
             how_int = (f"Richardson |theta - theta(2x steps)| 2^{mi.order}/(2^{mi.order} - 1)")
         else:

@@ -27,7 +27,8 @@ import numpy as np
 import scipy.linalg
 
 from rig.errors import ConfigError
-from rig.jit import njit
+from rig._jit import njit
+from rig.solvers._kernels import _cholesky_solve
 
 G_STANDARD = 9.80665  # m/s^2
 DAMPING_MODES = ("absolute", "relative")
@@ -327,34 +328,6 @@ class Chain:
 # -- compiled kernels (shared by every integrator) ----------------------------------------
 
 @njit(cache=True)
-def solve_spd_inplace(a, b):
-    """Solve a x = b for symmetric positive definite a (n, n) by Cholesky; overwrites a and b
-    (x is returned in b)."""
-    n = b.shape[0]
-    for j in range(n):
-        s = a[j, j]
-        for k in range(j):
-            s -= a[j, k] * a[j, k]
-        d = math.sqrt(s)
-        a[j, j] = d
-        for i in range(j + 1, n):
-            s = a[i, j]
-            for k in range(j):
-                s -= a[i, k] * a[j, k]
-            a[i, j] = s / d
-    for i in range(n):
-        s = b[i]
-        for k in range(i):
-            s -= a[i, k] * b[k]
-        b[i] = s / a[i, i]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for k in range(i + 1, n):
-            s -= a[k, i] * b[k]
-        b[i] = s / a[i, i]
-
-
-@njit(cache=True)
 def accel_kernel(hc, s, cm, g, theta, omega, ax, ay, out, work):
     """th'' of the nonlinear chain into ``out`` (n,); ``work`` is scratch of shape (n, n+1)."""
     n = theta.shape[0]
@@ -374,7 +347,7 @@ def accel_kernel(hc, s, cm, g, theta, omega, ax, ay, out, work):
             m[k, j] = hcd
             out[j] -= hsd * omega[k] * omega[k]  # -N_jk w_k^2
             out[k] += hsd * omega[j] * omega[j]  # -N_kj w_j^2, N antisymmetric
-    solve_spd_inplace(m, out)
+    _cholesky_solve(m, out.reshape((1, n)), 0, 0, n)
 
 
 @njit(cache=True)

@@ -52,8 +52,11 @@ acceleration, non-zero only in the rows of ``v0``, ``omega`` (and ``q``, which i
     predictor of the linearisation error used by :func:`rig.bench.select_model`.
 
 All kernels are ``numba.njit(cache=True, error_model="numpy")`` (a blow-up gives non-finite
-numbers, checked once per block by the caller, not a ZeroDivisionError inside a step) and have
-their own copy of the recursion: numba's per-file cache does not follow calls into other files.
+numbers, checked once per block by the caller, not a ZeroDivisionError inside a step). They share
+the solvers' polynomial sines (:func:`rig.solvers._kernels._sincos_poly`; cross-file calls are safe
+with the keyed cache of :mod:`rig._jit`); their recursion (:func:`_accel`) carries the base-force
+split the pendulum-only one (:func:`rig.solvers._kernels._rhs_rec`) does not, so it is its own.
+The drivers are :mod:`rig.solvers.lawson4` and :mod:`rig.solvers.etdab`.
 
 Public API: :class:`CoupledParams`, :func:`coupled_params`, :func:`accelerations`,
 :func:`remainder`, :func:`lawson_matrices`, :func:`lawson4_kernel`, :func:`etd_ab_weights`,
@@ -70,7 +73,8 @@ import numpy as np
 import scipy.linalg
 
 from rig.chain import Chain
-from rig.jit import njit
+from rig._jit import njit
+from rig.solvers._kernels import SINCOS_POLY_MAX, _sincos_poly
 from rig.devices.stage import Stage
 
 
@@ -321,6 +325,18 @@ def _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_sta
     return ax
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
+               m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha, f):
+    """The remainder f and the nonlinear x0'': :func:`_remainder2` where ``two`` (n = 2, inlined),
+    else :func:`_remainder_n` (a call)."""
+    if two:
+        return _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
+                           a_rows, z, alpha, f)
+    return _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage,
+                        reaction, th0, q_idx, wc, a_rows, z, work, alpha, f)
+
+
 def accelerations(params: CoupledParams, z, *, recursive: bool = False
                   ) -> tuple[float, np.ndarray]:
     """Nonlinear stage acceleration x0'' [m/s^2] and theta'' (n,) [rad/s^2] at bench state z
@@ -399,13 +415,9 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
         for col in range(nz):
             z_out[kk, col] = z[col]
         for sub in range(nsub):
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, z, alpha, f1)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                                  alpha, f1)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
+                            alpha, f1)
             if sub == 0:
                 ax_out[kk] = ax
             for r in range(nz):
@@ -422,38 +434,26 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f1[i]
                 zt[r] = p2[r] + 0.5 * h * acc
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, zt, alpha, f2)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                                  alpha, f2)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
+                            alpha, f2)
             # stage 3
             for r in range(nz):
                 zt[r] = p2[r]
             for i in range(nf):
                 zt[rows[i]] += 0.5 * h * f2[i]
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, zt, alpha, f3)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                                  alpha, f3)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
+                            alpha, f3)
             # stage 4
             for r in range(nz):
                 acc = 0.0
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f3[i]
                 zt[r] = ph[r] + h * acc
-            if two:
-                ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                 wc, a_rows, zt, alpha, f4)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                                  alpha, f4)
+            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
+                            alpha, f4)
             # the step
             for r in range(nz):
                 acc = 0.0
@@ -498,27 +498,6 @@ def etd_ab_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, lag: i
     return np.ascontiguousarray(w.transpose(0, 2, 1))
 
 
-@njit(cache=True, inline="always")
-def _sincos_small(x):
-    """(sin x, cos x) by their Taylor polynomials through x^15 and x^16, within 2 ulp of libm
-    for |x| <= 0.8 (the copy of rig.integrators._sincos_poly: numba's cache is per file)."""
-    x2 = x * x
-    x4 = x2 * x2
-    x8 = x4 * x4
-    s01 = 1.0 + x2 * (-1.0 / 6.0)
-    s23 = 1.0 / 120.0 + x2 * (-1.0 / 5040.0)
-    s45 = 1.0 / 362880.0 + x2 * (-1.0 / 39916800.0)
-    s67 = 1.0 / 6227020800.0 + x2 * (-1.0 / 1307674368000.0)
-    sn = x * ((s01 + x4 * s23) + x8 * (s45 + x4 * s67))
-    c01 = 1.0 + x2 * (-0.5)
-    c23 = 1.0 / 24.0 + x2 * (-1.0 / 720.0)
-    c45 = 1.0 / 40320.0 + x2 * (-1.0 / 3628800.0)
-    c67 = 1.0 / 479001600.0 + x2 * (-1.0 / 87178291200.0)
-    c8 = 1.0 / 20922789888000.0
-    cs = (c01 + x4 * c23) + x8 * ((c45 + x4 * c67) + x8 * c8)
-    return sn, cs
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows,
                      a_cols, z, f):
@@ -527,9 +506,9 @@ def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx
     its first ``a_cols`` columns (the others are zero). Returns x0''."""
     t1 = z[th0]
     t2 = z[th0 + 1]
-    if max(abs(t1), abs(t2)) <= 0.8:
-        s1, c1 = _sincos_small(t1)
-        s2, c2 = _sincos_small(t2)
+    if max(abs(t1), abs(t2)) <= SINCOS_POLY_MAX:
+        s1, c1 = _sincos_poly(t1)
+        s2, c2 = _sincos_poly(t2)
     else:
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
     w1 = z[th0 + 2]
@@ -694,13 +673,9 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     dt = np.empty(nz)
     n_s = v.shape[0]
     n_rec = n_s - k_rec
-    if two:
-        ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                         wc, a_rows, z, alpha, f)
-    else:
-        ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                          m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                          alpha, f)
+    ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                    mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
+                    alpha, f)
     for kk in range(n_s):
         for j in range(n):
             if abs(z[th0 + j]) > peaks[0, j]:
@@ -727,13 +702,9 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
             zt[r] = acc
         for r in range(nz):
             z[r] = zt[r]
-        if two:
-            ax = _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                             wc, a_rows, z, alpha, fn)
-        else:
-            ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                              m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                              alpha, fn)
+        ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
+                        mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
+                        alpha, fn)
         for r in range(nz):
             acc = 0.0
             for col in range(nz):

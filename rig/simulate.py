@@ -27,7 +27,8 @@ import numpy as np
 
 from rig.chain import Chain
 from rig.errors import ConfigError
-from rig.integrators import HOLDS, METHODS, integrate, output_rows, rhs_algorithm, to_native
+from rig.solvers import HOLDS, PENDULUM, integrate, names_for, output_rows, solver_named
+from rig.solvers.rhs import rhs_algorithm
 
 STEPS_PER_PERIOD = 100  # default fixed-step resolution: steps per period of the fastest linear mode
 _REL = 1e-9  # tolerance for "a whole number of" checks on times
@@ -177,7 +178,7 @@ class Trajectory:
     chain : the simulated chain.
     energy_j : (T,) mechanical energy in the base frame, 1/2 w^T M w - g sum S cos th [J]
         (conserved for a fixed, undamped base); computed when first read.
-    method : integrator name (:data:`rig.integrators.METHODS`).
+    method : integrator name (:data:`rig.solvers.SOLVERS`).
     settings : the resolved settings (steps, tolerances, output and input intervals, hold;
         for the linear method ``linear_step``: whether it stepped once per output row).
     n_steps, n_rejected, n_fev : accepted steps, rejected steps, right-hand-side evaluations of
@@ -279,10 +280,9 @@ def _samples_per_step(chain, dt_s, h_in, every, n_int, method="etd3m") -> int:
     return m
 
 
-def _plan(chain, duration, base, kind, dt_s, output_dt_s,
-          multisample="") -> tuple[list[_Segment], dict]:
-    """Split the run into held-input segments the kernels step through (``multisample``: the
-    name of a method whose steps span whole input samples, else empty)."""
+def _plan(chain, duration, base, solver, dt_s, output_dt_s) -> tuple[list[_Segment], dict]:
+    """Split the run into held-input segments the kernels step through."""
+    multisample = solver.name if solver.multisample else ""
     if multisample and base is None:
         raise ConfigError(f"base = None is invalid for {multisample}: its steps span whole held "
                           "input samples; give a BaseInput, or use etd3 on a fixed base")
@@ -297,7 +297,7 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s,
             sub = 1
         elif dt_s is not None:
             sub = _divides("dt_s", dt_s, "the input interval base.dt_s", h_in)
-        elif kind in ("fixed", "implicit", "exponential"):
+        elif solver.fixed_step:
             sub = _default_substeps(chain, h_in)
         else:
             sub = 1
@@ -311,12 +311,12 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s,
         ay = None if base.ay_mps2 is None else base.ay_mps2[:need]
         segs = [_Segment(base.ax_mps2[:need], ay, base.hold, h_in, n_int, every, sub, m)]
         info = dict(input_dt_s=h_in, hold=base.hold, output_dt_s=every * h_in,
-                    dt_s=(h_in / sub if kind != "adaptive" else None), substeps_per_input=sub)
+                    dt_s=(h_in / sub if not solver.adaptive else None), substeps_per_input=sub)
         if multisample:
             info.update(dt_s=m * h_in, substeps_per_input=None, samples_per_step=m)
         return segs, info
 
-    if kind in ("fixed", "implicit", "exponential") or (kind == "exact" and dt_s is not None):
+    if solver.fixed_step or (not solver.adaptive and dt_s is not None):
         if dt_s is None:
             per_s = STEPS_PER_PERIOD * float(np.max(chain.natural_frequencies_hz()))
             out = 1.0 if output_dt_s is None else output_dt_s
@@ -356,22 +356,19 @@ def _plan(chain, duration, base, kind, dt_s, output_dt_s,
                       substeps_per_input=None)
 
 
-def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, algorithm="auto",
-             per_step=None):
-    """Run the segments in turn; returns (y_out (T, 2n), native_end, h_next, counts, lifted)
-    with ``lifted`` each segment's :attr:`rig.integrators.Run.lifted`. ``per_step`` overrides
-    the segments' input intervals per step (etd3m's error estimate)."""
+def _execute(chain, segs, solvers, native0, t0, h0):
+    """Run the segments in turn, segment k with ``solvers[k]``; returns (y_out (T, 2n),
+    native_end, h_next, counts, lifted) with ``lifted`` each segment's
+    :attr:`rig.solvers.base.Run.lifted`."""
     y = native0
     h = h0
     rows = []
     lifted = []
     n_steps = n_rej = n_fev = n_newton = 0
     t = t0
-    for k, sg in enumerate(segs):
+    for k, (sg, solver) in enumerate(zip(segs, solvers)):
         run = integrate(chain, y, sg.ax, sg.ay, hold=sg.hold, h_in=sg.h_in, n_intervals=sg.n_int,
-                        out_every=sg.out_every, method=method, substeps=sg.substeps * sub_factor,
-                        rtol=rtol, atol=atol, h0_s=h, t0_s=t, algorithm=algorithm,
-                        samples_per_step=per_step or sg.per_step)
+                        out_every=sg.out_every, solver=solver, h0_s=h, t0_s=t)
         rows.append(run.y_out if k == 0 else run.y_out[1:])
         y, h = run.native_end, run.h_next_s
         n_steps += run.n_steps
@@ -382,48 +379,6 @@ def _execute(chain, segs, method, native0, t0, h0, rtol, atol, sub_factor=1, alg
         t += sg.n_int * sg.h_in
     y_out = rows[0] if len(rows) == 1 else np.concatenate(rows)
     return y_out, y, h, (n_steps, n_rej, n_fev, n_newton), lifted
-
-
-def _multisample_reference(chain, segs, method, native0, t0, p):
-    """etd3m's Richardson reference: (y_ref, scale, sentence). m even: the same method at m / 2
-    samples per step (ratio 2); m odd > 1: at one sample per step (ratio m); m = 1: etd3 at half
-    a sample per step (ratio 2; etd3m at m = 1 is etd3's map to round-off)."""
-    m = segs[0].per_step
-    if m == 1 and method != "etd3m":
-        n2 = 2 * chain.n
-        ref, *_ = _execute(chain, segs, "dop853", np.array(native0[:n2], float), t0,
-                           float("nan"), 1e-12, 1e-14)
-        return ref, 1.0, ("|y - y_ref| against dop853 at rtol = 1e-12, atol = 1e-14 from the same "
-                          f"start state ({method} at one input interval per step cannot halve "
-                          "its step)")
-    if m == 1:
-        ref, *_ = _execute(chain, segs, "etd3", native0.copy(), t0, float("nan"), 0.5, 1.0,
-                           sub_factor=2)
-        r, what = 2, "etd3 at dt_s / 2 (half an input interval; etd3m at m = 1 is etd3's map)"
-    elif m % 2 == 0:
-        ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), 0.5, 1.0,
-                           per_step=m // 2)
-        r, what = 2, f"the same method at dt_s / 2 ({m // 2} input intervals per step)"
-    else:
-        ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), 0.5, 1.0,
-                           per_step=1)
-        r, what = m, (f"the same method at dt_s / {m} (one input interval per step: m = {m} is "
-                      "odd, so dt_s / 2 is not a whole number of samples)")
-    scale = r**p / (r**p - 1.0)
-    how = (f"Richardson: |y - y_ref| * {r}^{p}/({r}^{p} - 1) against {what} (order p = {p}); "
-           "valid while the error is in its asymptotic range")
-    return ref, scale, how
-
-
-def _linear_step(segs, lifted) -> str:
-    """How the linear method stepped, for :attr:`Trajectory.settings` (``linear_step``)."""
-    if not any(lifted):
-        return "every substep"
-    what = (f"lifted to the output rate: one step of Phi^{max(lifted)} and a FIR of the held input "
-            "per output row, Phi the substep's exact discretisation")
-    if any(k and sg.n_int % sg.out_every for k, sg in zip(lifted, segs)):
-        what += "; the partial last output interval every substep"
-    return what
 
 
 def _times(segs, t0, duration) -> np.ndarray:
@@ -457,7 +412,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         for every body; ``omega0`` defaults to 0). Give these or ``start``.
     base : held base acceleration (:class:`BaseInput`); ``None`` is a fixed base.
     method : ``"dop853"`` (default), ``"rk4"``, ``"gauss4"``, ``"midpoint"``, ``"linear"`` or
-        ``"etd3"``, ``"etd3m"`` or ``"etd4m"`` (:data:`rig.integrators.METHODS`; etd3 for weakly
+        ``"etd3"``, ``"etd3m"`` or ``"etd4m"`` (:data:`rig.solvers.SOLVERS`; etd3 for weakly
         nonlinear runs, e.g. the paper's pendulum on a random base: the linearised chain exactly,
         only the nonlinear remainder integrated; etd3m the same with steps spanning several held
         input samples, for a base input only; etd4m as etd3m with three nodes, order 4).
@@ -469,7 +424,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         sample lands on every output instant, where the run is a whole number of output
         intervals; else dividing the duration); the linear method
         steps once per interval, composed into one step per output row where a row spans several
-        (``settings["linear_step"]``; :func:`rig.integrators.lift_linear`). Not accepted for
+        (``settings["linear_step"]``; :func:`rig.solvers.exact.lift_linear`). Not accepted for
         dop853, which chooses its own steps. etd3m, etd4m: a whole multiple m of the input interval
         dividing the output interval and the run (the step spans m held samples; default: the
         largest such m with m base.dt_s <= 1/(100 f_max); ``settings["samples_per_step"]``).
@@ -482,7 +437,8 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         ``theta0``/``omega0`` (same method: bit for bit as one longer run; the next block's input
         starts at this state's time).
     algorithm : right-hand side of rk4 and dop853: ``"auto"`` (default: scalar code for n = 2,
-        the O(n) articulated-body recursion from :data:`rig.integrators.RECURSIVE_FROM_N` bodies),
+        the O(n) articulated-body recursion from
+        :data:`rig.solvers._kernels.RECURSIVE_FROM_N` bodies),
         ``"dense"`` (mass-matrix Cholesky solve, O(n^3)) or ``"recursive"``; the same equations
         (tests: equal to round-off).
 
@@ -509,9 +465,9 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     if not isinstance(chain, Chain):
         raise ConfigError(f"chain = {chain!r} is invalid: expected a rig.chain.Chain")
     duration = _finite_number("duration_s", duration_s)
-    if method not in METHODS:
-        raise ConfigError(f"method = {method!r} is invalid: expected one of {', '.join(METHODS)}")
-    info = METHODS[method]
+    if method not in names_for(PENDULUM):
+        raise ConfigError(f"method = {method!r} is invalid: expected one of "
+                          f"{', '.join(names_for(PENDULUM))}")
     try:
         rtol_f = float(rtol)
     except (TypeError, ValueError):
@@ -519,8 +475,10 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     if not 0.0 < rtol_f < 1.0:
         raise ConfigError(f"rtol = {rtol!r} is invalid: expected 0 < rtol < 1")
     atol_f = _finite_number("atol", atol)
+    rhs_algorithm(chain, algorithm)  # validate before running
+    solver = solver_named(method, rtol=rtol_f, atol=atol_f, algorithm=algorithm)
     if dt_s is not None:
-        if info.kind == "adaptive":
+        if solver.adaptive:
             raise ConfigError(f"dt_s = {dt_s!r} is invalid for method {method!r}: it chooses its "
                               "own steps (set rtol, atol), dt_s must be None")
         dt_s = _finite_number("dt_s", dt_s)
@@ -539,7 +497,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         om0 = _vector("start.omega_rad_s", start.omega_rad_s, n)
         same = start.method == method
         native0 = (np.array(start.native, float) if same else
-                   to_native(chain, method, np.concatenate([th0, om0])))
+                   solver.init(chain, np.concatenate([th0, om0])))
         h0 = float(start.h_next_s) if same else float("nan")
     else:
         if theta0 is None:
@@ -547,49 +505,25 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         t0 = 0.0
         th0 = _vector("theta0", theta0, n)
         om0 = np.zeros(n) if omega0 is None else _vector("omega0", omega0, n)
-        native0 = to_native(chain, method, np.concatenate([th0, om0]))
+        native0 = solver.init(chain, np.concatenate([th0, om0]))
         h0 = float("nan")
 
-    segs, grid = _plan(chain, duration, base, info.kind, dt_s, output_dt_s,
-                       info.name if info.multisample else "")
+    segs, grid = _plan(chain, duration, base, solver, dt_s, output_dt_s)
+    solvers = [solver.on_grid(sg.substeps, sg.per_step) for sg in segs]
     tic = time.perf_counter()
-    alg_name = algorithm
-    rhs_algorithm(chain, alg_name)  # validate before running
     y_out, native_end, h_next, (n_steps, n_rej, n_fev, n_newton), lifted = _execute(
-        chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f, algorithm=alg_name)
+        chain, segs, solvers, native0.copy(), t0, h0)
     wall = time.perf_counter() - tic
 
     err_th = err_om = err_e = None
     est_wall = 0.0
     if estimate_error:
         tic = time.perf_counter()
-        if info.kind == "adaptive":
-            # 100 times tighter, and at least two steps per input interval: where the sample
-            # grid, not the tolerance, sets the step (one step per sample), a tighter tolerance
-            # alone would repeat the same steps and report zero
-            r_ref, a_ref = max(rtol_f / 100.0, 1e-14), atol_f / 100.0
-            ref, *_ = _execute(chain, segs, method, native0.copy(), t0, float("nan"), r_ref, a_ref,
-                               sub_factor=2, algorithm=alg_name)
-            scale = 1.0
-            how = (f"|y - y_ref| against the same run with rtol = {r_ref:.3g}, atol = {a_ref:.3g} "
-                   "(100 times tighter) and at least two steps per input interval, from the same "
-                   "start state")
-        elif info.multisample:
-            ref, scale, how = _multisample_reference(chain, segs, method, native0, t0, info.order)
-        else:
-            ref, *_ = _execute(chain, segs, method, native0.copy(), t0, h0, rtol_f, atol_f,
-                               sub_factor=2, algorithm=alg_name)
-            if info.order is None:
-                scale = 1.0
-                how = ("|y - y_ref| against the same exact discretisation at dt_s / 2: round-off "
-                       "only; the linearisation (relative error ~ theta^2) is a model error, not "
-                       "an integrator error, and is not included")
-            else:
-                p = info.order
-                scale = 2.0**p / (2.0**p - 1.0)
-                how = (f"Richardson: |y_h - y_h/2| * 2^{p}/(2^{p} - 1) against the same run at "
-                       f"dt_s / 2 (order p = {p}); valid while the error is in its asymptotic "
-                       "range")
+        refs = [s.refined() for s in solvers]
+        ref_start = refs[0].solver.start_from(chain, native0, solver)
+        ref, *_ = _execute(chain, segs, [r.solver for r in refs], ref_start, t0,
+                           h0 if refs[0].keep_h0 else float("nan"))
+        scale, how = refs[0].scale, refs[0].how
         diff = np.abs(y_out - ref) * scale
         err_th, err_om = _readonly(diff[:, :n].copy()), _readonly(diff[:, n:].copy())
         e_main = chain.energy(y_out[:, :n], y_out[:, n:])
@@ -606,13 +540,12 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     final = SimState(t_s=float(t[-1]), theta_rad=_readonly(theta[-1].copy()),
                      omega_rad_s=_readonly(omega[-1].copy()), method=method,
                      native=_readonly(native_end.copy()), h_next_s=float(h_next))
-    rhs_name = (("n=2 scalar", "dense", "recursive")[rhs_algorithm(chain, alg_name)]
-                if method in ("rk4", "dop853") else None)
-    settings = dict(method=method, order=info.order, kind=info.kind, duration_s=duration,
-                    t0_s=t0, rtol=rtol_f if info.kind == "adaptive" else None,
-                    atol=atol_f if info.kind == "adaptive" else None, rhs=rhs_name, **grid)
-    if method == "linear":
-        settings["linear_step"] = _linear_step(segs, lifted)
+    rhs_name = (("n=2 scalar", "dense", "recursive")[rhs_algorithm(chain, algorithm)]
+                if solver.selectable_rhs else None)
+    settings = dict(method=method, order=solver.order, kind=solver.kind, duration_s=duration,
+                    t0_s=t0, rtol=rtol_f if solver.adaptive else None,
+                    atol=atol_f if solver.adaptive else None, rhs=rhs_name, **grid)
+    settings.update(solver.trajectory_settings(segs, lifted))
     traj = Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
                       method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
                       n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,

@@ -1,7 +1,7 @@
 """Hard cases for numerical stability (SPEC section 7) not covered elsewhere.
 
-Covered elsewhere: energy conservation of the double rod (tests/test_energy.py), Q preserved over
-3000 s (tests/test_free_decay.py), divergence -> DivergenceError (tests/test_simulate.py,
+Covered elsewhere: energy conservation of the double rod (tests/rig/test_energy.py), Q preserved over
+3000 s (tests/rig/test_free_decay.py), divergence -> DivergenceError (tests/rig/test_simulate.py,
 tests/test_bench.py), the choice of model by error budget (tests/test_model_selection.py).
 
 Here, with the tolerances stated in each test:

@@ -43,11 +43,7 @@ EXCEPTIONS = {
 }
 
 #: Cycles inside one package, each with what removes it (a new cycle fails).
-KNOWN_CYCLES = {
-    ("rig.etd4m", "rig.integrators"):
-        "etd4m takes the shared kernels from integrators, which dispatches to etd4m: one module "
-        "per method behind the solver protocol removes it (rig/solvers/)",
-}
+KNOWN_CYCLES: dict = {}
 
 
 def project_modules(root: Path) -> dict[str, Path]:

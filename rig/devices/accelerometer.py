@@ -42,9 +42,9 @@ import numpy as np
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
-from rig.jit import njit
+from rig._jit import njit
 from rig.params import check_fields, param
-from rig.integrators import discretise
+from rig.solvers.exact import discretise
 
 
 @dataclass(frozen=True, eq=False)

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from benchmarks.work_precision import paper_input, rel_rms_error
-from rig.etd4m import etd4m_coefficients, etd4m_kernel
-from rig.integrators import METHODS, integrate, to_native
+from rig.solvers import SOLVERS, integrate, solver_named
+from rig.solvers._kernels import etd4m_kernel
+from rig.solvers.etd4m import etd4m_coefficients
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 
@@ -23,24 +24,24 @@ def paper():
 @pytest.fixture(scope="module")
 def piece(paper):
     """100 s of the paper's drive and fixed-step DOP853 at 2 steps per sample on it (every
-    0.01 s; within 1e-12 of 4 steps per sample, tests/test_exponential.py)."""
+    0.01 s; within 1e-12 of 4 steps per sample, tests/rig/solvers/test_exponential.py)."""
     base = paper_input(100.0)
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10, method="dop853", substeps=2,
-                    adaptive=False).y_out
+                    n_intervals=base.n_intervals, out_every=10,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
     return base, ref
 
 
 def _run(chain, base, method, m, out_every, y0=(0.0, 0.0, 0.0, 0.0)):
-    return integrate(chain, to_native(chain, method, y0), base.ax_mps2, base.ay_mps2,
+    return integrate(chain, solver_named(method).init(chain, y0), base.ax_mps2, base.ay_mps2,
                      hold=base.hold, h_in=base.dt_s, n_intervals=base.n_intervals,
-                     out_every=out_every, method=method, samples_per_step=m)
+                     out_every=out_every, solver=solver_named(method, samples_per_step=m))
 
 
 def test_etd4m_is_registered_as_a_multisample_exponential_method_of_order_4():
-    info = METHODS["etd4m"]
+    info = SOLVERS["etd4m"]
     assert (info.order, info.kind, info.multisample) == (4, "exponential", True)
-    assert "etd3m" in METHODS  # today's method stays
+    assert "etd3m" in SOLVERS  # today's method stays
 
 
 @pytest.mark.parametrize("m", [5, 10])
@@ -108,9 +109,9 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
     y0 = np.array([0.01, -0.02, 0.0, 0.1])
     for m in (1, 5, 10):
         for hold in ("zoh", "linear"):
-            run = integrate(paper, to_native(paper, "etd4m", y0), ax, ay, hold=hold, h_in=h,
-                            n_intervals=n_int, out_every=10, method="etd4m",
-                            samples_per_step=m)
+            run = integrate(paper, solver_named("etd4m").init(paper, y0), ax, ay, hold=hold, h_in=h,
+                            n_intervals=n_int, out_every=10,
+                            solver=solver_named("etd4m", samples_per_step=m))
             co = etd4m_coefficients(paper, h, m, hold)
             y = y0.copy()
             y_out = np.empty((n_int // 10 + 1, 4))
@@ -147,7 +148,8 @@ def test_strongly_nonlinear_chain_converges_at_order_4_with_the_generic_kernel()
     base = BaseInput(ax, 5e-3, "linear", ay)
     y0 = (0.3, -0.2, 0.1, 0.0, 0.0, 0.0)
     ref = integrate(chain, np.array(y0), ax, ay, hold="linear", h_in=5e-3, n_intervals=2000,
-                    out_every=20, method="dop853", substeps=2, adaptive=False).y_out[:, :3]
+                    out_every=20,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
     e4 = [rel_rms_error(_run(chain, base, "etd4m", m, 20, y0).y_out[:, :3], ref)
           for m in (1, 2, 4)]
     e3 = [rel_rms_error(_run(chain, base, "etd3m", m, 20, y0).y_out[:, :3], ref)
@@ -165,8 +167,8 @@ def test_one_sample_per_step_estimates_against_a_tight_dop853_run(paper):
                   output_dt_s=0.01)
     assert "dop853 at rtol = 1e-12" in tr.error_method
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10, method="dop853", substeps=2,
-                    adaptive=False).y_out[:, :2]
+                    n_intervals=base.n_intervals, out_every=10,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
     err = np.sqrt(np.mean((tr.theta_rad - ref) ** 2))
     est = np.sqrt(np.mean(tr.error_estimate_rad ** 2))
     assert 1 / 3 < err / est < 3, (err, est)

@@ -7,8 +7,10 @@ import pytest
 
 from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.errors import ConfigError, DivergenceError
-from rig.integrators import (METHODS, etd3m_coefficients, etd3m_kernel, integrate, lift_linear,
-                             discretise, to_native)
+from rig.solvers import SOLVERS, integrate, solver_named
+from rig.solvers._kernels import etd3m_kernel
+from rig.solvers.etd3m import etd3m_coefficients
+from rig.solvers.exact import discretise, lift_linear
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 
@@ -23,18 +25,18 @@ def paper():
 @pytest.fixture(scope="module")
 def piece(paper):
     """100 s of the paper's drive and fixed-step DOP853 at 2 steps per sample on it (every
-    0.01 s; within 1e-12 of 4 steps per sample, tests/test_exponential.py)."""
+    0.01 s; within 1e-12 of 4 steps per sample, tests/rig/solvers/test_exponential.py)."""
     base = paper_input(100.0)
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10, method="dop853", substeps=2,
-                    adaptive=False).y_out
+                    n_intervals=base.n_intervals, out_every=10,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
     return base, ref
 
 
 def _run(chain, base, m, out_every, y0=(0.0, 0.0, 0.0, 0.0)):
-    return integrate(chain, to_native(chain, "etd3m", y0), base.ax_mps2, base.ay_mps2,
+    return integrate(chain, solver_named("etd3m").init(chain, y0), base.ax_mps2, base.ay_mps2,
                      hold=base.hold, h_in=base.dt_s, n_intervals=base.n_intervals,
-                     out_every=out_every, method="etd3m", samples_per_step=m)
+                     out_every=out_every, solver=solver_named("etd3m", samples_per_step=m))
 
 
 def test_etd3m_order_from_a_step_halving_sequence(paper):
@@ -44,12 +46,12 @@ def test_etd3m_order_from_a_step_halving_sequence(paper):
     3.8)."""
     base = paper_input(20.0)
     ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=16, method="dop853", substeps=2,
-                    adaptive=False).y_out[:, :2]
+                    n_intervals=base.n_intervals, out_every=16,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
     ms = np.array([2, 4, 8, 16])
     errors = np.array([rel_rms_error(_run(paper, base, m, 16).y_out[:, :2], ref) for m in ms])
     slope = np.polyfit(np.log(ms), np.log(errors), 1)[0]
-    assert METHODS["etd3m"].order == 3
+    assert SOLVERS["etd3m"].order == 3
     assert 3.0 <= slope <= 5.0, (errors, slope)
     assert np.all(np.diff(errors) > 0)
 
@@ -124,8 +126,9 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
     n_int, m, h = 5000, 5, 1e-3
     y0 = np.array([0.01, -0.02, 0.0, 0.1])
     for hold in ("zoh", "linear"):
-        run = integrate(paper, to_native(paper, "etd3m", y0), ax, ay, hold=hold, h_in=h,
-                        n_intervals=n_int, out_every=10, method="etd3m", samples_per_step=m)
+        run = integrate(paper, solver_named("etd3m").init(paper, y0), ax, ay, hold=hold, h_in=h,
+                        n_intervals=n_int, out_every=10,
+                        solver=solver_named("etd3m", samples_per_step=m))
         co = etd3m_coefficients(paper, h, m, hold)
         y = y0.copy()
         y_out = np.empty((n_int // 10 + 1, 4))
@@ -149,9 +152,10 @@ def test_linear_hold_and_vertical_input_track_etd3_and_converge():
     base = BaseInput(ax, 5e-3, "linear", ay)
     y0 = (0.3, -0.2, 0.1, 0.0, 0.0, 0.0)
     ref = integrate(chain, np.array(y0), ax, ay, hold="linear", h_in=5e-3, n_intervals=2000,
-                    out_every=20, method="dop853", substeps=2, adaptive=False).y_out[:, :3]
-    etd = integrate(chain, to_native(chain, "etd3", y0), ax, ay, hold="linear", h_in=5e-3,
-                    n_intervals=2000, out_every=20, method="etd3").y_out[:, :3]
+                    out_every=20,
+                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
+    etd = integrate(chain, solver_named("etd3").init(chain, y0), ax, ay, hold="linear", h_in=5e-3,
+                    n_intervals=2000, out_every=20, solver=solver_named("etd3")).y_out[:, :3]
     e_etd = rel_rms_error(etd, ref)
     e1, e2, e4 = (rel_rms_error(_run(chain, base, m, 20, y0).y_out[:, :3], ref)
                   for m in (1, 2, 4))
@@ -192,11 +196,13 @@ def test_bad_steps_are_refused_with_the_valid_ones(paper):
     with pytest.raises(ConfigError, match="base = None is invalid for etd3m"):
         simulate(paper, 1.0, theta0=0.0, method="etd3m")
     with pytest.raises(ConfigError, match=r"samples_per_step = 3 \(dt_s = 0\.003 s\) is invalid"):
-        integrate(paper, to_native(paper, "etd3m", np.zeros(4)), base.ax_mps2, None, hold="zoh",
-                  h_in=1e-3, n_intervals=1000, out_every=10, method="etd3m", samples_per_step=3)
+        integrate(paper, solver_named("etd3m").init(paper, np.zeros(4)), base.ax_mps2, None, hold="zoh",
+                  h_in=1e-3, n_intervals=1000, out_every=10,
+                  solver=solver_named("etd3m", samples_per_step=3))
     with pytest.raises(ConfigError, match="samples_per_step = 0 is invalid"):
-        integrate(paper, to_native(paper, "etd3m", np.zeros(4)), base.ax_mps2, None, hold="zoh",
-                  h_in=1e-3, n_intervals=1000, out_every=10, method="etd3m", samples_per_step=0)
+        integrate(paper, solver_named("etd3m").init(paper, np.zeros(4)), base.ax_mps2, None, hold="zoh",
+                  h_in=1e-3, n_intervals=1000, out_every=10,
+                  solver=solver_named("etd3m", samples_per_step=0))
     # the default: the longest step dividing the output interval within 1/(100 f_max)
     tr = simulate(paper, 1.0, estimate_error=False, **kw)
     assert tr.settings["samples_per_step"] == 2

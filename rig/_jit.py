@@ -5,18 +5,27 @@ command that reads a run file and analyses it (``daq analyze``), lists scenes or
 calls one and should not pay for it. ``@njit(cache=True, ...)`` here takes numba's options and
 returns a :class:`LazyKernel`; the first call of any lazy kernel imports numba, turns *every*
 registered kernel into its numba dispatcher (the same options, the same on-disk cache) and
-replaces the lazy objects by the dispatchers in the namespaces of the project's modules, so that
-kernels calling kernels see dispatchers when numba compiles them. Calls through a reference taken
-before that (``from rig.x import kernel``) are forwarded (about 0.3 us each).
+replaces the lazy objects by the dispatchers in the namespaces of the modules of the packages
+that define kernels (the packages of the registered functions, found at run time: this module
+names none), so that kernels calling kernels see dispatchers when numba compiles them. Calls
+through a reference held elsewhere are forwarded (about 0.3 us each).
+
+numba's on-disk cache (``cache=True``) checks a function's own source file only (numba/numba#1833):
+a kernel that calls one in another file would keep its stale compiled code when only the callee
+changes. So before importing numba, :func:`materialise` points ``NUMBA_CACHE_DIR`` at a directory
+named after a hash of the source of every kernel file (:func:`cache_dir`): any change to any
+kernel starts a fresh cache, and kernels may call kernels across files. A ``NUMBA_CACHE_DIR``
+set by the caller is kept (the caller owns it, e.g. a cold-start benchmark), and so is numba's
+default if numba was imported before (it reads the variable at import).
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 import sys
 import threading
-
-#: packages whose module namespaces are patched (their kernels call each other by global name)
-PACKAGES = ("rig", "daq", "processing")
+from pathlib import Path
 
 _registry: list["LazyKernel"] = []
 _lock = threading.RLock()
@@ -71,13 +80,16 @@ def njit(**options):
 def materialise() -> None:
     """Import numba, make every registered kernel's dispatcher and patch the namespaces."""
     with _lock:
+        if "numba" not in sys.modules and "NUMBA_CACHE_DIR" not in os.environ:
+            os.environ["NUMBA_CACHE_DIR"] = str(cache_dir())
         import numba
 
         for k in _registry:
             if k._dispatcher is None:
                 k._dispatcher = numba.njit(**k.options)(k.py_func)
+        packages = kernel_packages()
         for name, mod in list(sys.modules.items()):
-            if name.split(".")[0] not in PACKAGES or mod is None:
+            if name.split(".")[0] not in packages or mod is None:
                 continue
             space = getattr(mod, "__dict__", None)
             if not space:
@@ -85,3 +97,36 @@ def materialise() -> None:
             for key, value in list(space.items()):
                 if isinstance(value, LazyKernel) and value._dispatcher is not None:
                     space[key] = value._dispatcher
+
+
+def kernel_packages() -> set[str]:
+    """The top-level packages of the modules that define registered kernels."""
+    return {k.__module__.split(".")[0] for k in _registry}
+
+
+def kernel_sources() -> list[Path]:
+    """Every ``.py`` file that defines lazy kernels, in the packages of the registered ones
+    (found by the decorator's name in the source, so files not yet imported count too)."""
+    files = set()
+    for top in sorted(kernel_packages()):
+        for root in getattr(sys.modules.get(top), "__path__", []):
+            files.update(p for p in Path(root).rglob("*.py")
+                         if "__pycache__" not in p.parts and "@njit(" in p.read_text("utf-8"))
+    return sorted(files)
+
+
+def cache_dir() -> Path:
+    """``<this package>/__pycache__/numba-<hash>`` (``$XDG_CACHE_HOME/pendulum-daq/numba-<hash>``
+    where the package is read-only): the hash (SHA-256, 16 hex digits) of the kernel files'
+    names and contents and of the Python version."""
+    h = hashlib.sha256(sys.version.encode())
+    for p in kernel_sources():
+        h.update(str(p).encode())
+        h.update(p.read_bytes())
+    name = f"numba-{h.hexdigest()[:16]}"
+    local = Path(__file__).resolve().parent / "__pycache__"
+    if os.access(local if local.exists() else local.parent, os.W_OK):
+        return local / name
+    # an installed, read-only package: the user's cache directory instead
+    user = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return user / "pendulum-daq" / name

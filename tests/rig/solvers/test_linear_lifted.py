@@ -11,8 +11,9 @@ import scipy.linalg
 from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.chain import Chain
 from rig.errors import DivergenceError
-from rig.integrators import (discretise, integrate, lift_linear, lifted_kernel, lifted_kernel2,
-                             linear_kernel)
+from rig.solvers import integrate, solver_named
+from rig.solvers._kernels import lifted_kernel, lifted_kernel2, linear_kernel
+from rig.solvers.exact import discretise, lift_linear
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 
@@ -40,7 +41,7 @@ def _per_substep(chain, base, seconds, out_every, substeps, y0=None):
     y0 = np.zeros(2 * chain.n) if y0 is None else np.asarray(y0, float)
     return integrate(chain, y0, base.ax_mps2, None, hold=base.hold, h_in=base.dt_s,
                      n_intervals=round(seconds / base.dt_s), out_every=out_every,
-                     method="linear", substeps=substeps, lift=False).y_out
+                     solver=solver_named("linear", substeps=substeps, lift=False)).y_out
 
 
 # -- the lifted map ------------------------------------------------------------------------------
@@ -200,6 +201,6 @@ def test_overflow_raises_divergence_error_at_the_per_substep_runs_instant(paper,
                  estimate_error=False)
     with pytest.raises(DivergenceError) as per_substep:
         integrate(paper, y0, base.ax_mps2, None, hold="zoh", h_in=1e-3, n_intervals=n,
-                  out_every=10, method="linear", lift=False)
+                  out_every=10, solver=solver_named("linear", lift=False))
     assert lifted.value.time_s == per_substep.value.time_s == 0.08
     np.testing.assert_allclose(lifted.value.state, per_substep.value.state, rtol=1e-13)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rig.chain import G_STANDARD, Chain
-from rig.integrators import METHODS
+from rig.solvers import SOLVERS
 from rig.simulate import simulate
 
 AMPLITUDE_RAD = 1e-6  # nonlinearity ~ theta^2 ~ 1e-12 relative
@@ -84,7 +84,7 @@ def test_free_decay_keeps_the_modal_q(chain, mode, method, kw, duration):
         factor = 1.0
     else:
         finer = dict(dt_s=kw["dt_s"] / 2)
-        p = METHODS[method].order
+        p = SOLVERS[method].order
         factor = 2**p / (2**p - 1)
     q_fine, _ = fitted_q(simulate(chain, duration, **run, **finer), w)
     q_ref = chain.modes()[1][mode]

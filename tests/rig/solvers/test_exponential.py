@@ -8,8 +8,10 @@ import numba
 import pytest
 
 from rig.errors import DivergenceError
-from rig.integrators import (METHODS, SINCOS_POLY_MAX, _sincos_poly, etd3_kernel,
-                             etd3_coefficients, integrate, nonlinear_remainder, rhs, to_native)
+from rig.solvers import SOLVERS, integrate, solver_named
+from rig.solvers._kernels import SINCOS_POLY_MAX, _sincos_poly, etd3_kernel
+from rig.solvers.etd3 import etd3_coefficients
+from rig.solvers.rhs import nonlinear_remainder, rhs
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 from rig.devices.source import Source, generate, start_source
@@ -20,8 +22,8 @@ from chains import blockwise_and_one_shot, random_chain, rod_chain
 def dop_fixed(chain, base, y0, substeps):
     """DOP853 driven with fixed steps (no error control): the reference."""
     return integrate(chain, y0, base.ax_mps2, base.ay_mps2, hold=base.hold, h_in=base.dt_s,
-                     n_intervals=base.n_intervals, out_every=1, method="dop853",
-                     substeps=substeps, adaptive=False).y_out
+                     n_intervals=base.n_intervals, out_every=1,
+                     solver=solver_named("dop853", substeps=substeps, adaptive_steps=False)).y_out
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +108,7 @@ def test_etd3_converges_at_third_order_through_a_held_input(hold):
     errors = _errors(chain, base, (0.5, -0.3), substeps)
     slope = np.polyfit(np.log(1.0 / np.array(substeps)), np.log(errors), 1)[0]
     pair = np.log(errors[-2] / errors[-1]) / np.log(2.0)
-    assert abs(slope - METHODS["etd3"].order) < 0.15, (errors, slope)
+    assert abs(slope - SOLVERS["etd3"].order) < 0.15, (errors, slope)
     assert abs(pair - 3) < 0.05
     assert errors.min() > 1e3 * 1e-13
 
@@ -178,8 +180,9 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
         outs = []
         for kernel in ("scalar", "generic"):
             if kernel == "scalar":
-                run = integrate(paper, to_native(paper, "etd3", [0.01, -0.02, 0.0, 0.1]), ax, ay,
-                                hold=hold, h_in=h, n_intervals=n_int, out_every=10, method="etd3")
+                run = integrate(paper, solver_named("etd3").init(paper, [0.01, -0.02, 0.0, 0.1]), ax, ay,
+                                hold=hold, h_in=h, n_intervals=n_int, out_every=10,
+                                solver=solver_named("etd3"))
                 outs.append(run.y_out)
                 continue
             y = np.array([0.01, -0.02, 0.0, 0.1])

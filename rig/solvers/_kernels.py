@@ -1,65 +1,26 @@
-"""Steppers for the chain on a moving base, each with its order and error behaviour.
+"""Every compiled kernel of the pendulum solvers, in one file (:mod:`rig.solvers` drives them).
 
-Every method integrates
+Each method's stepping loop and the primitives they share: the right-hand side of
 ``M(th) th'' + N(th) th'^2 + C th' + diag(S)[(g + y0'') sin th + x0'' cos th] = 0``
-(:mod:`rig.chain`) through a *held* base input: input interval ``k`` is ``[k h_in, (k+1) h_in)``
-and inside it the base accelerations are ``u(t_k + s) = u_k`` (``hold="zoh"``) or
-``u_k + (u_{k+1} - u_k) s / h_in`` (``hold="linear"``). The input is smooth inside an interval and
-may jump at its ends, so every method steps *exactly onto* each sample instant: fixed-step methods
-take ``substeps`` equal steps per interval, the adaptive method never steps across an instant
-(it splits what is left of an interval into equal steps no longer than its proposal) and carries its
-proposed step over to the next interval. Stage times are local to the interval, so the result does
-not depend on the absolute time (block-wise runs reproduce one-shot runs bit for bit; for the
-linear method, which steps once per output row, blocks that end on output rows).
+(:mod:`rig.chain`) as scalar code for n = 2 (:func:`_rhs2`, :func:`_acc2`), a dense mass-matrix
+Cholesky solve, O(n^3) (:func:`_rhs_n`, :func:`_cholesky_solve`), and the articulated-body
+recursion, O(n) (:func:`_rhs_rec`); the canonical (theta, p) form of the Gauss methods; the
+exponential methods' split of the remainder off the linearised chain (:func:`_nsplit2`,
+:func:`_nsplit_n`); the sines and cosines (:func:`_sincos_poly`: inlined polynomials within 2 ulp
+of libm for angles up to :data:`SINCOS_POLY_MAX`, which lets several of them overlap in the
+pipeline).
 
-=========  =====  ========  ===================================================================
-method     order  kind      error behaviour
-=========  =====  ========  ===================================================================
-rk4        4      fixed     global error O(h^4); energy drifts secularly, ~ t h^4
-dop853     8      adaptive  local error kept near ``rtol |y| + atol`` per step (Hairer's 5th/3rd
-                            order blend); global error roughly proportional to the tolerance
-gauss4     4      implicit  2-stage Gauss-Legendre in (theta, p = M omega): symplectic, energy
-                            error O(h^4) and bounded (no drift) for undamped, unforced runs
-midpoint   2      implicit  1-stage Gauss (implicit midpoint) in (theta, p): symplectic, O(h^2)
-linear     exact  exact     exact discretisation of the *linearised* model for the held input;
-                            only round-off (the linearisation is a model error, ~ theta^3;
-                            the vertical input y0'' drops out of it at first order); composed
-                            into one step per output row (Phi^L and a FIR of the row's input
-                            samples, :func:`lift_linear`) where a row spans L > 1 substeps
-etd3       3      exponen-  the linearised chain and the held input exactly (as ``linear``), the
-                  tial      nonlinear remainder N by 2-node Gauss exponential quadrature with
-                            extrapolated stages: error O(h^3 |N| |dN/dz| + h^4 |A|^2 |N|), i.e.
-                            proportional to the nonlinearity; 2 evaluations of N per step. For
-                            weakly nonlinear runs (the paper's pendulum: 1e-9 relative at the
-                            1 kHz input rate, rk4 there: 1e-7); no better than an explicit
-                            3rd-order method when the motion is far from linear
-etd3m      3      exponen-  etd3 with a step of m whole held input samples (dt = m h_in): the
-                  tial      remainder's products with the held input against exact per-sample
-                            weights, etd3's stage predictor, a correction for the
-                            staircase's sawtooth in omega; measured order 3 to 4.5 in the step
-                            (the paper's run: 1.5e-7 at m = 5, 1.1e-6 at m = 10); m = 1 is etd3
-etd4m      4      exponen-  etd3m with three Gauss nodes (the remainder quadratic over the step)
-                  tial      and the stages predicted by the quadratic through the previous step's
-                            three (:mod:`rig.etd4m`); 3 evaluations per step, 6 weight sets per
-                            sample; measured order 4 to 4.5 (the paper's run: 4.7e-9 at m = 5,
-                            8.2e-8 at m = 10)
-=========  =====  ========  ===================================================================
+The kernels are ``numba.njit(cache=True)`` (releasing the GIL in the loops); they run a whole block
+(many input intervals) per call into caller-owned output arrays, the state goes in and comes out.
+Non-finite values are looked for once per output sample (not per step); a kernel returns a status
+(:data:`OK`, :data:`NONFINITE`, :data:`STEP_TOO_SMALL`, :data:`NO_CONVERGENCE`) that the driver
+turns into :class:`rig.errors.DivergenceError`. Some are compiled with ``fastmath={"contract"}``
+(fused multiply-adds only: no reassociation, the same results for any block split).
 
-All hot loops are ``numba.njit(cache=True)`` kernels (releasing the GIL) that run a whole block
-(many input intervals) per call into caller-owned output arrays; the state goes in and the state
-comes out. Non-finite values are looked for once per output sample (not per step);
-:func:`integrate` turns a kernel's status into :class:`rig.errors.DivergenceError` with the time
-and the last finite state.
-
-The kernels have their own right-hand sides (see :func:`rhs`; scalar code for n = 2, O(n)
-transcendental calls for any n: a dense mass-matrix solve, O(n^3), or the articulated-body
-recursion, O(n), chosen by :func:`rhs_algorithm`); tests hold them to
-:func:`rig.chain.accel_kernel`. They do not call into ``rig.chain``'s kernels, so numba's per-file
-cache cannot go stale when ``chain.py`` changes. Sines and cosines of angles up to
-:data:`SINCOS_POLY_MAX` come from inlined polynomials (within 2 ulp of libm), which lets several of
-them overlap in the pipeline; the n = 2 etd3 kernel and the recursion are compiled with
-``fastmath={"contract"}`` (fused multiply-adds only: no reassociation, same results for any block
-split).
+The shared primitives here are also called from :mod:`rig.chain` (the Cholesky solve) and
+:mod:`rig.coupled` (the polynomial sines); numba's on-disk cache would not see a change here from
+there (numba/numba#1833), so :mod:`rig._jit` keys the cache directory by a hash of every kernel
+file. Tests hold the right-hand sides to :func:`rig.chain.accel_kernel`.
 
 References
 ----------
@@ -68,85 +29,17 @@ Problems*, 2nd ed., Springer 1993, sections II.4 (step size control, initial ste
 Dormand-Prince 8(5,3) pair, code DOP853). E. Hairer, C. Lubich, G. Wanner, *Geometric Numerical
 Integration*, 2nd ed., Springer 2006, sections II.1.3, VI.4, VIII.6 (Gauss methods, fixed-point
 iteration of the stage equations). M. Hochbruck, A. Ostermann, Exponential integrators, *Acta
-Numerica* 19 (2010) 209-286 (exponential quadrature and Runge-Kutta methods; the etd3 stages are a
-predicted rather than iterated exponential collocation on the Gauss nodes). R. Featherstone,
-*Rigid Body Dynamics Algorithms*, Springer 2008, ch. 7 (articulated-body algorithm).
+Numerica* 19 (2010) 209-286. R. Featherstone, *Rigid Body Dynamics Algorithms*, Springer 2008,
+ch. 7 (articulated-body algorithm).
 """
 
 from __future__ import annotations
 
-import functools
 import math
-from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
-from rig.chain import Chain
-from rig.errors import ConfigError, DivergenceError
-from rig.jit import njit
-
-HOLDS = ("zoh", "linear")
-
-
-@dataclass(frozen=True)
-class MethodInfo:
-    """What a method is and how its error behaves.
-
-    Attributes
-    ----------
-    name : registry key.
-    order : global order of accuracy p (error ~ h^p); ``None`` for the exact linear method.
-    kind : ``"fixed"``, ``"adaptive"``, ``"implicit"`` (fixed step, implicit stages), ``"exact"``
-        or ``"exponential"`` (fixed step, the linearised chain exact).
-    description : one line.
-    symplectic : whether the map is symplectic for undamped, unforced chains (bounded energy error).
-    native : the state vector the kernel carries, ``"theta,omega"``, ``"theta,p"`` with
-        ``p = M(theta) omega`` [kg m^2/s], or ``"theta,omega,history"`` (etd3: theta, omega, then
-        a valid flag, the step the history belongs to [s] and the nonlinear remainder's three
-        parts at the previous step's two stages, 6n numbers; etd3 and etd3m, whose flag is for
-        its step H).
-    multisample : a step spans whole input samples (etd3m: dt_s a multiple of the input interval)
-        instead of dividing one.
-    """
-
-    name: str
-    order: int | None
-    kind: str
-    description: str
-    symplectic: bool = False
-    native: str = "theta,omega"
-    multisample: bool = False
-
-
-METHODS: dict[str, MethodInfo] = {
-    "rk4": MethodInfo("rk4", 4, "fixed", "classic 4-stage Runge-Kutta, fixed step dt_s"),
-    "dop853": MethodInfo("dop853", 8, "adaptive",
-                         "Dormand-Prince 8(5,3) with Hairer/scipy step-size control (rtol, atol)"),
-    "gauss4": MethodInfo("gauss4", 4, "implicit",
-                         "2-stage Gauss-Legendre in (theta, p), symplectic, stages solved to "
-                         "round-off",
-                         symplectic=True, native="theta,p"),
-    "midpoint": MethodInfo("midpoint", 2, "implicit",
-                           "implicit midpoint (1-stage Gauss) in (theta, p), symplectic",
-                           symplectic=True, native="theta,p"),
-    "linear": MethodInfo("linear", None, "exact",
-                         "exact discretisation (matrix exponential) of the linearised model"),
-    "etd3": MethodInfo("etd3", 3, "exponential",
-                       "exponential integrator: the linearised chain and its held input exactly, "
-                       "the nonlinear remainder by 2-node Gauss exponential quadrature with "
-                       "extrapolated stages (2 evaluations per step)",
-                       native="theta,omega,history"),
-    "etd3m": MethodInfo("etd3m", 3, "exponential",
-                        "etd3 with each step spanning m whole held input samples (dt_s = m "
-                        "input intervals): the linearised chain exactly, the remainder's products "
-                        "with the held input against per-sample weights (2 evaluations per step)",
-                        native="theta,omega,history", multisample=True),
-    "etd4m": MethodInfo("etd4m", 4, "exponential",
-                        "etd3m with three Gauss nodes and the stages predicted by the quadratic "
-                        "through the previous step's three (rig.etd4m; 3 evaluations per step)",
-                        native="theta,omega,history3", multisample=True),
-}
+from rig._jit import njit
 
 # Kernel status codes
 OK, NONFINITE, STEP_TOO_SMALL, NO_CONVERGENCE = 0, 1, 2, 3
@@ -416,7 +309,7 @@ def _canon_n(hc, s, cm, g, y, ax, ay, f, r, w):
 
 # Taylor polynomials of sin and cos: on |x| <= SINCOS_POLY_MAX the truncated series (through x^15
 # and x^16) are within 2 ulp of math.sin/math.cos (the next terms are below 6e-18);
-# tests/test_exponential.py checks this on a dense grid.
+# tests/rig/solvers/test_exponential.py checks this on a dense grid.
 SINCOS_POLY_MAX = 0.8
 
 
@@ -543,60 +436,6 @@ def _rhs(hc, s, cm, g, bod, alg, y, ax, ay, f, r, w):
         _rhs_rec(bod, g, y, ax, ay, f, r, w)
     else:
         _rhs_n(hc, s, cm, g, y, ax, ay, f, r, w)
-
-
-def bodies_array(chain: Chain) -> np.ndarray:
-    """The (6, n) body table the recursive right-hand side reads: mass, length, com, inertia,
-    damping, relative flag (row 5, 1.0 or 0.0)."""
-    out = np.empty((6, chain.n))
-    out[0], out[1], out[2], out[3], out[4] = (chain.mass_kg, chain.length_m, chain.com_m,
-                                              chain.inertia_kgm2, chain.damping_nms)
-    out[5] = 1.0 if chain.damping_mode == "relative" else 0.0
-    return out
-
-
-def rhs_algorithm(chain: Chain, algorithm: str = "auto") -> int:
-    """The right-hand-side algorithm code for ``algorithm`` = ``"auto"`` (n = 2 scalar code; the
-    dense solve below :data:`RECURSIVE_FROM_N` bodies, the O(n) recursion from there),
-    ``"dense"`` or ``"recursive"``."""
-    if algorithm == "auto":
-        if chain.n == 2:
-            return ALG_TWO
-        return ALG_RECURSIVE if chain.n >= RECURSIVE_FROM_N else ALG_DENSE
-    if algorithm == "dense":
-        return ALG_DENSE
-    if algorithm == "recursive":
-        return ALG_RECURSIVE
-    raise ConfigError(f"algorithm = {algorithm!r} is invalid: expected 'auto', 'dense' or "
-                      "'recursive'")
-
-
-def rhs(chain: Chain, y, ax: float = 0.0, ay: float = 0.0, *, canonical: bool = False,
-        generic: bool = False, algorithm: str = "auto") -> np.ndarray:
-    """The kernels' right-hand side at one state (for tests and inspection), shape (2n,).
-
-    ``y = (theta, omega)`` gives ``(omega, th'')``; with ``canonical=True``, ``y = (theta, p)``
-    gives ``(theta', p')``. ``generic=True`` forces the any-n code path for n = 2 (the dense solve
-    unless ``algorithm="recursive"``); ``algorithm`` as in :func:`rhs_algorithm` (not for the
-    canonical form, which is always dense).
-    """
-    y = np.ascontiguousarray(y, dtype=float)
-    f = np.empty((1, y.size))
-    n = chain.n
-    w = np.empty((n, max(n + 2, 6)))
-    args = (chain.H, chain.S, chain.C, chain.g_mps2, y, float(ax), float(ay), f, 0)
-    if canonical:
-        if n == 2 and not generic:
-            _canon2(*args)
-        else:
-            _canon_n(*args, w)
-        return f[0]
-    alg = rhs_algorithm(chain, algorithm)
-    if generic and alg == ALG_TWO:
-        alg = ALG_DENSE
-    _rhs(chain.H, chain.S, chain.C, chain.g_mps2, bodies_array(chain), alg, y, float(ax),
-         float(ay), f, 0, w)
-    return f[0]
 
 
 @njit(cache=True)
@@ -1279,38 +1118,6 @@ def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, 
     return OK, row, n_int, 0.0, nfev, n_newton
 
 
-# ================================================================================================
-# exact discretisation of the linear model
-# ================================================================================================
-
-def discretise(a, b, h, hold="zoh"):
-    """Exact discretisation of z' = A z + B u over one step h for a held input (Van Loan).
-
-    With ``u(t_k + s) = u_k + (u_{k+1} - u_k) s / h`` (``linear``; ``zoh`` drops the second term)::
-
-        z_{k+1} = Phi z_k + Gamma0 u_k + Gamma1 (u_{k+1} - u_k)
-        Phi = e^{A h},  Gamma0 = int_0^h e^{A r} dr B,  Gamma1 = int_0^h e^{A (h - r)} B r / h dr
-
-    all read off ``expm([[A h, B h, 0], [0, 0, I], [0, 0, 0]]) = [[Phi, Gamma0, Gamma1], ...]``.
-    No one-sample delay and no start-up transient are introduced (unlike ``zpk2sos`` of a hold
-    model or ``dlsim`` with first-order hold from a zero state).
-
-    Returns (Phi (N, N), Gamma0 (N, m), Gamma1 (N, m)); Gamma1 is zero for ``zoh``.
-    """
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    nz, m = b.shape
-    big = np.zeros((nz + 2 * m, nz + 2 * m))
-    big[:nz, :nz] = a * h
-    big[:nz, nz:nz + m] = b * h
-    big[nz:nz + m, nz + m:] = np.eye(m)
-    e = scipy.linalg.expm(big)
-    phi = e[:nz, :nz].copy()
-    g0 = e[:nz, nz:nz + m].copy()
-    g1 = e[:nz, nz + m:].copy() if hold == "linear" else np.zeros_like(g0)
-    return phi, g0, g1
-
-
 @njit(cache=True, nogil=True)
 def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
     """z <- Phi z + Gamma0 u_a + Gamma1 (u_b - u_a) per substep (single input x0'').
@@ -1347,59 +1154,6 @@ def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
             if not ok:
                 return NONFINITE, row, i + 1
     return OK, row, n_int
-
-
-# -- lifted to the output rate --------------------------------------------------------------------
-#
-# When each output row spans L = out_every * substeps substeps, the per-substep recursion composes
-# into one step per row, z_{k+1} = Phi^L z_k + sum_q c_q u_{k m + q}: a FIR of the row's
-# m = out_every input samples (m + 1 with the linear hold: rows share their boundary sample). With
-# the interval's map ``z <- P_I z + a_I u_q + b_I u_{q+1}`` (P_I = Phi^substeps; a_I, b_I the
-# substeps' Gamma0, Gamma1 terms carried to the interval's end, b_I = 0 for zoh) the taps are
-# ``c_q = P_I^{m-1-q} a_I + P_I^{m-q} b_I`` (each term where its exponent is >= 0). They come from
-# the discretised Phi itself (repeated products, Phi^L by squaring), so the lifted run follows the
-# per-substep run to round-off (a few ulp per row), not merely the exact solution.
-
-
-def _matrix_power(a: np.ndarray, k: int) -> np.ndarray:
-    """a^k by repeated squaring (k >= 0; relative error ~ log2(k) ulp)."""
-    out = np.eye(a.shape[0])
-    sq = a.copy()
-    while k:
-        if k & 1:
-            out = sq @ out
-        k >>= 1
-        if k:
-            sq = sq @ sq
-    return out
-
-
-def lift_linear(phi, g0, g1, hold: str, substeps: int, out_every: int):
-    """The linear method over one output row of ``out_every`` input intervals at once.
-
-    Parameters
-    ----------
-    phi, g0, g1 : the substep's exact discretisation (:func:`discretise`; (N, N), (N, 1), (N, 1)).
-    hold : ``"zoh"`` or ``"linear"`` (the input inside an interval, as in :func:`linear_kernel`).
-    substeps : substeps per input interval.
-    out_every : input intervals per output row, m.
-
-    Returns
-    -------
-    p : (N, N) Phi^(m substeps).
-    taps : (m, N) for ``zoh``, (m + 1, N) for ``linear``: the row's state is
-        ``z_{k+1} = p z_k + taps.T @ u[k m : k m + len(taps)]``, the same map as
-        :func:`linear_kernel` over the row's m intervals (equal to round-off).
-    """
-    phi = np.ascontiguousarray(phi, dtype=float)
-    n2 = phi.shape[0]
-    g0 = np.ascontiguousarray(g0, dtype=float).reshape(n2)
-    g1 = np.ascontiguousarray(g1, dtype=float).reshape(n2)
-    la = int(hold == "linear")
-    p_i = _matrix_power(phi, substeps)
-    taps = np.zeros((out_every + la, n2))
-    _lift_taps(phi, p_i, g0, g1, la, substeps, out_every, taps)
-    return _matrix_power(p_i, out_every), taps
 
 
 @njit(cache=True, nogil=True)
@@ -1545,85 +1299,6 @@ def lifted_kernel2(p, taps, ax, m, n_rows, y, y_out):
 ETD3_NODES = (0.5 - _R3 / 6.0, 0.5 + _R3 / 6.0)
 
 
-def _phi_integrals(a: np.ndarray, n: int, h: float, kmax: int):
-    """e^{Ah} and K_k = int_0^h e^{A(h-s)} E (s/h)^k ds for k = 0..kmax (E = [0; I], (2n, n)).
-
-    One matrix exponential of the augmented system x' = A x + E y_0, y_k' = y_{k+1} (in t / h):
-    block (0, k) of ``expm`` is int_0^h e^{A(h-s)} E (s/h)^k / k! ds.
-    """
-    n2 = a.shape[0]
-    size = n2 + (kmax + 1) * n
-    big = np.zeros((size, size))
-    big[:n2, :n2] = a * h
-    big[n:n2, n2:n2 + n] = np.eye(n) * h
-    for k in range(kmax):
-        r0 = n2 + k * n
-        big[r0:r0 + n, r0 + n:r0 + 2 * n] = np.eye(n)
-    e = scipy.linalg.expm(big)
-    ks = [math.factorial(k) * e[:n2, n2 + k * n:n2 + (k + 1) * n] for k in range(kmax + 1)]
-    return e[:n2, :n2].copy(), ks
-
-
-@dataclass(frozen=True, eq=False)
-class Etd3Coefficients:
-    """Everything :func:`etd3_kernel` needs for one chain, step and hold (all arrays C-contiguous).
-
-    Attributes
-    ----------
-    phi, g0, g1 : the exact held-input step of the linearised chain over h (:func:`discretise`;
-        g1 is zero for zoh), (2n, 2n), (2n,), (2n,).
-    phic, g0c, g1c : the same over c_i h for the two nodes, (2, 2n, 2n), (2, 2n), (2, 2n).
-    pc : K0(c_i h) = int_0^{c_i h} e^{A(c_i h - s)} E ds, (2, 2n, n).
-    wq : quadrature weights W_i, (2, 2n, n).
-    xp : predictor weights, (2, 2): the value at c_i / 2 of the line through the previous step's
-        stages (at c_1 - 1 and c_2 - 1, in units of h).
-    p, q, bw : H^-1 K, H^-1 C (n, n) and H^-1 (-S) (n,), to split off the linear part.
-    """
-
-    phi: np.ndarray
-    g0: np.ndarray
-    g1: np.ndarray
-    phic: np.ndarray
-    g0c: np.ndarray
-    g1c: np.ndarray
-    pc: np.ndarray
-    wq: np.ndarray
-    xp: np.ndarray
-    p: np.ndarray
-    q: np.ndarray
-    bw: np.ndarray
-
-
-@functools.lru_cache(maxsize=64)
-def etd3_coefficients(chain: Chain, h: float, hold: str) -> Etd3Coefficients:
-    """The matrices of :func:`etd3_kernel` for ``chain``, step ``h`` [s] and ``hold`` (cached)."""
-    a, b = chain.state_space()
-    n = chain.n
-    c = ETD3_NODES
-    phi, ks = _phi_integrals(a, n, h, 1)
-    _, g0, g1 = discretise(a, b, h, hold)
-    # l_0(x) = (x - c_2)/(c_1 - c_2), l_1(x) = (x - c_1)/(c_2 - c_1)
-    wq = np.array([(-c[1] * ks[0] + ks[1]) / (c[0] - c[1]),
-                   (-c[0] * ks[0] + ks[1]) / (c[1] - c[0])])
-    phic, g0c, g1c, pc = [], [], [], []
-    for ci in c:
-        ph, kc = _phi_integrals(a, n, ci * h, 0)
-        _, gc0, gc1 = discretise(a, b, ci * h, hold)
-        phic.append(ph)
-        g0c.append(gc0[:, 0])
-        g1c.append(gc1[:, 0])
-        pc.append(kc[0])
-    nodes = (c[0] - 1.0, c[1] - 1.0)
-    xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
-                    (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
-    hinv = np.linalg.inv(chain.H)
-    arr = np.ascontiguousarray
-    return Etd3Coefficients(
-        phi=arr(phi), g0=arr(g0[:, 0]), g1=arr(g1[:, 0]), phic=arr(np.array(phic)),
-        g0c=arr(np.array(g0c)), g1c=arr(np.array(g1c)), pc=arr(np.array(pc)), wq=arr(wq),
-        xp=arr(xp), p=arr(hinv @ chain.K), q=arr(hinv @ chain.C), bw=arr(b[n:, 0]))
-
-
 @njit(cache=True, inline="always")
 def _sincos4(a, b, c, d):
     """sin and cos of four angles: (sa, ca, sb, cb, sc, cc, sd, cd). One branch for all four: the
@@ -1726,25 +1401,6 @@ def _nsplit_n(hc, s, cm, g, p, q, bw, z, rz, out, ro, w):
         out[ro, j] = w[j, n + 2] + lin
         out[ro, n + j] = w[j, n + 3] - bw[j]
         out[ro, 2 * n + j] = w[j, n + 4]
-
-
-def nonlinear_remainder(chain: Chain, y, *, generic: bool = False) -> np.ndarray:
-    """The etd3 kernels' remainder parts at one state (for tests and inspection), shape (3, n).
-
-    Rows N0, N1, N2 with ``th'' = (A z + B ax)_omega + N0 + ax N1 + ay N2`` for y = z = (theta,
-    omega) (:class:`Etd3Coefficients`, section comment above). ``generic=True`` uses the any-n
-    code for n = 2.
-    """
-    y = np.ascontiguousarray(y, dtype=float)
-    n = chain.n
-    co = etd3_coefficients(chain, 1.0, "zoh")
-    args = (chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw)
-    if n == 2 and not generic:
-        s0, c0, s1, c1 = _sincos_pair(y[0], y[1])
-        return np.array(_nsplit2(*args, y[0], y[1], y[2], y[3], s0, c0, s1, c1)).reshape(3, 2)
-    out = np.empty((1, 3 * n))
-    _nsplit_n(*args, y[None, :], 0, out, 0, np.empty((n, n + 5)))
-    return out.reshape(3, n)
 
 
 @njit(cache=True)
@@ -2006,153 +1662,6 @@ def _etd3_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21
     hist[1, 3] = b11
     hist[1, 4] = b20
     hist[1, 5] = b21
-
-
-# ================================================================================================
-# etd3m: etd3 with steps spanning m held input samples
-# ================================================================================================
-#
-# etd3 treats the input as constant (or linear) within a step, so it steps at least once per
-# sample. etd3m takes one step of H = m h_in over m whole samples: with the remainder split as in
-# etd3 and the input gain written g(theta) = b + N1(theta) (b = H^-1 (-S), the linearised chain's),
-#     z(H) = e^{AH} z(0) + int_0^H e^{A(H-s)} E [N0(z(s)) + u(s) g(theta(s)) + v(s) N2(theta(s))] ds
-# exactly (u, v the held x and y inputs). The smooth parts N0, g, N2 are interpolated through the
-# two Gauss nodes c_i H (as in etd3), and each product with the held input is integrated exactly
-# against the staircase (or the straight lines): per input sample q and node i the weight
-#     W_iq = int_0^H e^{A(H-s)} E l_i(s/H) phi_q(s) ds          (2n, n)
-# (phi_q the hold's basis function of sample q: the indicator of interval q for zoh, the hat
-# function for linear), the FIR of the lifted linear method generalised (sum_i W_iq b is its tap;
-# for a linear chain the method is that exact map). The stages are predicted as in etd3: the exact
-# linear step to c_i H plus K0(c_i H) N0^ and the staircase against b + N1^ (weights P_iq,
-# int_0^{c_i H} e^{A(c_i H - s)} E phi_q(s) ds), N^ extrapolated linearly from the previous
-# step's two stages to c_i H / 2. (Measured on the paper's 3000 s run, a quadratic predictor
-# through one more past stage gains 5 to 20 % at m = 5 and 10 and loses 60 % at m = 20; on 100 s
-# of it, iterating the stages to collocation, two more evaluations per step, gains 1.5 to 2.2
-# times at m = 5 to 20.)
-# Two remainder evaluations per step whatever m: the per-sample cost is the FIR, 8 n^2 products
-# per sample and input (all four weight sets in one contiguous row per sample, the stage sets
-# skipped past their nodes: on average 6 n^2).
-#
-# One correction is specific to m > 1 with zoh: omega(s) carries a sawtooth from the staircase,
-# b (U(s) - U~(s)) with U = int u and U~ its smooth interpolant through the sample instants, zero
-# there and, at a fraction f of interval q, b h du f (1 - f) / 2 (du = u_{q+1} - u_q). Its mean
-# over an interval is b h du / 12, which is what the integral of N0's omega-dependence sees; the
-# interpolation sees its values at the nodes instead, a bias of order |dN0/domega| |b| h du
-# independent of H that would cap the accuracy (1e-7 relative on the paper's run at m = 2 to 10,
-# measured). So each stage's omega, where N is evaluated (not propagated), is shifted by
-#     (b + N1^) h du_i (1/12 - f_i (1 - f_i) / 2)
-# (du_i from the samples next to the node's interval, within the step). At m = 1 the Gauss nodes
-# have f (1 - f) / 2 = 1/12 exactly (no shift: etd3, where the input inside a step is constant);
-# with the linear hold omega has no sawtooth at this order (no shift either). Measured on the
-# paper's run the error then falls with H at order 3 to 4.5 (tests/test_etd_multisample.py).
-# Native state as etd3's (theta, omega, valid flag, step H, the remainder at the two stages).
-
-ETD3M_BLOCKS = 4  # weight sets per sample: end node 0, end node 1, stage 1, stage 0
-
-
-@dataclass(frozen=True, eq=False)
-class Etd3mCoefficients:
-    """Everything :func:`etd3m_kernel` needs for one chain, input interval, m and hold.
-
-    Attributes
-    ----------
-    m : input samples per step; ``H = m h_in`` [s].
-    phi : e^{AH}, (2n, 2n).
-    phic : e^{A c_i H}, (2, 2n, 2n).
-    wt : per-sample weights, (m + la, 4 (2n) n) with la = 1 for the linear hold: row q holds
-        W_0q, W_1q (end of step, node 0, 1) and P_1q, P_0q (the stages; this order so that the
-        rows past a stage's node are zero in a suffix), each (2n, n) row-major.
-    wq : sum_q W_iq (the smooth part N0's quadrature weights), (2, 2n, n).
-    pc : K0(c_i H) = sum_q P_iq, (2, 2n, n).
-    xp : predictor weights (as etd3, in units of H), (2, 2).
-    ck : the stage omega shift's factor h_in (1/12 - f_i (1 - f_i)/2) / (hi_i - lo_i), (2,)
-        (zero for m = 1 or the linear hold).
-    lohi : (2, 2) the samples (within the step) whose difference is du_i.
-    widths : (e0, e1, w4, w3, w2): rows [0, e0) of wt are used in full (w4 numbers), rows
-        [e0, e1) in their first w3 (P_0q is zero there), the rest in their first w2.
-    p, q, bw : as :class:`Etd3Coefficients`.
-    """
-
-    m: int
-    phi: np.ndarray
-    phic: np.ndarray
-    wt: np.ndarray
-    wq: np.ndarray
-    pc: np.ndarray
-    xp: np.ndarray
-    ck: np.ndarray
-    lohi: np.ndarray
-    widths: np.ndarray
-    p: np.ndarray
-    q: np.ndarray
-    bw: np.ndarray
-
-
-def _piece_integral(a: np.ndarray, n: int, t_end: float, s_a: float, s_b: float, poly):
-    """int_{s_a}^{s_b} e^{A(t_end - s)} E p(s) ds for a polynomial p (numpy Polynomial in s),
-    (2n, n): e^{A(t_end - s_b)} sum_k p~_k K_k(s_b - s_a), p~ p in x = (s - s_a)/(s_b - s_a)."""
-    length = s_b - s_a
-    coef = poly(np.polynomial.Polynomial([s_a, length])).coef
-    _, ks = _phi_integrals(a, n, length, max(coef.size - 1, 0))
-    acc = sum(cf * ks[k] for k, cf in enumerate(coef))
-    return scipy.linalg.expm(a * (t_end - s_b)) @ acc
-
-
-@functools.lru_cache(maxsize=32)
-def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoefficients:
-    """The matrices of :func:`etd3m_kernel` for ``chain``, input interval ``h_in`` [s], ``m``
-    samples per step and ``hold`` (cached; ~3 m small matrix exponentials)."""
-    if hold not in HOLDS:
-        raise ConfigError(f"hold = {hold!r} is invalid: expected one of {', '.join(HOLDS)}")
-    if m < 1:
-        raise ConfigError(f"m = {m!r} is invalid: expected a whole number of samples >= 1")
-    a, b = chain.state_space()
-    n = chain.n
-    n2 = 2 * n
-    c = ETD3_NODES
-    big_h = m * h_in
-    la = int(hold == "linear")
-    poly = np.polynomial.Polynomial
-    lag = [poly([-c[1], 1.0 / big_h]) / (c[0] - c[1]), poly([-c[0], 1.0 / big_h]) / (c[1] - c[0])]
-    wt = np.zeros((m + la, ETD3M_BLOCKS, n2, n))
-    for qq in range(m):
-        s_a, s_b = qq * h_in, (qq + 1) * h_in
-        # the hold's basis functions on interval qq: (tap, polynomial in s)
-        if la:
-            pieces = [(qq, poly([1.0 + qq, -1.0 / h_in])), (qq + 1, poly([-qq, 1.0 / h_in]))]
-        else:
-            pieces = [(qq, poly([1.0]))]
-        for tap, bas in pieces:
-            for i in range(2):
-                wt[tap, i] += _piece_integral(a, n, big_h, s_a, s_b, lag[i] * bas)
-                ci = c[i] * big_h
-                if s_a < ci:
-                    wt[tap, 3 - i] += _piece_integral(a, n, ci, s_a, min(s_b, ci), bas)
-    phic = np.array([scipy.linalg.expm(a * (ci * big_h)) for ci in c])
-    nodes = (c[0] - 1.0, c[1] - 1.0)
-    xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
-                    (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
-    ck = np.zeros(2)
-    lohi = np.zeros((2, 2), dtype=np.int64)
-    if m > 1 and not la:
-        for i, ci in enumerate(c):
-            x = ci * m
-            qq = min(int(math.floor(x)), m - 1)
-            f = x - qq
-            lo, hi = max(qq - 1, 0), min(qq + 1, m - 1)
-            ck[i] = h_in * (1.0 / 12.0 - 0.5 * f * (1.0 - f)) / (hi - lo)
-            lohi[i] = lo, hi
-    # samples [0, e0) carry all four weight sets, [e0, e1) three (stage 0's ended), the rest two
-    e0, e1 = (min(int(math.ceil(ci * m * (1.0 + 1e-12) - 1e-12)) + la, m + la) for ci in c)
-    widths = np.array([e0, e1, 4 * n2 * n, 3 * n2 * n, 2 * n2 * n], dtype=np.int64)
-    hinv = np.linalg.inv(chain.H)
-    arr = np.ascontiguousarray
-    return Etd3mCoefficients(
-        m=m, phi=arr(scipy.linalg.expm(a * big_h)), phic=arr(phic),
-        wt=arr(wt.reshape(m + la, ETD3M_BLOCKS * n2 * n)), wq=arr(wt[:, :2].sum(axis=0)),
-        pc=arr(wt[:, :1:-1].sum(axis=0)), xp=arr(xp), ck=ck, lohi=lohi, widths=widths,
-        p=arr(hinv @ chain.K),
-        q=arr(hinv @ chain.C), bw=arr(b[n:, 0]))
 
 
 @njit(cache=True, inline="always")
@@ -2417,277 +1926,279 @@ def etd3m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pc, xp, ck, lohi, w
 
 
 # ================================================================================================
-# Python entry point
+# etd4m (rig.solvers.etd4m)
 # ================================================================================================
 
-@dataclass(frozen=True, eq=False)
-class Run:
-    """Result of one :func:`integrate` call.
 
-    Attributes
-    ----------
-    y_out : (T, 2n) states (theta [rad], omega [rad/s]) at the output instants (interval counts
-        0, out_every, ..., n_intervals).
-    native_end : (2n,) the method's own state at the end (``theta, omega`` or ``theta, p``); pass it
-        back as ``native0`` to continue bit for bit.
-    h_next_s : proposed next step of an adaptive method [s] (``nan`` otherwise).
-    n_steps, n_rejected, n_fev, n_newton : accepted steps, rejected steps, right-hand-side
-        evaluations, Gauss steps that needed Newton (the linear method counts its substeps, also
-        where it took them composed, one output row at a time).
-    lifted : the linear method's substeps per kernel step where it stepped once per output row
-        (:func:`lift_linear`; out_every * substeps), 0 where it stepped every substep.
-    """
-
-    y_out: np.ndarray
-    native_end: np.ndarray
-    h_next_s: float
-    n_steps: int
-    n_rejected: int
-    n_fev: int
-    n_newton: int
-    lifted: int = 0
+@njit(cache=True, inline="always")
+def _etd4m_fir6(u, i0, stride, wt, widths, nw, acc):
+    """acc = sum_q u[(i0 + q) stride] wt[q], the stage sets skipped past their nodes."""
+    for r in range(6 * nw):
+        acc[r] = 0.0
+    lo = 0
+    for seg in range(4):
+        hi = widths[seg] if seg < 3 else wt.shape[0]
+        width = (6 - seg) * nw
+        for qq in range(lo, hi):
+            x = u[(i0 + qq) * stride]
+            for r in range(width):
+                acc[r] += x * wt[qq, r]
+        lo = max(lo, hi)
 
 
-def output_rows(n_intervals: int, out_every: int) -> np.ndarray:
-    """Interval counts at which states are output: 0, out_every, 2 out_every, ..., and the end."""
-    idx = np.arange(0, n_intervals + 1, out_every)
-    if idx[-1] != n_intervals:
-        idx = np.append(idx, n_intervals)
-    return idx
+@njit(cache=True)
+def _etd4m_eval(hc, s, cm, g, p, q, bw, zs, i, hn, w):
+    """hn[i] = (N0, N1, N2) at the state zs[i] (the n = 2 scalar code where n = 2)."""
+    if zs.shape[1] == 4:
+        s0, c0, s1, c1 = _sincos_pair(zs[i, 0], zs[i, 1])
+        (hn[i, 0], hn[i, 1], hn[i, 2], hn[i, 3], hn[i, 4],
+         hn[i, 5]) = _nsplit2(hc, s, cm, g, p, q, bw, zs[i, 0], zs[i, 1], zs[i, 2], zs[i, 3], s0,
+                              c0, s1, c1)
+    else:
+        _nsplit_n(hc, s, cm, g, p, q, bw, zs, i, hn, i, w)
 
 
-def to_native(chain: Chain, method: str, y) -> np.ndarray:
-    """(theta, omega) -> the method's native state (p = M omega for the Gauss methods; an empty
-    history for etd3)."""
-    y = np.array(y, dtype=float)
-    if METHODS[method].native == "theta,omega":
-        return y
-    if METHODS[method].native == "theta,omega,history":
-        return np.concatenate([y[:2 * chain.n], np.zeros(2 + 6 * chain.n)])
-    if METHODS[method].native == "theta,omega,history3":
-        return np.concatenate([y[:2 * chain.n], np.zeros(2 + 9 * chain.n)])
-    n = chain.n
-    p = np.empty((1, n))
-    omega_to_momentum(chain.H, y[None, :n], y[None, n:], p)
-    return np.concatenate([y[:n], p[0]])
+@njit(cache=True, nogil=True, fastmath={"contract"})
+def etd4m_kernel(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, widths, ax, ay,
+                 sa, m, n_steps, out_steps, y, y_out, hist, have):
+    """etd4m (module docstring): ``n_steps`` steps of ``m`` input samples, any n.
+
+    ``ax``, ``ay`` hold the samples (``ay`` read with stride ``sa``: 0 for none); a row is stored
+    every ``out_steps`` steps and at the end. ``hist`` (3, 3n) holds (N0, N1, N2) at the previous
+    step's three stages and is updated in place; ``have`` says whether it is valid. ``y`` (2n,)
+    is overwritten with the end state. Returns (status, rows written, input intervals done,
+    remainder evaluations)."""
+    n2 = y.shape[0]
+    n = n2 // 2
+    nw = n2 * n
+    acc = np.empty(6 * nw)
+    accv = np.zeros(6 * nw)
+    zs = np.empty((3, n2))
+    hn = np.empty((3, 3 * n))
+    gg = np.empty(n)
+    g2 = np.empty(n)
+    zt = np.empty(n2)
+    w = np.empty((n, n + 5))
+    nev = 0
+    zero = n_steps - n_steps
+    one = zero + 1
+    if not have:
+        for c in range(n2):
+            zs[zero, c] = y[c]
+        _etd4m_eval(hc, s, cm, g, p, q, bw, zs, zero, hist, w)
+        for c in range(3 * n):
+            hist[one, c] = hist[zero, c]
+            hist[one + one, c] = hist[zero, c]
+        nev += 1
+    _store(y, y_out, zero)
+    row = one
+    left = out_steps
+    for k in range(n_steps):
+        i0 = k * m
+        _etd4m_fir6(ax, i0, 1, wt, widths, nw, acc)
+        if sa:
+            _etd4m_fir6(ay, i0, sa, wt, widths, nw, accv)
+        for i in range(3):
+            for j in range(n):
+                gj = bw[j]
+                vj = 0.0
+                for jj in range(3):
+                    gj += xp[i, jj] * hist[jj, n + j]
+                    vj += xp[i, jj] * hist[jj, 2 * n + j]
+                gg[j] = gj
+                g2[j] = vj
+            du = ck[i] * (ax[i0 + lohi[i, 1]] - ax[i0 + lohi[i, 0]])
+            dv = ck[i] * (ay[(i0 + lohi[i, 1]) * sa] - ay[(i0 + lohi[i, 0]) * sa])
+            base = (5 - i) * nw
+            for r in range(n2):
+                t = 0.0
+                for c in range(n2):
+                    t += phic[i, r, c] * y[c]
+                for j in range(n):
+                    t += acc[base + r * n + j] * gg[j] + accv[base + r * n + j] * g2[j]
+                    for jj in range(3):
+                        t += pn[i, jj, r, j] * hist[jj, j]
+                zs[i, r] = t
+            for j in range(n):
+                zs[i, n + j] += du * gg[j] + dv * g2[j]
+        for i in range(3):
+            _etd4m_eval(hc, s, cm, g, p, q, bw, zs, i, hn, w)
+        nev += 3
+        for r in range(n2):
+            t = 0.0
+            for c in range(n2):
+                t += phi[r, c] * y[c]
+            for i in range(3):
+                base = i * nw
+                for j in range(n):
+                    t += (acc[base + r * n + j] * (bw[j] + hn[i, n + j])
+                          + accv[base + r * n + j] * hn[i, 2 * n + j] + wq[i, r, j] * hn[i, j])
+            zt[r] = t
+        for r in range(n2):
+            y[r] = zt[r]
+        for i in range(3):
+            for c in range(3 * n):
+                hist[i, c] = hn[i, c]
+        left -= 1
+        if left == 0 or k + 1 == n_steps:
+            left = out_steps
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, (k + 1) * m, nev
+    return OK, row, n_steps * m, nev
 
 
-def from_native(chain: Chain, method: str, rows) -> np.ndarray:
-    """Native states (T, >= 2n) -> (theta, omega) (T, 2n)."""
-    rows = np.asarray(rows, float)
-    if METHODS[method].native != "theta,p":
-        return rows[:, :2 * chain.n]
-    n = chain.n
-    out = rows.copy()
-    momentum_to_omega(chain.H, np.ascontiguousarray(rows[:, :n]), np.ascontiguousarray(rows[:, n:]),
-                      out[:, n:])
-    return out
+@njit(cache=True, inline="always")
+def _etd4m_fir48(u, i0, stride, wt, acc):
+    """acc = sum_q u[(i0 + q) stride] wt[q] for n = 2: every row in full (48 numbers, a constant
+    trip count the compiler vectorises: faster than skipping the stage sets' zero suffixes)."""
+    for r in range(48):
+        acc[r] = 0.0
+    for qq in range(wt.shape[0]):
+        x = u[(i0 + qq) * stride]
+        for r in range(48):
+            acc[r] += x * wt[qq, r]
 
 
-def integrate(chain: Chain, native0, ax, ay, *, hold: str, h_in: float, n_intervals: int,
-              out_every: int, method: str, substeps: int = 1, rtol: float = 1e-10,
-              atol: float = 1e-12, h0_s: float = float("nan"), adaptive: bool = True,
-              t0_s: float = 0.0, algorithm: str = "auto", lift: bool = True,
-              samples_per_step: int = 1) -> Run:
-    """Run one method over ``n_intervals`` held-input intervals of ``h_in`` seconds.
-
-    Parameters
-    ----------
-    chain : the model.
-    native0 : (2n,) start state in the method's native form (see :func:`to_native`).
-    ax, ay : base accelerations x0'', y0'' [m/s^2] at the sample instants, at least
-        ``n_intervals`` (+1 for ``hold="linear"``) samples; ``ay`` may be ``None`` (zero).
-    hold : ``"zoh"`` or ``"linear"``.
-    h_in : input sample interval [s].
-    out_every : output every this many intervals (and at the end).
-    method : key of :data:`METHODS`.
-    substeps : steps per interval for fixed-step methods (rk4, gauss4, midpoint, linear, etd3;
-        also dop853 with ``adaptive=False``); for adaptive dop853 the least number of steps per
-        interval.
-    rtol, atol : dop853 tolerances (relative, absolute per state component [rad, rad/s]).
-    h0_s : dop853 proposed first step [s]; ``nan`` selects it (Hairer's algorithm).
-    adaptive : dop853 only: ``False`` drives the tableau with fixed steps (order checks).
-    t0_s : absolute time of the start [s], only used to report where a divergence happened.
-    algorithm : right-hand side of rk4 and dop853 (:func:`rhs_algorithm`): ``"auto"`` (the
-        n = 2 scalar code, the dense solve for n < :data:`RECURSIVE_FROM_N`, the O(n) recursion
-        from there), ``"dense"`` or ``"recursive"``.
-    lift : linear only: step once per output row (:func:`lift_linear`, :func:`lifted_kernel`)
-        where a row spans more than one substep, and the partial last row (if any) per substep;
-        ``False`` steps every substep (the same map to round-off, ~out_every times slower).
-    samples_per_step : etd3m and etd4m only: input intervals per step, m >= 1, dividing
-        ``out_every`` and ``n_intervals`` (``substeps`` must be 1).
-
-    Raises
-    ------
-    DivergenceError : a non-finite state at an output instant (reports the last finite output),
-        a dop853 step below 10 ulp of the time, or Gauss stage equations that did not converge.
-    """
-    if method not in METHODS:
-        raise ConfigError(f"method = {method!r} is invalid: expected one of {', '.join(METHODS)}")
-    if hold not in HOLDS:
-        raise ConfigError(f"hold = {hold!r} is invalid: expected one of {', '.join(HOLDS)}")
-    hc, s, cm, g = chain.H, chain.S, chain.C, chain.g_mps2
-    lin = hold == "linear"
-    need = n_intervals + (1 if lin else 0)
-    ax = np.ascontiguousarray(ax, dtype=float)
-    if ax.shape[0] < need:
-        raise ConfigError(f"ax has {ax.shape[0]} samples; {n_intervals} intervals with hold = "
-                          f"{hold!r} need {need}")
-    use_ay = ay is not None
-    ay = np.ascontiguousarray(ay, dtype=float) if use_ay else np.zeros(1)
-    sa, la = int(use_ay), int(lin)
-    if use_ay and ay.shape[0] < need:
-        raise ConfigError(f"ay has {ay.shape[0]} samples; {need} are needed")
-    rows = output_rows(n_intervals, out_every)
-    y = np.array(native0, dtype=float)
-    y_out = np.empty((rows.size, 2 * chain.n if METHODS[method].native.startswith(
-        "theta,omega,history") else y.size))
-    h_next, n_rej, n_newton = float("nan"), 0, 0
-    s_fail = 0.0
-    lifted = 0
-    alg = rhs_algorithm(chain, algorithm)
-    bod = bodies_array(chain)
-    if method == "rk4":
-        if alg == ALG_TWO:
-            status, nrow, i_done = rk4_kernel2(hc, s, cm, g, ax, ay, sa, la, h_in, substeps,
-                                               n_intervals, out_every, y, y_out)
-        else:
-            status, nrow, i_done = rk4_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in,
-                                              substeps, n_intervals, out_every, y, y_out)
-        n_steps, nfev = i_done * substeps, 4 * i_done * substeps
-    elif method == "dop853":
-        min_step = 10.0 * np.spacing(max(abs(t0_s) + n_intervals * h_in, h_in))
-        (status, nrow, i_done, s_fail, h_next, n_steps, n_rej,
-         nfev) = dop853_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, n_intervals,
-                               out_every, y, y_out, rtol, atol, h0_s, min_step, adaptive,
-                               substeps)
-        if not adaptive:
-            h_next = float("nan")
-    elif method in ("gauss4", "midpoint"):
-        tab = (GAUSS4_A, GAUSS4_B, GAUSS4_C) if method == "gauss4" else (
-            MIDPOINT_A, MIDPOINT_B, MIDPOINT_C)
-        status, nrow, i_done, s_fail, nfev, n_newton = gauss_kernel(
-            hc, s, cm, g, ax, ay, sa, la, h_in, substeps, n_intervals, out_every, y, y_out,
-            *tab)
-        n_steps = i_done * substeps
-    elif method == "etd3":
-        n = chain.n
-        h = h_in / substeps
-        co = etd3_coefficients(chain, float(h), hold)
-        z = np.ascontiguousarray(y[:2 * n])
-        meta = y[2 * n:2 * n + 2] if y.size == 8 * n + 2 else np.zeros(2)
-        hist = (np.ascontiguousarray(y[2 * n + 2:].reshape(2, 3 * n)) if y.size == 8 * n + 2
-                else np.zeros((2, 3 * n)))
-        have = bool(meta[0] == 1.0 and abs(meta[1] - h) <= 1e-12 * h)
-        kernel = etd3_kernel2 if n == 2 else etd3_kernel
-        status, nrow, i_done, nfev = kernel(
-            hc, s, cm, g, co.p, co.q, co.bw, co.phi, co.g0, co.g1, co.phic, co.g0c, co.g1c,
-            co.pc, co.wq, co.xp, ax, ay, sa, la, h_in, substeps, n_intervals, out_every, z,
-            y_out, hist, have)
-        y = np.concatenate([z, [1.0, h], hist.reshape(-1)])
-        n_steps = i_done * substeps
-    elif method == "etd3m":
-        n = chain.n
-        m = _check_samples_per_step(samples_per_step, substeps, out_every, n_intervals, h_in)
-        co = etd3m_coefficients(chain, float(h_in), m, hold)
-        z = np.ascontiguousarray(y[:2 * n])
-        meta = y[2 * n:2 * n + 2] if y.size == 8 * n + 2 else np.zeros(2)
-        hist = (np.ascontiguousarray(y[2 * n + 2:].reshape(2, 3 * n)) if y.size == 8 * n + 2
-                else np.zeros((2, 3 * n)))
-        big_h = m * h_in
-        have = bool(meta[0] == 1.0 and abs(meta[1] - big_h) <= 1e-12 * big_h)
-        kernel = etd3m_kernel2 if n == 2 else etd3m_kernel
-        status, nrow, i_done, nfev = kernel(
-            hc, s, cm, g, co.p, co.q, co.bw, co.phi, co.phic, co.wt, co.wq, co.pc, co.xp, co.ck,
-            co.lohi, co.widths, ax, ay, sa, m, n_intervals // m, out_every // m, z, y_out, hist,
-            have)
-        y = np.concatenate([z, [1.0, big_h], hist.reshape(-1)])
-        n_steps = i_done // m
-    elif method == "etd4m":
-        from rig.etd4m import etd4m_coefficients, etd4m_kernel, etd4m_kernel2
-
-        n = chain.n
-        m = _check_samples_per_step(samples_per_step, substeps, out_every, n_intervals, h_in)
-        co = etd4m_coefficients(chain, float(h_in), m, hold)
-        z = np.ascontiguousarray(y[:2 * n])
-        full = y.size == 11 * n + 2
-        meta = y[2 * n:2 * n + 2] if full else np.zeros(2)
-        hist = (np.ascontiguousarray(y[2 * n + 2:].reshape(3, 3 * n)) if full
-                else np.zeros((3, 3 * n)))
-        big_h = m * h_in
-        have = bool(meta[0] == 1.0 and abs(meta[1] - big_h) <= 1e-12 * big_h)
-        status, nrow, i_done, nfev = (etd4m_kernel2 if n == 2 else etd4m_kernel)(
-            hc, s, cm, g, co.p, co.q, co.bw, co.phi, co.phic, co.wt, co.wq, co.pn, co.xp, co.ck,
-            co.lohi, co.widths, ax, ay, sa, m, n_intervals // m, out_every // m, z, y_out, hist,
-            have)
-        y = np.concatenate([z, [1.0, big_h], hist.reshape(-1)])
-        n_steps = i_done // m
-    else:  # linear
-        a, b = chain.state_space()
-        phi, g0, g1 = discretise(a, b, h_in / substeps, hold)
-        n_full = n_intervals // out_every if lift and out_every * substeps > 1 else 0
-        if n_full:
-            p_row, taps = lift_linear(phi, g0, g1, hold, substeps, out_every)
-            kernel = lifted_kernel2 if y.size == 4 else lifted_kernel
-            status, nrow, i_done = kernel(p_row, taps, ax, out_every, n_full, y, y_out)
-            lifted = out_every * substeps
-            tail = n_intervals - i_done
-            if status == OK and tail:  # the partial last output interval, per substep
-                part = np.empty((2, y.size))
-                status, k, di = linear_kernel(phi, g0, g1, ax[i_done:], la, substeps, tail,
-                                              tail, y, part)
-                y_out[nrow] = part[1]
-                nrow, i_done = nrow + k - 1, i_done + di
-        else:
-            status, nrow, i_done = linear_kernel(phi, g0, g1, ax, la, substeps, n_intervals,
-                                                 out_every, y, y_out)
-        n_steps, nfev = i_done * substeps, 0
-
-    if status != OK:
-        _raise_divergence(chain, method, status, y, y_out, rows, nrow, i_done, s_fail, h_in, t0_s,
-                          substeps)
-    return Run(y_out=from_native(chain, method, y_out), native_end=y, h_next_s=float(h_next),
-               n_steps=int(n_steps), n_rejected=int(n_rej), n_fev=int(nfev),
-               n_newton=int(n_newton), lifted=lifted)
+@njit(cache=True, inline="always")
+def _etd4m_row2(mat, i, r, z0, z1, z2, z3, acc, accv, base, g0, g1, v0, v1):
+    """Row r of mat[i] @ z + the (4, 2) blocks at ``base`` of acc @ g and accv @ v (n = 2)."""
+    k = base + 2 * r
+    return (((mat[i, r, 0] * z0 + mat[i, r, 1] * z1) + (mat[i, r, 2] * z2 + mat[i, r, 3] * z3))
+            + ((acc[k] * g0 + acc[k + 1] * g1) + (accv[k] * v0 + accv[k + 1] * v1)))
 
 
-def _check_samples_per_step(m, substeps, out_every, n_intervals, h_in) -> int:
-    """etd3m's m as an int, or ConfigError naming the value and what is valid."""
-    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
-        raise ConfigError(f"samples_per_step = {m!r} is invalid: expected a whole number >= 1 of "
-                          "input intervals per etd3m step")
-    m = int(m)
-    if substeps != 1:
-        raise ConfigError(f"substeps = {substeps!r} is invalid for etd3m: its steps span whole "
-                          "input intervals (set samples_per_step), substeps must be 1")
-    if out_every % m or n_intervals % m:
-        ok = [k for k in range(1, out_every + 1) if out_every % k == 0 and n_intervals % k == 0]
-        raise ConfigError(
-            f"samples_per_step = {m} (dt_s = {m * h_in:.6g} s) is invalid: an etd3m step must "
-            f"divide the output interval ({out_every} input intervals) and the run "
-            f"({n_intervals} intervals); valid: {', '.join(map(str, ok))} input intervals "
-            f"(dt_s = {', '.join(f'{k * h_in:.6g}' for k in ok)} s)")
-    return m
+@njit(cache=True, inline="always")
+def _etd4m_n0_2(pn, i, r, a0, a1, b0, b1, c0, c1):
+    """Row r of sum_j pn[i, j] @ N0_j for the three stages' N0 (a, b, c) (n = 2)."""
+    return ((pn[i, 0, r, 0] * a0 + pn[i, 0, r, 1] * a1)
+            + (pn[i, 1, r, 0] * b0 + pn[i, 1, r, 1] * b1)
+            + (pn[i, 2, r, 0] * c0 + pn[i, 2, r, 1] * c1))
 
 
-def _raise_divergence(chain, method, status, y, y_out, rows, nrow, i_done, s_fail, h_in, t0_s,
-                      substeps):
-    if status == NONFINITE:
-        last = nrow - 2  # the row just written is the first non-finite one
-        state = from_native(chain, method, y_out[last:last + 1])[0]
-        t = t0_s + rows[last] * h_in
-        t_bad = t0_s + rows[nrow - 1] * h_in
-        raise DivergenceError(
-            f"{method}: the state became non-finite between t = {t:.9g} s and {t_bad:.9g} s "
-            f"(last finite state at t = {t:.9g} s: theta = {state[:chain.n]}, omega = "
-            f"{state[chain.n:]}); reduce the step (dt_s, rtol) or check the input", t, state)
-    state = from_native(chain, method, y[None, :])[0]
-    t = t0_s + i_done * h_in + s_fail
-    if status == STEP_TOO_SMALL:
-        raise DivergenceError(
-            f"dop853: the step size fell below 10 ulp of the time at t = {t:.9g} s (the solution "
-            f"is singular or non-finite there); last accepted state {state}", t, state)
-    raise DivergenceError(
-        f"{method}: the implicit stage equations did not converge at t = {t:.9g} s with "
-        f"dt_s = {h_in / substeps:.6g} s (neither fixed-point iteration nor simplified Newton); "
-        f"reduce dt_s. Last state {state}", t, state)
+@njit(cache=True, inline="always")
+def _etd4m_end2(r, acc, accv, wq, i, e0, e1, g0, g1, v0, v1):
+    """Row r of node i's end weights: acc_i @ g + accv_i @ v + wq[i] @ e (n = 2)."""
+    k = 8 * i + 2 * r
+    return (((acc[k] * g0 + acc[k + 1] * g1) + (wq[i, r, 0] * e0 + wq[i, r, 1] * e1))
+            + (accv[k] * v0 + accv[k + 1] * v1))
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"})
+def etd4m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, widths, ax, ay,
+                  sa, m, n_steps, out_steps, y, y_out, hist, have):
+    """:func:`etd4m_kernel` for the n = 2 chain: the state, the stages and the remainder parts in
+    scalars (the same arithmetic to round-off)."""
+    nw = 8
+    acc = np.empty(6 * nw)
+    accv = np.zeros(6 * nw)
+    phi3 = phi.reshape((1, 4, 4))
+    nev = 0
+    z0, z1, z2, z3 = y[0], y[1], y[2], y[3]
+    zero = n_steps - n_steps
+    one = zero + 1
+    if not have:
+        s0, c0, s1, c1 = _sincos_pair(z0, z1)
+        a00, a01, a10, a11, a20, a21 = _nsplit2(hc, s, cm, g, p, q, bw, z0, z1, z2, z3, s0, c0,
+                                                s1, c1)
+        b00, b01, b10, b11, b20, b21 = a00, a01, a10, a11, a20, a21
+        d00, d01, d10, d11, d20, d21 = a00, a01, a10, a11, a20, a21
+        nev += 1
+    else:
+        a00, a01, a10, a11, a20, a21 = (hist[0, 0], hist[0, 1], hist[0, 2], hist[0, 3],
+                                        hist[0, 4], hist[0, 5])
+        b00, b01, b10, b11, b20, b21 = (hist[1, 0], hist[1, 1], hist[1, 2], hist[1, 3],
+                                        hist[1, 4], hist[1, 5])
+        d00, d01, d10, d11, d20, d21 = (hist[2, 0], hist[2, 1], hist[2, 2], hist[2, 3],
+                                        hist[2, 4], hist[2, 5])
+    bw0 = bw[0]
+    bw1 = bw[1]
+    _store(y, y_out, zero)
+    row = one
+    left = out_steps
+    st = np.empty((3, 4))
+    for k in range(n_steps):
+        i0 = k * m
+        _etd4m_fir48(ax, i0, 1, wt, acc)
+        if sa:
+            _etd4m_fir48(ay, i0, sa, wt, accv)
+        for i in range(3):
+            x0 = xp[i, 0]
+            x1 = xp[i, 1]
+            x2 = xp[i, 2]
+            g0 = bw0 + ((x0 * a10 + x1 * b10) + x2 * d10)
+            g1 = bw1 + ((x0 * a11 + x1 * b11) + x2 * d11)
+            v0 = (x0 * a20 + x1 * b20) + x2 * d20
+            v1 = (x0 * a21 + x1 * b21) + x2 * d21
+            du = ck[i] * (ax[i0 + lohi[i, 1]] - ax[i0 + lohi[i, 0]])
+            dv = ck[i] * (ay[(i0 + lohi[i, 1]) * sa] - ay[(i0 + lohi[i, 0]) * sa])
+            base = (5 - i) * nw
+            for r in range(4):
+                st[i, r] = (_etd4m_row2(phic, i, r, z0, z1, z2, z3, acc, accv, base, g0, g1, v0, v1)
+                            + _etd4m_n0_2(pn, i, r, a00, a01, b00, b01, d00, d01))
+            st[i, 2] += du * g0 + dv * v0
+            st[i, 3] += du * g1 + dv * v1
+        p0, p1, p2, p3 = st[0, 0], st[0, 1], st[0, 2], st[0, 3]
+        q0, q1, q2, q3 = st[1, 0], st[1, 1], st[1, 2], st[1, 3]
+        r0, r1, r2, r3 = st[2, 0], st[2, 1], st[2, 2], st[2, 3]
+        sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
+        sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
+        a00, a01, a10, a11, a20, a21 = _nsplit2(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0,
+                                                cp0, sp1, cp1)
+        b00, b01, b10, b11, b20, b21 = _nsplit2(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0,
+                                                cq0, sq1, cq1)
+        d00, d01, d10, d11, d20, d21 = _nsplit2(hc, s, cm, g, p, q, bw, r0, r1, r2, r3, sr0,
+                                                cr0, sr1, cr1)
+        nev += 3
+        n0 = (_etd4m_row2(phi3, 0, 0, z0, z1, z2, z3, acc, accv, 0, bw0 + a10, bw1 + a11, a20, a21)
+              + (wq[0, 0, 0] * a00 + wq[0, 0, 1] * a01)
+              + _etd4m_end2(0, acc, accv, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20, b21)
+              + _etd4m_end2(0, acc, accv, wq, 2, d00, d01, bw0 + d10, bw1 + d11, d20, d21))
+        n1 = (_etd4m_row2(phi3, 0, 1, z0, z1, z2, z3, acc, accv, 0, bw0 + a10, bw1 + a11, a20, a21)
+              + (wq[0, 1, 0] * a00 + wq[0, 1, 1] * a01)
+              + _etd4m_end2(1, acc, accv, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20, b21)
+              + _etd4m_end2(1, acc, accv, wq, 2, d00, d01, bw0 + d10, bw1 + d11, d20, d21))
+        n2 = (_etd4m_row2(phi3, 0, 2, z0, z1, z2, z3, acc, accv, 0, bw0 + a10, bw1 + a11, a20, a21)
+              + (wq[0, 2, 0] * a00 + wq[0, 2, 1] * a01)
+              + _etd4m_end2(2, acc, accv, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20, b21)
+              + _etd4m_end2(2, acc, accv, wq, 2, d00, d01, bw0 + d10, bw1 + d11, d20, d21))
+        n3 = (_etd4m_row2(phi3, 0, 3, z0, z1, z2, z3, acc, accv, 0, bw0 + a10, bw1 + a11, a20, a21)
+              + (wq[0, 3, 0] * a00 + wq[0, 3, 1] * a01)
+              + _etd4m_end2(3, acc, accv, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20, b21)
+              + _etd4m_end2(3, acc, accv, wq, 2, d00, d01, bw0 + d10, bw1 + d11, d20, d21))
+        z0 = n0
+        z1 = n1
+        z2 = n2
+        z3 = n3
+        left -= 1
+        if left == 0 or k + 1 == n_steps:
+            left = out_steps
+            y[0] = z0
+            y[1] = z1
+            y[2] = z2
+            y[3] = z3
+            ok = _store(y, y_out, row)
+            row += 1
+            if not ok:
+                _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21,
+                             d00, d01, d10, d11, d20, d21)
+                return NONFINITE, row, (k + 1) * m, nev
+    y[0] = z0
+    y[1] = z1
+    y[2] = z2
+    y[3] = z3
+    _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
+                 d11, d20, d21)
+    return OK, row, n_steps * m, nev
+
+
+@njit(cache=True)
+def _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
+                 d11, d20, d21):
+    hist[0, 0], hist[0, 1], hist[0, 2], hist[0, 3], hist[0, 4], hist[0, 5] = (
+        a00, a01, a10, a11, a20, a21)
+    hist[1, 0], hist[1, 1], hist[1, 2], hist[1, 3], hist[1, 4], hist[1, 5] = (
+        b00, b01, b10, b11, b20, b21)
+    hist[2, 0], hist[2, 1], hist[2, 2], hist[2, 3], hist[2, 4], hist[2, 5] = (
+        d00, d01, d10, d11, d20, d21)

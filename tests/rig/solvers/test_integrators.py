@@ -8,7 +8,9 @@ import pytest
 import scipy.linalg
 
 from rig.chain import G_STANDARD, Chain
-from rig.integrators import METHODS, discretise, integrate, rhs, to_native
+from rig.solvers import COUPLED_BENCH, PENDULUM, SOLVERS, integrate, names_for, solver_named
+from rig.solvers.exact import discretise
+from rig.solvers.rhs import rhs
 from rig.simulate import BaseInput, simulate
 
 from chains import random_chain, rod_chain
@@ -52,7 +54,7 @@ def test_canonical_rhs_is_theta_dot_and_the_time_derivative_of_momentum(n):
         m = chain.mass_matrix(theta)
         mdot = -chain.H * np.sin(theta[:, None] - theta[None, :]) * (omega[:, None] - omega[None])
         pdot = m @ chain.accelerations(theta, omega, ax, ay) + mdot @ omega
-        y = to_native(chain, "gauss4", np.concatenate([theta, omega]))
+        y = solver_named("gauss4").init(chain, np.concatenate([theta, omega]))
         p = m @ omega
         np.testing.assert_allclose(y[n:], p, rtol=1e-14, atol=1e-14 * np.abs(p).max())
         tol = 100 * np.linalg.cond(m) * EPS * max(np.abs(pdot).max(), np.abs(omega).max())
@@ -63,15 +65,18 @@ def test_canonical_rhs_is_theta_dot_and_the_time_derivative_of_momentum(n):
 
 
 def test_registry_states_order_kind_and_description_of_every_method():
-    assert set(METHODS) == {"rk4", "dop853", "gauss4", "midpoint", "linear", "etd3", "etd3m",
-                            "etd4m"}
-    assert {k: (v.order, v.kind) for k, v in METHODS.items()} == {
+    assert set(SOLVERS) == {"rk4", "dop853", "gauss4", "midpoint", "linear", "etd3", "etd3m",
+                            "etd4m", "lawson4", "etdab"}
+    assert {k: (v.order, v.kind) for k, v in SOLVERS.items()} == {
         "rk4": (4, "fixed"), "dop853": (8, "adaptive"), "gauss4": (4, "implicit"),
         "midpoint": (2, "implicit"), "linear": (None, "exact"), "etd3": (3, "exponential"),
-        "etd3m": (3, "exponential"), "etd4m": (4, "exponential")}
-    assert [k for k, v in METHODS.items() if v.multisample] == ["etd3m", "etd4m"]
-    assert all(v.description and v.name == k for k, v in METHODS.items())
-    assert [k for k, v in METHODS.items() if v.symplectic] == ["gauss4", "midpoint"]
+        "etd3m": (3, "exponential"), "etd4m": (4, "exponential"), "lawson4": (4, "exponential"),
+        "etdab": (4, "exponential")}
+    assert names_for(COUPLED_BENCH) == ["lawson4", "etdab"]
+    assert names_for(PENDULUM) == [k for k in SOLVERS if k not in ("lawson4", "etdab")]
+    assert [k for k, v in SOLVERS.items() if v.multisample] == ["etd3m", "etd4m"]
+    assert all(v.description and v.name == k for k, v in SOLVERS.items())
+    assert [k for k, v in SOLVERS.items() if v.symplectic] == ["gauss4", "midpoint"]
 
 
 # -- convergence orders -------------------------------------------------------------------------
@@ -85,8 +90,8 @@ def _forced_rod_problem():
 
 def _dop_fixed(chain, base, y0, substeps):
     return integrate(chain, y0, base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                     n_intervals=base.n_intervals, out_every=1, method="dop853",
-                     substeps=substeps, adaptive=False).y_out
+                     n_intervals=base.n_intervals, out_every=1,
+                     solver=solver_named("dop853", substeps=substeps, adaptive_steps=False)).y_out
 
 
 def _fitted_order(errors, steps):
@@ -113,7 +118,7 @@ def test_fixed_step_methods_converge_at_their_order_through_a_held_input(method,
                       dt_s=base.dt_s / k, output_dt_s=base.dt_s, estimate_error=False)
         errors.append(np.abs(np.hstack([tr.theta_rad, tr.omega_rad_s]) - ref).max())
     slope, pairwise = _fitted_order(errors, base.dt_s / np.array(substeps))
-    p = METHODS[method].order
+    p = SOLVERS[method].order
     assert abs(slope - p) < tol, (errors, slope)
     assert abs(pairwise[-1] - p) < tol  # and the finest pair is asymptotic
     assert min(errors) > 1e3 * 1e-13  # all well above the reference's own error
@@ -170,7 +175,8 @@ def test_dop853_estimate_is_honest_when_the_sample_grid_sets_the_step(dt_s):
     tr = simulate(chain, 20.0, theta0=0.0, base=base, method="dop853", rtol=1e-8,
                   output_dt_s=10 * dt_s)
     ref = integrate(chain, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=dt_s, n_intervals=n,
-                    out_every=10, method="dop853", substeps=8, adaptive=False).y_out
+                    out_every=10,
+                    solver=solver_named("dop853", substeps=8, adaptive_steps=False)).y_out
     true = np.abs(tr.theta_rad - ref[:, :2]).max()
     assert tr.n_steps < 2.1 * n
     assert 0.5 < true / tr.max_error_rad < 2.0, (true, tr.max_error_rad)

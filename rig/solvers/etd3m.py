@@ -1,0 +1,257 @@
+"""etd3m: etd3 with each step spanning m whole held input samples (dt_s = m h_in), order 3.
+
+The linearised chain exactly, the remainder's products with the held input against exact
+per-sample weights, etd3's stage predictor, and a correction for the staircase's sawtooth in omega
+(the model: the comment above :class:`Etd3mCoefficients`); measured order 3 to 4.5 in the step
+(docs/solvers.md); m = 1 is etd3's map. Cost: 2 evaluations of N per step whatever m, plus a FIR
+of ~6 n^2 products per sample. Needs a held base input (its steps are whole samples).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from rig.errors import ConfigError
+
+from rig.solvers._kernels import ETD3_NODES, etd3m_kernel, etd3m_kernel2
+from rig.solvers.base import HOLDS, PendulumSolver, Refinement, multisample_refinement
+from rig.solvers.etd3 import Etd3, _phi_integrals
+
+if TYPE_CHECKING:
+    from rig.chain import Chain
+
+
+def _expm(a):
+    """scipy.linalg.expm, imported on first use (importing rig.solvers stays light)."""
+    import scipy.linalg
+
+    return scipy.linalg.expm(a)
+
+
+# ================================================================================================
+# etd3m: etd3 with steps spanning m held input samples
+# ================================================================================================
+#
+# etd3 treats the input as constant (or linear) within a step, so it steps at least once per
+# sample. etd3m takes one step of H = m h_in over m whole samples: with the remainder split as in
+# etd3 and the input gain written g(theta) = b + N1(theta) (b = H^-1 (-S), the linearised chain's),
+#     z(H) = e^{AH} z(0) + int_0^H e^{A(H-s)} E [N0(z(s)) + u(s) g(theta(s)) + v(s) N2(theta(s))] ds
+# exactly (u, v the held x and y inputs). The smooth parts N0, g, N2 are interpolated through the
+# two Gauss nodes c_i H (as in etd3), and each product with the held input is integrated exactly
+# against the staircase (or the straight lines): per input sample q and node i the weight
+#     W_iq = int_0^H e^{A(H-s)} E l_i(s/H) phi_q(s) ds          (2n, n)
+# (phi_q the hold's basis function of sample q: the indicator of interval q for zoh, the hat
+# function for linear), the FIR of the lifted linear method generalised (sum_i W_iq b is its tap;
+# for a linear chain the method is that exact map). The stages are predicted as in etd3: the exact
+# linear step to c_i H plus K0(c_i H) N0^ and the staircase against b + N1^ (weights P_iq,
+# int_0^{c_i H} e^{A(c_i H - s)} E phi_q(s) ds), N^ extrapolated linearly from the previous
+# step's two stages to c_i H / 2. (Measured on the paper's 3000 s run, a quadratic predictor
+# through one more past stage gains 5 to 20 % at m = 5 and 10 and loses 60 % at m = 20; on 100 s
+# of it, iterating the stages to collocation, two more evaluations per step, gains 1.5 to 2.2
+# times at m = 5 to 20.)
+# Two remainder evaluations per step whatever m: the per-sample cost is the FIR, 8 n^2 products
+# per sample and input (all four weight sets in one contiguous row per sample, the stage sets
+# skipped past their nodes: on average 6 n^2).
+#
+# One correction is specific to m > 1 with zoh: omega(s) carries a sawtooth from the staircase,
+# b (U(s) - U~(s)) with U = int u and U~ its smooth interpolant through the sample instants, zero
+# there and, at a fraction f of interval q, b h du f (1 - f) / 2 (du = u_{q+1} - u_q). Its mean
+# over an interval is b h du / 12, which is what the integral of N0's omega-dependence sees; the
+# interpolation sees its values at the nodes instead, a bias of order |dN0/domega| |b| h du
+# independent of H that would cap the accuracy (1e-7 relative on the paper's run at m = 2 to 10,
+# measured). So each stage's omega, where N is evaluated (not propagated), is shifted by
+#     (b + N1^) h du_i (1/12 - f_i (1 - f_i) / 2)
+# (du_i from the samples next to the node's interval, within the step). At m = 1 the Gauss nodes
+# have f (1 - f) / 2 = 1/12 exactly (no shift: etd3, where the input inside a step is constant);
+# with the linear hold omega has no sawtooth at this order (no shift either). Measured on the
+# paper's run the error then falls with H at order 3 to 4.5 (tests/rig/solvers/test_etd_multisample.py).
+# Native state as etd3's (theta, omega, valid flag, step H, the remainder at the two stages).
+
+ETD3M_BLOCKS = 4  # weight sets per sample: end node 0, end node 1, stage 1, stage 0
+
+
+@dataclass(frozen=True, eq=False)
+class Etd3mCoefficients:
+    """Everything :func:`etd3m_kernel` needs for one chain, input interval, m and hold.
+
+    Attributes
+    ----------
+    m : input samples per step; ``H = m h_in`` [s].
+    phi : e^{AH}, (2n, 2n).
+    phic : e^{A c_i H}, (2, 2n, 2n).
+    wt : per-sample weights, (m + la, 4 (2n) n) with la = 1 for the linear hold: row q holds
+        W_0q, W_1q (end of step, node 0, 1) and P_1q, P_0q (the stages; this order so that the
+        rows past a stage's node are zero in a suffix), each (2n, n) row-major.
+    wq : sum_q W_iq (the smooth part N0's quadrature weights), (2, 2n, n).
+    pc : K0(c_i H) = sum_q P_iq, (2, 2n, n).
+    xp : predictor weights (as etd3, in units of H), (2, 2).
+    ck : the stage omega shift's factor h_in (1/12 - f_i (1 - f_i)/2) / (hi_i - lo_i), (2,)
+        (zero for m = 1 or the linear hold).
+    lohi : (2, 2) the samples (within the step) whose difference is du_i.
+    widths : (e0, e1, w4, w3, w2): rows [0, e0) of wt are used in full (w4 numbers), rows
+        [e0, e1) in their first w3 (P_0q is zero there), the rest in their first w2.
+    p, q, bw : as :class:`Etd3Coefficients`.
+    """
+
+    m: int
+    phi: np.ndarray
+    phic: np.ndarray
+    wt: np.ndarray
+    wq: np.ndarray
+    pc: np.ndarray
+    xp: np.ndarray
+    ck: np.ndarray
+    lohi: np.ndarray
+    widths: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    bw: np.ndarray
+
+
+def _piece_integral(a: np.ndarray, n: int, t_end: float, s_a: float, s_b: float, poly):
+    """int_{s_a}^{s_b} e^{A(t_end - s)} E p(s) ds for a polynomial p (numpy Polynomial in s),
+    (2n, n): e^{A(t_end - s_b)} sum_k p~_k K_k(s_b - s_a), p~ p in x = (s - s_a)/(s_b - s_a)."""
+    length = s_b - s_a
+    coef = poly(np.polynomial.Polynomial([s_a, length])).coef
+    _, ks = _phi_integrals(a, n, length, max(coef.size - 1, 0))
+    acc = sum(cf * ks[k] for k, cf in enumerate(coef))
+    return _expm(a * (t_end - s_b)) @ acc
+
+
+@functools.lru_cache(maxsize=32)
+def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoefficients:
+    """The matrices of :func:`etd3m_kernel` for ``chain``, input interval ``h_in`` [s], ``m``
+    samples per step and ``hold`` (cached; ~3 m small matrix exponentials)."""
+    if hold not in HOLDS:
+        raise ConfigError(f"hold = {hold!r} is invalid: expected one of {', '.join(HOLDS)}")
+    if m < 1:
+        raise ConfigError(f"m = {m!r} is invalid: expected a whole number of samples >= 1")
+    a, b = chain.state_space()
+    n = chain.n
+    n2 = 2 * n
+    c = ETD3_NODES
+    big_h = m * h_in
+    la = int(hold == "linear")
+    poly = np.polynomial.Polynomial
+    lag = [poly([-c[1], 1.0 / big_h]) / (c[0] - c[1]), poly([-c[0], 1.0 / big_h]) / (c[1] - c[0])]
+    wt = np.zeros((m + la, ETD3M_BLOCKS, n2, n))
+    for qq in range(m):
+        s_a, s_b = qq * h_in, (qq + 1) * h_in
+        # the hold's basis functions on interval qq: (tap, polynomial in s)
+        if la:
+            pieces = [(qq, poly([1.0 + qq, -1.0 / h_in])), (qq + 1, poly([-qq, 1.0 / h_in]))]
+        else:
+            pieces = [(qq, poly([1.0]))]
+        for tap, bas in pieces:
+            for i in range(2):
+                wt[tap, i] += _piece_integral(a, n, big_h, s_a, s_b, lag[i] * bas)
+                ci = c[i] * big_h
+                if s_a < ci:
+                    wt[tap, 3 - i] += _piece_integral(a, n, ci, s_a, min(s_b, ci), bas)
+    phic = np.array([_expm(a * (ci * big_h)) for ci in c])
+    nodes = (c[0] - 1.0, c[1] - 1.0)
+    xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
+                    (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
+    ck = np.zeros(2)
+    lohi = np.zeros((2, 2), dtype=np.int64)
+    if m > 1 and not la:
+        for i, ci in enumerate(c):
+            x = ci * m
+            qq = min(int(math.floor(x)), m - 1)
+            f = x - qq
+            lo, hi = max(qq - 1, 0), min(qq + 1, m - 1)
+            ck[i] = h_in * (1.0 / 12.0 - 0.5 * f * (1.0 - f)) / (hi - lo)
+            lohi[i] = lo, hi
+    # samples [0, e0) carry all four weight sets, [e0, e1) three (stage 0's ended), the rest two
+    e0, e1 = (min(int(math.ceil(ci * m * (1.0 + 1e-12) - 1e-12)) + la, m + la) for ci in c)
+    widths = np.array([e0, e1, 4 * n2 * n, 3 * n2 * n, 2 * n2 * n], dtype=np.int64)
+    hinv = np.linalg.inv(chain.H)
+    arr = np.ascontiguousarray
+    return Etd3mCoefficients(
+        m=m, phi=arr(_expm(a * big_h)), phic=arr(phic),
+        wt=arr(wt.reshape(m + la, ETD3M_BLOCKS * n2 * n)), wq=arr(wt[:, :2].sum(axis=0)),
+        pc=arr(wt[:, :1:-1].sum(axis=0)), xp=arr(xp), ck=ck, lohi=lohi, widths=widths,
+        p=arr(hinv @ chain.K),
+        q=arr(hinv @ chain.C), bw=arr(b[n:, 0]))
+
+
+def check_samples_per_step(solver, held) -> int:
+    """A multi-sample method's m for this block, or ConfigError naming what is valid."""
+    m, out_every, n_intervals, h_in = (solver.samples_per_step, held.out_every,
+                                       held.n_intervals, held.h_in)
+    if out_every % m or n_intervals % m:
+        ok = [k for k in range(1, out_every + 1) if out_every % k == 0 and n_intervals % k == 0]
+        raise ConfigError(
+            f"samples_per_step = {m} (dt_s = {m * h_in:.6g} s) is invalid: an {solver.name} step "
+            f"must divide the output interval ({out_every} input intervals) and the run "
+            f"({n_intervals} intervals); valid: {', '.join(map(str, ok))} input intervals "
+            f"(dt_s = {', '.join(f'{k * h_in:.6g}' for k in ok)} s)")
+    return m
+
+
+class MultiSample(PendulumSolver):
+    """Shared behaviour of the methods whose steps span whole held input samples."""
+
+    kind: ClassVar[str] = "exponential"
+    multisample: ClassVar[bool] = True
+
+    def __post_init__(self):
+        m = self.samples_per_step
+        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+            raise ConfigError(f"samples_per_step = {m!r} is invalid: expected a whole number >= 1 "
+                              f"of input intervals per {self.name} step")
+
+    def on_grid(self, substeps: int, samples_per_step: int):
+        if substeps != 1:
+            raise ConfigError(f"substeps = {substeps!r} is invalid for {self.name}: its steps "
+                              "span whole input intervals (set samples_per_step), substeps must "
+                              "be 1")
+        return dataclasses.replace(self, samples_per_step=int(samples_per_step))
+
+
+@dataclass(frozen=True)
+class Etd3m(MultiSample):
+    """etd3m with ``samples_per_step`` input intervals per step (m >= 1, dividing the output
+    interval and the block)."""
+
+    samples_per_step: int = 1
+
+    name: ClassVar[str] = "etd3m"
+    order: ClassVar[int] = 3
+    description: ClassVar[str] = (
+        "etd3 with each step spanning m whole held input samples (dt_s = m input intervals): the "
+        "linearised chain exactly, the remainder's products with the held input against "
+        "per-sample weights (2 evaluations per step)")
+    native: ClassVar[str] = "theta,omega,history"
+    history_rows: ClassVar[int] = 2
+
+    def refined(self) -> Refinement:
+        def half_sample():
+            return Refinement(Etd3(substeps=2), 2**3 / (2**3 - 1.0), (
+                "Richardson: |y - y_ref| * 2^3/(2^3 - 1) against etd3 at dt_s / 2 (half an input "
+                "interval; etd3m at m = 1 is etd3's map) (order p = 3); valid while the error is "
+                "in its asymptotic range"))
+        return multisample_refinement(self, self.samples_per_step, half_sample)
+
+    def advance(self, chain, native, held, *, h0_s=float("nan")):
+        y = native
+        y_out = self.out_rows(chain, y, held)
+        ax, ay, sa, _ = held.kernel_args
+        m = check_samples_per_step(self, held)
+        co = etd3m_coefficients(chain, float(held.h_in), m, held.hold)
+        big_h = m * held.h_in
+        z, hist, have = self.split_history(chain, y, big_h)
+        kernel = etd3m_kernel2 if chain.n == 2 else etd3m_kernel
+        status, nrow, i_done, nfev = kernel(
+            chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic, co.wt,
+            co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths, ax, ay, sa, m, held.n_intervals // m,
+            held.out_every // m, z, y_out, hist, have)
+        y = np.concatenate([z, [1.0, big_h], hist.reshape(-1)])
+        return self.finish(chain, status, y, y_out, nrow, i_done, held, n_steps=i_done // m,
+                           n_fev=nfev)
