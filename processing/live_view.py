@@ -50,8 +50,10 @@ import numpy as np
 # rerun's native log lines would repeat what the single warning below says
 os.environ.setdefault("RUST_LOG", "off")
 
+import pyarrow as pa  # noqa: E402
 import rerun as rr  # noqa: E402
 import rerun.blueprint as rrb  # noqa: E402
+from rerun.components import LineStrip2DBatch  # noqa: E402
 
 from daq.acquisition import Sink  # noqa: E402
 from daq.files import check_writable  # noqa: E402
@@ -62,6 +64,37 @@ from processing.bench_geometry import (FRAMES_PER_S, MAGNIFICATION, MM, BenchDra
 from processing.running_average import RunningAverage  # noqa: E402
 from processing.spectra import ProcessingError, SettingsError  # noqa: E402
 from processing.viewer_url import DEFAULT_PORT, host_port as _host_port  # noqa: E402
+
+
+
+class _PandasHidden:
+    """A meta-path finder under which ``import pandas`` fails (see :func:`_no_pandas_probe`)."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "pandas" or name.startswith("pandas."):
+            raise ModuleNotFoundError(f"{name} is not imported by the live view", name=name)
+        return None
+
+
+def _no_pandas_probe() -> None:
+    """Spare the process pyarrow's import of pandas (0.4-0.6 s of CPU) when pandas is installed.
+
+    On its first conversion pyarrow imports pandas only to ask whether the input is a pandas
+    object (its "soft" probe); while nothing has imported pandas, nothing can be one. The probe
+    is answered here, once, with pandas hidden: pyarrow records "no pandas" for its soft checks.
+    Its pandas conversions (``to_pandas``, ...) still import pandas when called, and from then on
+    pyarrow treats pandas objects as usual. Nothing changes if pandas is already imported."""
+    if "pandas" in sys.modules:
+        return
+    finder = _PandasHidden()
+    sys.meta_path.insert(0, finder)
+    try:
+        pa.array([0], pa.int8())
+    finally:
+        sys.meta_path.remove(finder)
+
+
+_no_pandas_probe()
 
 TIMELINE = "time"
 MEMORY_LIMIT = "2GiB"
@@ -308,7 +341,7 @@ class ViewerStream:
             elif kind == "translation":
                 cols = rr.Transform3D.columns(translation=d)
             elif kind == "strip":
-                cols = rr.LineStrips2D.columns(strips=np.ascontiguousarray(d)).partition(
+                cols = rr.LineStrips2D.columns(strips=_strip_array(d)).partition(
                     np.ones(t.size, np.int32))
             else:
                 k = d.shape[1]
@@ -336,6 +369,17 @@ class ViewerStream:
     def _static(self, entity: str, archetype) -> None:
         for rec in self.recs:
             rec.log(entity, archetype, static=True)
+
+
+def _strip_array(d: np.ndarray) -> pa.Array:
+    """Rows of ``d`` (N, k, 2) as N line strips of k points, built in Arrow directly (rerun's
+    own conversion loops over the strips in Python); float32, as rerun stores them."""
+    n, k = d.shape[:2]
+    typ = LineStrip2DBatch._ARROW_DATATYPE
+    points = pa.FixedSizeListArray.from_arrays(
+        pa.array(np.ascontiguousarray(d, np.float32).reshape(-1)), type=typ.value_type)
+    return pa.ListArray.from_arrays(pa.array(np.arange(0, (n + 1) * k, k, dtype=np.int32)),
+                                    points, type=typ)
 
 
 # -- what is drawn ---------------------------------------------------------------------------
