@@ -249,6 +249,11 @@ class ViewerStream:
             self.recs.remove(self._viewer)
 
     # the sends run in order on one worker thread, beside the acquisition -------------------
+    def later(self, fn, *args) -> None:
+        """Run ``fn(*args)`` on the worker thread, after everything submitted before (a failure
+        is raised by the next :meth:`drain`, :meth:`check` or :meth:`close`)."""
+        self._submit(fn, *args)
+
     def _submit(self, fn, *args) -> None:
         if self._worker is None:
             self._worker = threading.Thread(target=self._work, name="live-view", daemon=True)
@@ -548,7 +553,11 @@ class LiveView(Sink):
         self.stream, self.pacer, self.settings = stream, pacer, settings
         self.magnification = magnification
         self.footer = None
+        # blocks held to be drawn at their record's end (only a file listens, no pacing): then
+        # the worker thread queues and sends the columns; otherwise this thread does, block by
+        # block (``_queued_here``: something is queued here); never both at once
         self._pending = []
+        self._queued_here = False
 
     # -- start: static parts, model curves ------------------------------------------------
     def start(self, header) -> None:
@@ -656,6 +665,7 @@ class LiveView(Sink):
         if self.pacer is None and self.stream.batch_records:
             self._pending.append(block)  # drawn at the record's end, the blocks as one
             return
+        self._queued_here = True
         if self.pacer is None:
             self._send(block, 0, n)
             return
@@ -707,18 +717,36 @@ class LiveView(Sink):
         if not s.batch_records:
             s.send_queued()
 
-    def _send_pending(self) -> None:
-        """The blocks held since the last record, as one (the same frames and stage positions
-        as block by block: :func:`processing.bench_geometry.frame_indices`, StagePosition)."""
-        if self._pending:
-            b = _joined(self._pending)
-            self._pending = []
-            self._send(b, 0, b.samples)
+    def _send_pending(self, pending: list, record: Record | None = None) -> None:
+        """Draw the blocks held since the last record as one block: the record's own arrays when
+        they are all of it (the same frames and stage positions as block by block:
+        :func:`processing.bench_geometry.frame_indices`, StagePosition)."""
+        if not pending:
+            return
+        if record is not None and pending[0].start == 0:
+            b = Block(record=record.index, start=0, t0_s=record.t0_s, codes=record.codes,
+                      clipped=record.clipped, truth=record.truth, saturated=record.saturated)
+        else:
+            b = _joined(pending)
+        self._send(b, 0, b.samples)
+        self.stream.send_queued()
 
     # -- records: the analyzer screen and status ---------------------------------------------
     def record(self, record: Record) -> None:
-        self._send_pending()
-        self.stream.send_queued()
+        """The record's drawing (with only a file), running average and status are made on the
+        stream's worker thread, beside the acquisition, in order."""
+        pending, self._pending = self._pending, []
+        self._send_queued_here()
+        self.stream.later(self._record, pending, record)
+        self.stream.check()
+
+    def _send_queued_here(self) -> None:
+        if self._queued_here:
+            self.stream.send_queued()
+            self._queued_here = False
+
+    def _record(self, pending: list, record: Record) -> None:
+        self._send_pending(pending, record)
         t_end = (record.t0_s + self.header.plan.record_s)
         self._sat = self._sat + np.array([record.saturation_counts()[c] for c in self.names])
         self._clip = self._clip + np.array([record.clip_counts()[c] for c in self.names])
@@ -732,15 +760,15 @@ class LiveView(Sink):
             for c, g2 in (("x", est.coherence_x), ("y", est.coherence_y)):
                 s.strips_at(t_end, f"/analyzer/coherence/{c}", coh.curve(f, g2))
         self._status(records=record.index + 1, state="acquiring", t_s=t_end)
-        self.stream.check()
 
     def stop(self, footer: Footer) -> None:
         self.footer = footer
+        pending, self._pending = self._pending, []
         try:
-            self._send_pending()
-            self.stream.send_queued()
-            self._status(records=footer.records_complete, state=footer.status,
-                         message=footer.message)
+            self._send_queued_here()
+            self.stream.later(self._send_pending, pending)  # an unfinished record's blocks
+            self.stream.later(lambda: self._status(records=footer.records_complete,
+                                                   state=footer.status, message=footer.message))
         finally:
             self.path = self.stream.close()
 
