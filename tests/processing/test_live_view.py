@@ -309,11 +309,21 @@ r = [run("--help"), run("acquire", "--help"), run("view", "--help"),
      run("acquire", "--scene", "ishizaki2009", {args}, "--out", r"{tmp_path / 'b.h5'}",
          "--rrd", r"{tmp_path / 'b.rrd'}")]
 print("RESULT", r)
+# the live view spares the import of pandas (pyarrow's probe), and pyarrow still converts to
+# pandas when asked
+import importlib.util
+import pyarrow as pa
+before = "pandas" in sys.modules
+kind = ("no pandas" if importlib.util.find_spec("pandas") is None
+        else type(pa.table({{"v": [1.5]}}).to_pandas()).__name__)
+print("PANDAS", before, kind)
 """
     p = _python(code)
     assert p.returncode == 0, p.stderr
     result = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
     assert result == ["RESULT [False, False, False, False, False, True]"]
+    pandas = [ln for ln in p.stdout.splitlines() if ln.startswith("PANDAS ")]
+    assert pandas in (["PANDAS False DataFrame"], ["PANDAS False no pandas"])
     # and one module of the project imports rerun
     users = [f.relative_to(ROOT).as_posix() for d in ("rig", "daq", "processing")
              for f in (ROOT / d).rglob("*.py")
