@@ -9,19 +9,25 @@ the running average (:mod:`processing.running_average`), and ``daq`` must not im
 What is shown (:func:`acquisition_blueprint` lays it out)
 --------------------------------------------------------
 - ``/bench``: the bench in a 2D side view [mm], sizes to scale, motions magnified (the factor is
-  written in the view): the stage moving on its rail, the bodies, pivots and centres of mass,
-  the mirror, the laser beam and the PSD (:mod:`processing.bench_geometry`); about 40 frames per
-  simulated second;
+  written in the view): the stage moving on its rail (``/bench/stage``, a translation), and on
+  it ``pendulum`` (line strips: the bodies, the mirror's face, the laser beam) and ``marks``
+  (points: the pivots, the centres of mass), each styled instance by instance; the laser and the
+  PSD (:mod:`processing.bench_geometry`); about 33 frames per simulated second;
 - ``/psd``: the 12 mm detector to scale with the spot and its last 2 s as a trail;
-- ``/signals/{a,x,y}``: the channels in engineering units (m/s^2, m, rad) in a 20 s window that
-  follows the run; ``/volts/{a,x,y}``: the same samples as ADC volts (a tab);
+- ``/signals``: the channels a, x, y in engineering units (m/s^2, m, rad), one series each, in a
+  20 s window that follows the run, one view per channel showing its series; ``/volts``: the
+  same samples as ADC volts (a tab);
 - ``/analyzer``: after every record, the running averaged H_t and Theta_2 (gain [dB] and phase
   [deg]) over the exact model stored in the run and the expected estimate E[H1], and the
   coherences, on a drawn log-frequency axis (:mod:`processing.bode_canvas`);
 - ``/status``: record k of N, clipped and saturated samples, the model in use and why, the seed.
 
-The time series go out as columns, one ``send_columns`` per block and entity; the analyzer
-curves once per record.
+Cost: each entity costs a send and a time column per record, whatever it holds, hence few
+entities (the channels as one entity per unit system, the moving parts as two). With a viewer
+the columns go out once per block and entity; with only a file, the blocks of a record are held
+and drawn at its end, as one (one send per record and entity); the analyzer curves once per
+record. The sends run on a worker thread beside the acquisition. ``BENCHMARKS.md`` has the
+figures.
 
 Sinks: a spawned viewer (``spawn``, with an explicit memory limit), a running viewer
 (``connect``), an ``.rrd`` file (``rrd``), any combination. A viewer that cannot be spawned,
@@ -50,8 +56,10 @@ import numpy as np
 # rerun's native log lines would repeat what the single warning below says
 os.environ.setdefault("RUST_LOG", "off")
 
+import pyarrow as pa  # noqa: E402
 import rerun as rr  # noqa: E402
 import rerun.blueprint as rrb  # noqa: E402
+from rerun.components import LineStrip2DBatch  # noqa: E402
 
 from daq.sinks import Sink  # noqa: E402
 from rig._io import check_writable  # noqa: E402
@@ -63,7 +71,40 @@ from processing.running_average import RunningAverage  # noqa: E402
 from processing.spectra import ProcessingError, SettingsError  # noqa: E402
 from processing.viewer_url import DEFAULT_PORT, host_port as _host_port  # noqa: E402
 
+
+
+class _PandasHidden:
+    """A meta-path finder under which ``import pandas`` fails (see :func:`_no_pandas_probe`)."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "pandas" or name.startswith("pandas."):
+            raise ModuleNotFoundError(f"{name} is not imported by the live view", name=name)
+        return None
+
+
+def _no_pandas_probe() -> None:
+    """Spare the process pyarrow's import of pandas (0.4-0.6 s of CPU) when pandas is installed.
+
+    On its first conversion pyarrow imports pandas only to ask whether the input is a pandas
+    object (its "soft" probe); while nothing has imported pandas, nothing can be one. The probe
+    is answered here, once, with pandas hidden: pyarrow records "no pandas" for its soft checks.
+    Its pandas conversions (``to_pandas``, ...) still import pandas when called, and from then on
+    pyarrow treats pandas objects as usual. Nothing changes if pandas is already imported."""
+    if "pandas" in sys.modules:
+        return
+    finder = _PandasHidden()
+    sys.meta_path.insert(0, finder)
+    try:
+        pa.array([0], pa.int8())
+    finally:
+        sys.meta_path.remove(finder)
+
+
+_no_pandas_probe()
+
 TIMELINE = "time"
+#: The channels in engineering units and in ADC volts: one entity each, one series per channel
+SIGNALS, VOLTS = "/signals", "/volts"
 MEMORY_LIMIT = "2GiB"
 SIGNAL_WINDOW_S = 20.0
 TRAIL_S = 2.0
@@ -208,6 +249,11 @@ class ViewerStream:
             self.recs.remove(self._viewer)
 
     # the sends run in order on one worker thread, beside the acquisition -------------------
+    def later(self, fn, *args) -> None:
+        """Run ``fn(*args)`` on the worker thread, after everything submitted before (a failure
+        is raised by the next :meth:`drain`, :meth:`check` or :meth:`close`)."""
+        self._submit(fn, *args)
+
     def _submit(self, fn, *args) -> None:
         if self._worker is None:
             self._worker = threading.Thread(target=self._work, name="live-view", daemon=True)
@@ -284,14 +330,17 @@ class ViewerStream:
                 rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=ns)],
                                  columns=columns)
 
-    def queue(self, entity: str, kind: str, t_s: np.ndarray, data: np.ndarray) -> None:
+    def queue(self, entity: str, kind: str, t_s: np.ndarray, data: np.ndarray,
+              strips: tuple = ()) -> None:
         """Gather columns of ``entity`` for :meth:`send_queued`. ``kind``: "scalars" ((N,) or
-        (N, k)), "translation" ((N, 3)), "strip" ((N, k, 2): one strip per row) or "points"
-        ((N, k, 2): k points per row)."""
+        (N, k)), "translation" ((N, 3)), "strips" ((N, k, 2): per row, line strips of
+        ``strips`` points each, ``sum(strips) == k``) or "points" ((N, k, 2): k points per
+        row)."""
         if not np.size(t_s):
             return
         q = self.__dict__.setdefault("_queue", {})
-        q.setdefault((entity, kind), []).append((np.asarray(t_s, float), np.asarray(data)))
+        q.setdefault((entity, kind, tuple(strips)), []).append((np.asarray(t_s, float),
+                                                                np.asarray(data)))
 
     def send_queued(self) -> None:
         """One ``send_columns`` per gathered entity (on the worker thread)."""
@@ -300,16 +349,16 @@ class ViewerStream:
             self._submit(self._send_queued, q)
 
     def _send_queued(self, q: dict) -> None:
-        for (entity, kind), parts in q.items():
+        for (entity, kind, strips), parts in q.items():
             t = np.concatenate([p[0] for p in parts])
             d = np.concatenate([p[1] for p in parts])
             if kind == "scalars":
                 cols = rr.Scalars.columns(scalars=d)
             elif kind == "translation":
                 cols = rr.Transform3D.columns(translation=d)
-            elif kind == "strip":
-                cols = rr.LineStrips2D.columns(strips=np.ascontiguousarray(d)).partition(
-                    np.ones(t.size, np.int32))
+            elif kind == "strips":
+                cols = rr.LineStrips2D.columns(strips=_strip_array(d, strips)).partition(
+                    np.full(t.size, len(strips), np.int32))
             else:
                 k = d.shape[1]
                 cols = rr.Points2D.columns(positions=np.ascontiguousarray(
@@ -323,7 +372,9 @@ class ViewerStream:
     def _strips_at(self, t_s, entity, strips) -> None:
         if not strips:
             strips = [np.full((2, 2), np.nan)]
-        self._columns(entity, np.array([t_s]), rr.LineStrips2D.columns(strips=strips).partition(
+        points = np.concatenate(strips)[None]
+        self._columns(entity, np.array([t_s]), rr.LineStrips2D.columns(
+            strips=_strip_array(points, tuple(len(p) for p in strips))).partition(
             [len(strips)]))
 
     def text_at(self, t_s: float, entity: str, markdown: str) -> None:
@@ -336,6 +387,20 @@ class ViewerStream:
     def _static(self, entity: str, archetype) -> None:
         for rec in self.recs:
             rec.log(entity, archetype, static=True)
+
+
+def _strip_array(d: np.ndarray, strips: tuple) -> pa.Array:
+    """Rows of ``d`` (N, k, 2) as N x len(strips) line strips, of ``strips`` points each, row
+    after row; built in Arrow directly (rerun's own conversion loops over the strips in
+    Python); float32, as rerun stores them."""
+    n, k = d.shape[:2]
+    typ = LineStrip2DBatch._ARROW_DATATYPE
+    points = pa.FixedSizeListArray.from_arrays(
+        pa.array(np.ascontiguousarray(d, np.float32).reshape(-1)), type=typ.value_type)
+    starts = (k * np.arange(n, dtype=np.int32)[:, None]
+              + np.concatenate([[0], np.cumsum(strips[:-1])]).astype(np.int32)).ravel()
+    offsets = np.append(starts, np.int32(n * k)).astype(np.int32)
+    return pa.ListArray.from_arrays(pa.array(offsets), points, type=typ)
 
 
 # -- what is drawn ---------------------------------------------------------------------------
@@ -392,27 +457,35 @@ def _bench_bounds(d: BenchDrawing, moving_stage: bool) -> rrb.VisualBounds2D:
     return rrb.VisualBounds2D(x_range=(-w, w), y_range=(-0.45 * r - 15, lay["floor"] + 30))
 
 
-def _log_chain_frames(s: ViewerStream, d: BenchDrawing, t: np.ndarray, theta: np.ndarray,
-                      prefix: str = "/bench/stage") -> np.ndarray:
-    """Queue the bodies, pivots, centres of mass and mirror at frame times ``t``; returns the
-    mirror centres (frames, 2) [mm]."""
+# the moving parts go out as two entities, whatever the number of bodies (each entity costs a
+# send and a time column per record): ``pendulum``, line strips [the bodies, the mirror's face,
+# (the laser beam)]; ``marks``, points [the pivots, the centres of mass]. Their colours and
+# radii are logged once, instance by instance (:func:`_log_chain_style`).
+PENDULUM, MARKS = "/bench/stage/pendulum", "/bench/stage/marks"
+_PIVOT_COLOR, _COM_COLOR = (255, 255, 255), (255, 90, 40)
+_MIRROR_COLOR, _BEAM_COLOR = (190, 230, 255), (255, 60, 60)
+
+
+def _chain_frames(d: BenchDrawing, theta: np.ndarray):
+    """The pendulum at frames of the angles ``theta`` (frames, n) [rad], drawn [mm]: the line
+    strips (frames, n + 3, 2) of the bodies (n + 1 joints) and the mirror's face (2 points),
+    their lengths (n + 1, 2), the marks (frames, 2 n, 2): n pivots then n centres of mass, and
+    the mirror's centres (frames, 2)."""
     joints = d.joints(theta)
-    s.queue(f"{prefix}/pendulum", "strip", t, joints)
-    s.queue(f"{prefix}/pivots", "points", t, joints[:, :-1])
-    s.queue(f"{prefix}/centres_of_mass", "points", t, d.centres_of_mass(theta, joints))
     centre, face = d.mirror(theta, joints, half_mm=max(3.0, 0.12 * d.reach_mm))
-    s.queue(f"{prefix}/mirror", "strip", t, face)
-    return centre
+    lines = np.concatenate([joints, face], axis=1)
+    marks = np.concatenate([joints[:, :-1], d.centres_of_mass(theta, joints)], axis=1)
+    return lines, (joints.shape[1], 2), marks, centre
 
 
-def _log_chain_style(s: ViewerStream, n: int, prefix: str = "/bench/stage") -> None:
-    s.static(f"{prefix}/pendulum", rr.LineStrips2D.from_fields(colors=_BODY_COLORS[0],
-                                                               radii=1.2))
-    s.static(f"{prefix}/pivots", rr.Points2D.from_fields(colors=(255, 255, 255), radii=1.4))
-    s.static(f"{prefix}/centres_of_mass", rr.Points2D.from_fields(colors=(255, 90, 40),
-                                                                  radii=1.0))
-    s.static(f"{prefix}/mirror", rr.LineStrips2D.from_fields(colors=(190, 230, 255),
-                                                             radii=1.5))
+def _log_chain_style(s: ViewerStream, n: int, *, body: float = 1.2, pivot: float = 1.4,
+                     com: float = 1.0, mirror: float = 1.5, beam: float = 0.4) -> None:
+    """Colours and radii [mm] of the strips of :data:`PENDULUM` and the points of
+    :data:`MARKS`, per instance (the order of :func:`_chain_frames`)."""
+    s.static(PENDULUM, rr.LineStrips2D.from_fields(
+        colors=[_BODY_COLORS[0], _MIRROR_COLOR, _BEAM_COLOR], radii=[body, mirror, beam]))
+    s.static(MARKS, rr.Points2D.from_fields(colors=[_PIVOT_COLOR] * n + [_COM_COLOR] * n,
+                                            radii=[pivot] * n + [com] * n))
 
 
 def _analyzer_panels(freqs, model_db, expected_db):
@@ -480,6 +553,11 @@ class LiveView(Sink):
         self.stream, self.pacer, self.settings = stream, pacer, settings
         self.magnification = magnification
         self.footer = None
+        # blocks held to be drawn at their record's end (only a file listens, no pacing): then
+        # the worker thread queues and sends the columns; otherwise this thread does, block by
+        # block (``_queued_here``: something is queued here); never both at once
+        self._pending = []
+        self._queued_here = False
 
     # -- start: static parts, model curves ------------------------------------------------
     def start(self, header) -> None:
@@ -505,17 +583,16 @@ class LiveView(Sink):
             self._prepare_analyzer()
         self.stream.open(acquisition_blueprint(self))
         s = self.stream
-        for c in self.names:
-            ch = header.channel(c)
-            col = CHANNEL_COLORS.get(c, (200, 200, 200))
-            s.static(f"/signals/{c}", rr.SeriesLines(names=f"{c}: {ch.quantity} [{ch.unit}]",
-                                                     colors=col, widths=1.0))
-            s.static(f"/volts/{c}", rr.SeriesLines(names=f"{c} [V] (ADC +-{ch.range_v:g} V)",
-                                                   colors=col, widths=1.0))
+        chans = [header.channel(c) for c in self.names]
+        colors = [CHANNEL_COLORS.get(c, (200, 200, 200)) for c in self.names]
+        s.static(SIGNALS, rr.SeriesLines(
+            names=[f"{ch.name}: {ch.quantity} [{ch.unit}]" for ch in chans], colors=colors,
+            widths=[1.0] * len(chans)))
+        s.static(VOLTS, rr.SeriesLines(
+            names=[f"{ch.name} [V] (ADC +-{ch.range_v:g} V)" for ch in chans], colors=colors,
+            widths=[1.0] * len(chans)))
         _log_bench_static(s, self.drawing, moving_stage=True, optics=self.has_spot)
         _log_chain_style(s, len(self.drawing.lengths_mm))
-        s.static("/bench/stage/beam", rr.LineStrips2D.from_fields(colors=(255, 60, 60),
-                                                                  radii=0.4))
         if self.has_spot:
             h = self.drawing.psd_half_mm
             s.static("/psd/detector", rr.Boxes2D(half_sizes=[(h, h)], centers=[(0, 0)],
@@ -586,6 +663,10 @@ class LiveView(Sink):
     # -- blocks: signals and geometry ---------------------------------------------------
     def block(self, block: Block) -> None:
         n = block.samples
+        if self.pacer is None and self.stream.batch_records:
+            self._pending.append(block)  # drawn at the record's end, the blocks as one
+            return
+        self._queued_here = True
         if self.pacer is None:
             self._send(block, 0, n)
             return
@@ -602,12 +683,13 @@ class LiveView(Sink):
         s, rate = self.stream, self.rate
         g0 = int(round(block.t0_s * rate)) + i
         t = (g0 + np.arange(j - i)) / rate
-        volts = {}
+        volts, values = {}, []
         for c in self.names:
             ch = self.header.channel(c)
             volts[c] = ch.adc.volts(np.asarray(block.codes[c][i:j]))
-            s.queue(f"/signals/{c}", "scalars", t, volts[c] / ch.volts_per_unit)
-            s.queue(f"/volts/{c}", "scalars", t, volts[c])
+            values.append(volts[c] / ch.volts_per_unit)
+        s.queue(SIGNALS, "scalars", t, np.stack(values, axis=1))
+        s.queue(VOLTS, "scalars", t, np.stack(list(volts.values()), axis=1))
         idx = frame_indices(g0, j - i, self.step)
         tf = t[idx]
         d = self.drawing
@@ -616,26 +698,56 @@ class LiveView(Sink):
             tr = np.zeros((idx.size, 3))
             tr[:, 0] = d.stage_magnification * MM * xs
             s.queue("/bench/stage", "translation", tf, tr)
-        centre = None
+        lines = None
         if self.has_angles and idx.size:
             theta = np.asarray(block.truth["theta_rad"][i:j])[idx]
-            centre = _log_chain_frames(s, d, tf, theta.reshape(idx.size, -1))
+            lines, strips, marks, centre = _chain_frames(d, theta.reshape(idx.size, -1))
+            s.queue(MARKS, "points", tf, marks)
         if self.has_spot and idx.size:
             spot = d.spot_mm(volts["x"][idx], volts["y"][idx])
             s.queue("/psd/spot", "points", tf, spot[:, None, :])
-            if centre is not None:
+            if lines is not None:
                 lay = _bench_layout(d)
                 laser, psd = np.array(lay["laser"]), np.array(lay["psd"])
                 # the reflected beam's end on the PSD icon moves with the spot (magnified)
                 hit = psd + np.stack([np.zeros(idx.size), spot[:, 1] * d.magnification], -1)
                 beam = np.stack([np.broadcast_to(laser, centre.shape), centre, hit], axis=1)
-                s.queue("/bench/stage/beam", "strip", tf, beam)
+                lines, strips = np.concatenate([lines, beam], axis=1), (*strips, 3)
+        if lines is not None:
+            s.queue(PENDULUM, "strips", tf, lines, strips)
         if not s.batch_records:
             s.send_queued()
 
+    def _send_pending(self, pending: list, record: Record | None = None) -> None:
+        """Draw the blocks held since the last record as one block: the record's own arrays when
+        they are all of it (the same frames and stage positions as block by block:
+        :func:`processing.bench_geometry.frame_indices`, StagePosition)."""
+        if not pending:
+            return
+        if record is not None and pending[0].start == 0:
+            b = Block(record=record.index, start=0, t0_s=record.t0_s, codes=record.codes,
+                      clipped=record.clipped, truth=record.truth, saturated=record.saturated)
+        else:
+            b = _joined(pending)
+        self._send(b, 0, b.samples)
+        self.stream.send_queued()
+
     # -- records: the analyzer screen and status ---------------------------------------------
     def record(self, record: Record) -> None:
-        self.stream.send_queued()
+        """The record's drawing (with only a file), running average and status are made on the
+        stream's worker thread, beside the acquisition, in order."""
+        pending, self._pending = self._pending, []
+        self._send_queued_here()
+        self.stream.later(self._record, pending, record)
+        self.stream.check()
+
+    def _send_queued_here(self) -> None:
+        if self._queued_here:
+            self.stream.send_queued()
+            self._queued_here = False
+
+    def _record(self, pending: list, record: Record) -> None:
+        self._send_pending(pending, record)
         t_end = (record.t0_s + self.header.plan.record_s)
         self._sat = self._sat + np.array([record.saturation_counts()[c] for c in self.names])
         self._clip = self._clip + np.array([record.clip_counts()[c] for c in self.names])
@@ -649,14 +761,15 @@ class LiveView(Sink):
             for c, g2 in (("x", est.coherence_x), ("y", est.coherence_y)):
                 s.strips_at(t_end, f"/analyzer/coherence/{c}", coh.curve(f, g2))
         self._status(records=record.index + 1, state="acquiring", t_s=t_end)
-        self.stream.check()
 
     def stop(self, footer: Footer) -> None:
         self.footer = footer
+        pending, self._pending = self._pending, []
         try:
-            self.stream.send_queued()
-            self._status(records=footer.records_complete, state=footer.status,
-                         message=footer.message)
+            self._send_queued_here()
+            self.stream.later(self._send_pending, pending)  # an unfinished record's blocks
+            self.stream.later(lambda: self._status(records=footer.records_complete,
+                                                   state=footer.status, message=footer.message))
         finally:
             self.path = self.stream.close()
 
@@ -691,6 +804,20 @@ class LiveView(Sink):
         self.stream.text_at(t_s, "/status", "\n".join(lines))
 
 
+def _joined(blocks: list) -> Block:
+    """Consecutive blocks of one record as one block."""
+    if len(blocks) == 1:
+        return blocks[0]
+    b = blocks[0]
+
+    def cat(name):
+        return {k: np.concatenate([getattr(x, name)[k] for x in blocks])
+                for k in getattr(b, name)}
+
+    return Block(record=b.record, start=b.start, t0_s=b.t0_s, codes=cat("codes"),
+                 clipped=cat("clipped"), truth=cat("truth"), saturated=cat("saturated"))
+
+
 def _error_text(v) -> str:
     """The headline of a model's error estimate (the relative RMS error of the angles)."""
     if isinstance(v, dict) and "relative_rms_theta" in v:
@@ -714,12 +841,17 @@ def _following(seconds: float) -> rrb.VisibleTimeRange:
                                 end=rrb.TimeRangeBoundary.cursor_relative())
 
 
-def _series(prefix: str, names, header) -> list:
+def _series(entity: str, names, header) -> list:
+    """One view per channel of ``entity`` (one series per channel): that channel's series shown,
+    the others hidden; the view's title names it (no legend: it would list the hidden ones)."""
     views = []
-    for c in names:
+    for i, c in enumerate(names):
         ch = header.channel(c)
-        unit = "V" if prefix == "/volts" else ch.unit
-        views.append(rrb.TimeSeriesView(origin=f"{prefix}/{c}", name=f"{c} [{unit}]",
+        title = (f"{c} [V] (ADC +-{ch.range_v:g} V)" if entity == VOLTS
+                 else f"{c}: {ch.quantity} [{ch.unit}]")
+        shown = rr.SeriesLines.from_fields(visible_series=[j == i for j in range(len(names))])
+        views.append(rrb.TimeSeriesView(origin=entity, name=title, overrides={entity: shown},
+                                        plot_legend=rrb.PlotLegend(visible=False),
                                         time_ranges=_following(SIGNAL_WINDOW_S)))
     return views
 
@@ -737,9 +869,9 @@ def acquisition_blueprint(view: LiveView) -> rrb.Blueprint:
                                           x_range=(-hh, hh), y_range=(-hh, 1.35 * hh)),
                                       time_ranges=_following(TRAIL_S)))
     left.append(rrb.TextDocumentView(origin="/status", name="status"))
-    middle = rrb.Tabs(rrb.Vertical(*_series("/signals", view.names, h),
+    middle = rrb.Tabs(rrb.Vertical(*_series(SIGNALS, view.names, h),
                                    name="signals (engineering units)"),
-                      rrb.Vertical(*_series("/volts", view.names, h), name="ADC volts"),
+                      rrb.Vertical(*_series(VOLTS, view.names, h), name="ADC volts"),
                       active_tab=0)
     cols = [rrb.Vertical(*left, row_shares=[3, 2, 2][:len(left)]), middle]
     shares = [1.0, 1.0]
@@ -827,19 +959,15 @@ def show_trajectory(traj, scene, stream: ViewerStream) -> Path | None:
         s.static("/bench/note", rr.Points2D([(-1.2 * r, -1.15 * r)], radii=0.0,
                                             labels=["side view, to scale; free motion on a "
                                                     "fixed base"], show_labels=True))
-        s.static("/bench/stage/pendulum", rr.LineStrips2D.from_fields(
-            colors=_BODY_COLORS[0], radii=max(1.0, 0.008 * r)))
-        s.static("/bench/stage/pivots", rr.Points2D.from_fields(colors=(255, 255, 255),
-                                                               radii=max(1.0, 0.01 * r)))
-        s.static("/bench/stage/centres_of_mass", rr.Points2D.from_fields(
-            colors=(255, 90, 40), radii=max(1.0, 0.008 * r)))
-        s.static("/bench/stage/mirror", rr.LineStrips2D.from_fields(
-            colors=(190, 230, 255), radii=max(1.0, 0.01 * r)))
+        _log_chain_style(s, n, body=max(1.0, 0.008 * r), pivot=max(1.0, 0.01 * r),
+                         com=max(1.0, 0.008 * r), mirror=max(1.0, 0.01 * r))
         s.static("/signals/theta", rr.SeriesLines(names=[f"theta_{j + 1}" for j in range(n)]))
         s.queue("/signals/theta", "scalars", t, theta)
         if traj.energy_j is not None:
             s.queue("/signals/energy", "scalars", t, np.asarray(traj.energy_j, float))
-        _log_chain_frames(s, d, t, theta)
+        lines, strips, marks, _ = _chain_frames(d, theta)
+        s.queue(PENDULUM, "strips", t, lines, strips)
+        s.queue(MARKS, "points", t, marks)
         s.send_queued()
         est = getattr(traj, "max_error_rad", None)
         s.static("/status", rr.TextDocument(

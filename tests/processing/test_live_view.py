@@ -26,7 +26,7 @@ from rig.scene import load_scene
 lv = pytest.importorskip("processing.live_view")
 from rerun.chunk import RrdReader  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SEED = 11
 OVERRIDES = ["acquisition.records=3", "acquisition.record_s=5", "acquisition.rate_hz=100",
              "acquisition.settle_s=5"]
@@ -65,6 +65,15 @@ def column(rrd, entity, component):
     return t, np.concatenate(vs), np.concatenate(lens)
 
 
+def channel(rrd, entity, header, c):
+    """(times [s], samples) of channel ``c`` in ``entity`` ("/signals" or "/volts": one series
+    per channel, in the run's order)."""
+    t, v, lens = column(rrd, entity, "Scalars:scalars")
+    k = len(header.names)
+    assert np.all(lens == k)
+    return t, v.reshape(-1, k)[:, header.names.index(c)]
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     """One short run written to HDF5 and .rrd at once."""
@@ -83,11 +92,11 @@ def test_rrd_holds_every_sample_of_the_run_file_in_engineering_units_and_volts(r
     starts = rec.record_start_s()
     t_file = (starts[:, None] + rec.times_s()[None, :]).ravel()
     for c in rec.header.names:
-        t, v, _ = column(rrd, f"/signals/{c}", "Scalars:scalars")
+        t, v = channel(rrd, "/signals", rec.header, c)
         assert v.size == rec.records * plan.samples
         np.testing.assert_allclose(t, t_file, rtol=0, atol=0.5e-9)  # rounded to whole ns
         np.testing.assert_array_equal(v, rec.values(c).ravel())
-        _, volts, _ = column(rrd, f"/volts/{c}", "Scalars:scalars")
+        _, volts = channel(rrd, "/volts", rec.header, c)
         np.testing.assert_array_equal(volts, rec.volts(c).ravel())
 
 
@@ -95,17 +104,32 @@ def test_rrd_draws_the_recorded_angles_at_30_to_60_frames_per_second(run):
     out, rrd = run
     rec = read_run(out)
     h = rec.header
+    n = h.scene.chain.n
     t, pts, lens = column(rrd, "/bench/stage/pendulum", "LineStrips2D:strips")
     duration = rec.records * h.plan.record_s
     assert 30 <= t.size / duration <= 60
     step = int(round(np.median(np.diff(t)) * h.plan.rate_hz))
     # the frames are the samples whose index is a multiple of the step, theta drawn magnified
-    theta = rec.truth["theta_rad"].reshape(-1, h.scene.chain.n)
+    theta = rec.truth["theta_rad"].reshape(-1, n)
     g = np.round(t * h.plan.rate_hz).astype(int) - h.plan.settle_samples
+    assert np.all(g % step == g[0] % step)
     drawing = lv.BenchDrawing.from_scene(h.scene)
-    expect = drawing.joints(theta[g])
-    assert np.all(lens == h.scene.chain.n + 1) and np.all(g % step == g[0] % step)
-    np.testing.assert_allclose(pts.reshape(expect.shape), expect, rtol=0, atol=1e-4)  # float32
+    joints = drawing.joints(theta[g])
+    centre, face = drawing.mirror(theta[g], joints, half_mm=max(3.0, 0.12 * drawing.reach_mm))
+    # per frame three strips: the bodies (n + 1 joints), the mirror's face, the laser beam
+    assert np.all(lens.reshape(t.size, 3) == [n + 1, 2, 3])
+    pts = pts.reshape(t.size, n + 6, 2)
+    atol = 1e-4 * drawing.reach_mm  # float32
+    np.testing.assert_allclose(pts[:, :n + 1], joints, rtol=0, atol=atol)
+    np.testing.assert_allclose(pts[:, n + 1:n + 3], face, rtol=0, atol=atol)
+    np.testing.assert_allclose(pts[:, n + 4], centre, rtol=0, atol=atol)  # the beam's bounce
+    # the pivots, then the centres of mass
+    _, marks, mlens = column(rrd, "/bench/stage/marks", "Points2D:positions")
+    assert np.all(mlens == 2 * n)
+    marks = marks.reshape(t.size, 2 * n, 2)
+    np.testing.assert_allclose(marks[:, :n], joints[:, :-1], rtol=0, atol=atol)
+    np.testing.assert_allclose(marks[:, n:], drawing.centres_of_mass(theta[g], joints), rtol=0,
+                               atol=atol)
     # the spot on the PSD from the channels' volts, in mm (v up is image -y)
     _, spot, _ = column(rrd, "/psd/spot", "Points2D:positions")
     gain = h.scene.settings["psd"]["gain_vpm"]
@@ -173,10 +197,11 @@ def test_live_run_and_replay_of_its_file_draw_the_same(run, tmp_path):
     lv.replay(out, lv.ViewerStream(lv.ViewerOptions(rrd=again)))
     a, b = lv.recording_summary(rrd), lv.recording_summary(again)
     assert set(a) == set(b)
-    for entity, comp in (("/signals/x", "Scalars:scalars"), ("/volts/a", "Scalars:scalars"),
+    for entity, comp in (("/signals", "Scalars:scalars"), ("/volts", "Scalars:scalars"),
                          ("/bench/stage", "Transform3D:translation"),
                          ("/bench/stage/pendulum", "LineStrips2D:strips"),
-                         ("/bench/stage/beam", "LineStrips2D:strips"),
+                         ("/bench/stage/marks", "Points2D:positions"),
+                         ("/psd/spot", "Points2D:positions"),
                          ("/analyzer/Theta_2/measured", "LineStrips2D:strips")):
         ta, va, _ = column(rrd, entity, comp)
         tb, vb, _ = column(again, entity, comp)
@@ -204,7 +229,7 @@ def test_replay_of_an_interrupted_file_shows_only_its_finished_records(tmp_path)
     assert live.exists()  # the live recording is kept (renamed at the end) too
     v = lv.replay(out, lv.ViewerStream(lv.ViewerOptions(rrd=replayed)))
     assert v.footer.records_complete == 2
-    t, x, _ = column(replayed, "/signals/x", "Scalars:scalars")
+    t, x = channel(replayed, "/signals", rec.header, "x")
     assert x.size == 2 * rec.header.plan.samples
     np.testing.assert_array_equal(x, rec.values("x").ravel())
     t, _, _ = column(replayed, "/analyzer/H_t/measured", "LineStrips2D:strips")
@@ -285,11 +310,21 @@ r = [run("--help"), run("acquire", "--help"), run("view", "--help"),
      run("acquire", "--scene", "ishizaki2009", {args}, "--out", r"{tmp_path / 'b.h5'}",
          "--rrd", r"{tmp_path / 'b.rrd'}")]
 print("RESULT", r)
+# the live view spares the import of pandas (pyarrow's probe), and pyarrow still converts to
+# pandas when asked
+import importlib.util
+import pyarrow as pa
+before = "pandas" in sys.modules
+kind = ("no pandas" if importlib.util.find_spec("pandas") is None
+        else type(pa.table({{"v": [1.5]}}).to_pandas()).__name__)
+print("PANDAS", before, kind)
 """
     p = _python(code)
     assert p.returncode == 0, p.stderr
     result = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
     assert result == ["RESULT [False, False, False, False, False, True]"]
+    pandas = [ln for ln in p.stdout.splitlines() if ln.startswith("PANDAS ")]
+    assert pandas in (["PANDAS False DataFrame"], ["PANDAS False no pandas"])
     # and one module of the project imports rerun
     users = [f.relative_to(ROOT).as_posix() for d in ("rig", "daq", "processing")
              for f in (ROOT / d).rglob("*.py")
@@ -306,8 +341,9 @@ def test_a_headless_run_without_a_display_saves_the_recording(tmp_path):
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert p.stderr == "" and f"wrote {rrd} (rerun recording)" in p.stdout
-    t, a, _ = column(rrd, "/signals/a", "Scalars:scalars")
-    np.testing.assert_array_equal(a, read_run(out).values("a").ravel())
+    rec = read_run(out)
+    t, a = channel(rrd, "/signals", rec.header, "a")
+    np.testing.assert_array_equal(a, rec.values("a").ravel())
 
 
 @pytest.mark.parametrize("args, message", [
@@ -352,9 +388,11 @@ def test_simulate_shows_free_motion_to_scale(tmp_path):
                                     str(rrd), "--no-error-estimate"])
     assert res.exit_code == 0, res.output
     t, pts, lens = column(rrd, "/bench/stage/pendulum", "LineStrips2D:strips")
-    assert np.all(lens == 3) and 30 <= t.size / 2.0 <= 60
-    t, theta, _ = column(rrd, "/signals/theta", "Scalars:scalars")
-    joints = pts.reshape(-1, 3, 2)
+    # per frame the two rods (3 joints) and the mirror's face (2 points)
+    assert np.all(lens.reshape(-1, 2) == [3, 2]) and 30 <= t.size / 2.0 <= 60
+    joints = pts.reshape(t.size, 5, 2)[:, :3]
+    _, _, per_row = column(rrd, "/signals/theta", "Scalars:scalars")
+    assert np.all(per_row == 2)  # the two angles
     # to scale: the two 1 m rods are 1000 mm long in every frame
     np.testing.assert_allclose(np.hypot(*(joints[:, 1] - joints[:, 0]).T), 1000.0, rtol=1e-6)
     np.testing.assert_allclose(np.hypot(*(joints[:, 2] - joints[:, 1]).T), 1000.0, rtol=1e-6)
@@ -414,7 +452,7 @@ def test_viewer_going_away_mid_run_warns_once_and_the_run_goes_on(tmp_path):
         assert len(caught) == 1 and "lost the rerun viewer" in str(caught[0].message)
         assert summary.status == "complete"
         rec = read_run(tmp_path / "run.h5")
-        _, a, _ = column(rrd, "/signals/a", "Scalars:scalars")  # the file kept everything
+        _, a = channel(rrd, "/signals", rec.header, "a")  # the file kept everything
         np.testing.assert_array_equal(a, rec.values("a").ravel())
     finally:
         viewer.kill()
@@ -438,5 +476,5 @@ def test_realtime_live_view_sends_the_run_paced_and_unchanged(tmp_path):
     # the records' 15 s, from the first sample to the last, at 50 x real time, in 0.1 s steps
     assert sum(slept) == pytest.approx(15.0 / 50.0, rel=1e-12)
     assert len(slept) == 150 and max(slept) == pytest.approx(0.1 / 50.0)
-    _, a, _ = column(rrd, "/signals/a", "Scalars:scalars")
+    _, a = channel(rrd, "/signals", rec.header, "a")
     np.testing.assert_array_equal(a, rec.values("a").ravel())
