@@ -38,7 +38,7 @@ a numba function) and the same zero-order-held input: in the *continuous* config
 right-hand side reads the sample held at ``floor(t fs)`` and one ``solve_ivp`` call integrates
 across the sample instants (what a user writes; the step-size controller meets every jump as a
 local-error spike and must reject its way through it). Breaking the integration at every sample
-instant (one call per sample, the input constant inside: what :mod:`rig.integrators` does) is
+instant (one call per sample, the input constant inside: what :mod:`rig.solvers` does) is
 accurate but costs one ``solve_ivp`` call, ~0.25 ms, per sample: those *per-sample*
 configurations run on a shorter piece and are extrapolated. A continuous configuration runs in
 chunks of ``chunk_s`` simulated seconds (each chunk is a new call from the last state) until the
@@ -882,7 +882,7 @@ def scene_chains(ctx: _Ctx) -> SceneResult:
                  + "; ".join(f"n={n}: {v['dense']:.0f} | {v['recursive']:.0f}"
                              for n, v in cost.items()))
     notes.append(f"rk4 and dop853 use the recursion from n = {RECURSIVE_FROM_N} "
-                 "(rig.integrators.RECURSIVE_FROM_N); n = 2 uses scalar code")
+                 "(rig.solvers._kernels.RECURSIVE_FROM_N); n = 2 uses scalar code")
     for sub, what in (("chains/n=100", "straight release"),
                       ("chains/whip n=100", "horizontal release (the whip)")):
         ok = [e for e in entries if e.scene == sub and e.error <= 1e-4 and math.isfinite(e.wall_s)]

@@ -70,7 +70,7 @@ def _time_left(landed: list[tuple[float, int]], planned: int) -> float | None:
 
 
 def _writer_alive(path: Path) -> bool:
-    """Whether a writer holds the run file's lock (daq.hdf5.HDF5Sink takes a shared one)."""
+    """Whether a writer holds the run file's lock (daq.hdf5.Hdf5Sink takes a shared one)."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX: assume it is
@@ -116,7 +116,7 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
                open_timeout_s: float = 60.0) -> Iterator[FollowUpdate]:
     """Yield the averaged estimate each time more records of the run file ``path`` have landed
     (module docstring), until the run ends. ``settings``: a
-    :class:`processing.analysis.AnalyzerSettings` (default: the paper's). Waits up to
+    :class:`processing.analyzer.AnalyzerSettings` (default: the paper's). Waits up to
     ``open_timeout_s`` for the writer to make the file readable; raises
     :class:`rig.errors.ConfigError` if it does not, and for settings the run cannot take (e.g.
     a time record longer than a record)."""

@@ -1,7 +1,7 @@
 """The live view in rerun: watch the bench while it runs, replay a run file, show free motion.
 
 This is the only module that imports rerun (``rerun-sdk`` 0.41), and nothing imports it unless a
-live option is used. It consumes the acquisition stream (:class:`daq.acquisition.Sink`) like a
+live option is used. It consumes the acquisition stream (:class:`daq.sinks.Sink`) like a
 plot consumes an analysis, which is why it lives in ``processing``: the analyzer's screen needs
 the running average (:mod:`processing.running_average`), and ``daq`` must not import
 ``processing`` (the CLI composes them).
@@ -542,7 +542,7 @@ class LiveView(Sink):
     magnification : factor on displacements and angles in the bench drawing.
     pacer : optional :class:`daq.pacing.Pacer`: each block is sent in frames paced to the wall
         clock (``--realtime``).
-    settings : processing.analysis.AnalyzerSettings of the running average (default: the
+    settings : processing.analyzer.AnalyzerSettings of the running average (default: the
         paper's analyzer).
     """
 

@@ -2,11 +2,11 @@
 
 A real analyzer shows its averaged estimate settle record by record. :class:`RunningAverage` does
 the same with the analyzer's own segment FFTs (:func:`processing.spectra.segment_ffts`, the
-settings of :class:`processing.analysis.AnalyzerSettings`): every record is cut, detrended,
+settings of :class:`processing.analyzer.AnalyzerSettings`): every record is cut, detrended,
 windowed and transformed once, and the sums of the segment cross powers ``conj(A) X``, ``conj(A)
 Y`` and the auto powers are kept. After ``k`` records the averages are the sums over the ``k * s``
 segments divided by their number, which is RMS averaging of all segments so far -- the same
-estimate :func:`processing.analysis.analyze` makes from the first ``k`` records of the file (equal
+estimate :func:`processing.analyzer.analyze` makes from the first ``k`` records of the file (equal
 to rounding: it forms the same sums in another order). Only RMS averaging is running here
 (exponential and vector averaging are refused).
 
@@ -52,7 +52,7 @@ class RunningAverage:
     Parameters
     ----------
     header : daq.records.Header of the run (channels a, x, y; plan).
-    settings : processing.analysis.AnalyzerSettings (default: the paper's analyzer); its
+    settings : processing.analyzer.AnalyzerSettings (default: the paper's analyzer); its
         averaging must be "rms".
     """
 

@@ -272,7 +272,7 @@ def test_signals_stay_well_above_the_sensor_noise_over_most_of_the_band():
 
 
 def test_nonlinear_model_agrees_with_the_exact_linear_bench_within_its_error_estimate():
-    # the prescribed-stage path (rig.integrators rk4 on the exact stage acceleration, linear
+    # the prescribed-stage path (rig.solvers rk4 on the exact stage acceleration, linear
     # between sub-instants). A weak drive makes the nonlinearity (~theta^2 ~ 1e-8 relative)
     # negligible: what is left is the interpolation of the stage acceleration between
     # sub-instants, which the estimate measures (the raw DAC staircase, no reconstruction filter:

@@ -87,7 +87,7 @@ class Etd4mCoefficients:
         (zero for m = 1 or the linear hold).
     lohi : (3, 2) the samples (within the step) whose difference is du_i.
     widths : (e0, e1, e2): rows [0, e0) of wt carry 6 sets, [e0, e1) 5, [e1, e2) 4, the rest 3.
-    p, q, bw : as :class:`rig.integrators.Etd3Coefficients`.
+    p, q, bw : as :class:`rig.solvers.etd3.Etd3Coefficients`.
     """
 
     m: int

@@ -1,5 +1,5 @@
 """The linear method lifted to the output rate: one step of Phi^L and a FIR of the held input per
-output row (rig.integrators.lift_linear) is the per-substep recursion composed, so it must give the
+output row (rig.solvers.exact.lift_linear) is the per-substep recursion composed, so it must give the
 per-substep run to round-off, fail the same way, and leave the partial last row per substep."""
 
 import dataclasses
