@@ -140,7 +140,9 @@ def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None
         if keep.get("modal", True):
             m = g.create_group("modal")
             m.attrs["NX_class"] = "NXcollection"
-            m.attrs["note"] = ("fits of the pendulum's own response (processing.analyzer); "
+            # the stored text names the module before the analyzer was split: run files stay
+            # byte-identical across the restructuring (it is a description, not a reference)
+            m.attrs["note"] = ("fits of the pendulum's own response (processing.analysis); "
                                "absent: the fit was not made (see ../@notes_json)")
             for name, (value, unit) in modal_table(a).items():
                 d = m.create_dataset(name, data=float(value), track_times=False)
