@@ -9,6 +9,7 @@ than the package directory::
     scene = rig.load_scene("ishizaki2009", ["acquisition.records=4"])
     resp = rig.expected_response(scene, freqs_hz)        # exact H_t, Theta_2, channels ...
     run = rig.simulate_pendulum(scene.chain, 10.0, theta0=[0.01, 0.0])  # the chain alone
+    rig.SOLVERS                                          # every integrator, by name
 """
 
 from __future__ import annotations
@@ -23,6 +24,15 @@ _EXPORTS = {
     "scene_from_settings": ("rig.scene", "scene_from_settings"),
     "Chain": ("rig.chain", "Chain"),
     "simulate_pendulum": ("rig.simulate", "simulate"),
+    "SOLVERS": ("rig.solvers", "SOLVERS"),
+    "solver_named": ("rig.solvers", "solver_named"),
+    "integrate": ("rig.solvers", "integrate"),
+    "Source": ("rig.devices", "Source"),
+    "Stage": ("rig.devices", "Stage"),
+    "Accelerometer": ("rig.devices", "Accelerometer"),
+    "OpticalLever": ("rig.devices", "OpticalLever"),
+    "LinearSystem": ("rig.linear", "LinearSystem"),
+    "FrequencyResponse": ("rig.linear", "FrequencyResponse"),
     "BenchSimulation": ("rig.bench", "BenchSimulation"),
     "build_model": ("rig.bench", "build_model"),
     "expected_response": ("rig.bench", "expected_response"),

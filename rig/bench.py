@@ -61,14 +61,14 @@ and with the run length up to a few tau: at the default 0.1 V (theta1 ~ 6e-3 rad
 frequency shift ~theta^2/4 ~ 1e-5, 1 % of the half-bandwidth) it is ~0.5 % over the paper's
 records, ~2e-3 over 100 s from rest and ~3e-4 over 20 s. For the paper's run the choice flips at
 0.127 V (budget 1e-2) or 0.040 V (budget 1e-3); 0.3 V needs the nonlinear model for the paper's
-run but not for 10 s from rest (tests/test_model_selection.py).
+run but not for 10 s from rest (tests/rig/test_model_selection.py).
 
 The predictor: first-order perturbation
 ---------------------------------------
 ``z_nl = z_lin + d + O(theta^2 d)`` with ``d' = A d + f(z_lin(t))``, ``f`` the nonlinear
 remainder of the accelerations (:mod:`rig.coupled`): the linearisation error to first order is
 the linear bench's response to the remainder evaluated along the *linear* trajectory (on the
-same drive it equals nonlinear - linear to 2 %, tests/test_bench.py). It is computed for the
+same drive it equals nonlinear - linear to 2 %, tests/rig/test_bench.py). It is computed for the
 scene's own source type, level, initial state and run length on a surrogate drive: the scene's
 source regenerated at a reduced rate (>= 8 times the highest source or pendulum frequency, 100 Hz
 for ``ishizaki2009``; its own random stream, so the choice is a property of the scene, not of
@@ -105,7 +105,7 @@ accelerometer noise and the two PSD axes; all generator states travel in :class:
 any split into blocks reproduces a one-shot run bit for bit.
 
 Numbers for the defaults (``ishizaki2009``, 0.1 V rms random source 0-12.5 Hz; see
-:func:`stationary_levels`, :func:`signal_to_noise`, tests/test_bench.py): the paper's run (330 s
+:func:`stationary_levels`, :func:`signal_to_noise`, tests/rig/test_bench.py): the paper's run (330 s
 settle + 30 x 100 s, 3.33 million samples at 1 kHz) takes ~1.4 s of CPU with the linear model in
 10 s blocks (source FIR, sensors and noise included; 1-3 s wall on a shared two-core machine),
 plus ~0.15 s for the model choice;

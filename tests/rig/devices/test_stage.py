@@ -135,7 +135,7 @@ def test_reaction_changes_the_simulated_stage_response_as_the_coupled_model_says
     r_true = Stage(reaction=True).frequency_response(f[sel], chain).accel
     r_false = Stage(reaction=False).frequency_response(f[sel], chain).accel
     # the reaction's effect (the ratio) is the continuous model's, up to the DAC-image aliasing
-    # of the sampled responses (< 2e-3 here, tests/test_bench.py)
+    # of the sampled responses (< 2e-3 here, tests/rig/test_bench.py)
     np.testing.assert_allclose(ratio, r_true / r_false, rtol=5e-3)
     # the notch and the coupled resonance are really there (at 0.1 Hz resolution, Q1 = 30)
     assert np.min(np.abs(ratio)) < 0.8 and np.max(np.abs(ratio)) > 1.1

@@ -2,7 +2,7 @@
 
 Covered elsewhere: energy conservation of the double rod (tests/rig/test_energy.py), Q preserved over
 3000 s (tests/rig/test_free_decay.py), divergence -> DivergenceError (tests/rig/test_simulate.py,
-tests/test_bench.py), the choice of model by error budget (tests/test_model_selection.py).
+tests/rig/test_bench.py), the choice of model by error budget (tests/rig/test_model_selection.py).
 
 Here, with the tolerances stated in each test:
 
@@ -286,8 +286,8 @@ def test_float64_throughout():
     for arr in (tr.t_s, tr.theta_rad, tr.omega_rad_s, tr.energy_j, tr.error_estimate_rad,
                 tr.final_state.native):
         assert arr.dtype == np.float64
-    root = pathlib.Path(__file__).resolve().parents[1]
+    root = pathlib.Path(__file__).resolve().parents[2]
     for pkg in ("rig", "daq"):
-        for path in (root / pkg).glob("*.py"):
+        for path in (root / pkg).rglob("*.py"):
             text = path.read_text()
             assert "float32" not in text and "float16" not in text, path
