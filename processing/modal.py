@@ -6,25 +6,12 @@ in :mod:`processing.modal_model`, the variable-projection solver in
 :mod:`processing.modal_solver`, the paper's rotation-isolation reading in
 :mod:`processing.rotation`. Measured calibration: docs/modal-fit-calibration.md.
 
-The model
----------
-A sum of ``M`` lightly damped modes plus a smooth residual over the fitted band ``[f_lo, f_hi]``::
-
-    domain "z":  H(f) = sum_r [ c_r / (zeta - z_r) + conj(c_r) / (zeta - conj(z_r)) ] + P(f)
-    domain "s":  H(f) = sum_r [ R_r / (i w - p_r) + conj(R_r) / (i w - conj(p_r)) ] + P(f)
-
-with ``zeta = exp(i w T)``, ``T = 1/fs``, ``z_r = exp(p_r T)``, ``p_r = w_r (-1/(2 Q_r) + i sqrt(1 -
-1/(4 Q_r^2)))``, ``w_r = 2 pi f_r``, and ``P(f) = sum_j a_j ((f - f_c) / f_h)^j`` a complex
-polynomial of ``n_residual`` terms (``f_c``, ``f_h`` the band's centre and half-width: residual
-effects of modes outside the band). Domain "z" is the discrete-time modal model: it is exact for
-a system sampled from a held input (the ZOH discretisation of a 2-mode chain is exactly 2 discrete
-modes), and near each pole identical to "s" (``c_r / (zeta - z_r) ~ R_r / (i w - p_r)`` with
-``R_r = c_r / (z_r T)``, the continuous-equivalent residue reported either way). Fitted
-parameters: ``f_r`` [Hz], ``Q_r``, the complex ``c_r`` (or ``R_r``) and ``a_j``.
+The model (modes in the z or s domain plus a smooth residual, its fitted parameters) is stated
+in :mod:`processing.modal_model`.
 
 Leakage-aware fit (``method="leakage"``)
 -----------------------------------------
-A mode narrower than a line cannot be fitted by the model above: the measured peak is the
+A mode narrower than a line cannot be fitted by that model: the measured peak is the
 expected H1 of the window, not ``H`` (:mod:`processing.compare`). With ``method="leakage"`` the fit
 model is ``E[H1]`` of the modal impulse response ``g[n] = sum_r 2 Re(c_r z_r^(n-1))`` (n >= 1)::
 

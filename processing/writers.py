@@ -36,14 +36,13 @@ renamed when complete; an existing file is replaced only with ``force``. HDF5 1.
 
 from __future__ import annotations
 
-import csv
 import json
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from rig._io import atomic_output
+from rig._io import atomic_output, write_columns_csv
 
 __all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "CSV_COLUMNS", "write_spectra", "write_csv",
            "write_bode_png", "write_report"]
@@ -195,13 +194,7 @@ def write_csv(a, path, *, force: bool = False) -> Path:
     for frf in (a.h_t, a.theta_2):
         cols += [frf.h.real[m], frf.h.imag[m], frf.magnitude_db[m], frf.phase_deg[m],
                  frf.coherence[m]]
-    with atomic_output(path, force=force) as tmp:
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(CSV_COLUMNS)
-            for row in zip(*cols):
-                w.writerow([repr(float(v)) for v in row])
-    return path
+    return write_columns_csv(path, CSV_COLUMNS, cols, force=force)
 
 
 def write_report(a, path, *, force: bool = False) -> Path:

@@ -66,3 +66,20 @@ def software_version() -> str:
         return importlib.metadata.version("pendulum-daq")
     except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
         return "unknown"
+
+
+def write_columns_csv(path, header, columns, *, force: bool = False) -> Path:
+    """Write equal-length ``columns`` as CSV under the row ``header``, one row per index, every
+    value as ``repr(float)`` (it reads back bit for bit); never over an existing file without
+    ``force``, and the file appears whole or not at all (:func:`atomic_output`). Returns the
+    path."""
+    import csv
+
+    path = Path(path)
+    with atomic_output(path, force=force) as tmp:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for row in zip(*columns):
+                w.writerow([repr(float(v)) for v in row])
+    return path

@@ -165,18 +165,8 @@ def write_csv(resp: MirrorResponse, path, *, force: bool = False):
     ``repr(float)``, so it reads back bit for bit); never over an existing file without
     ``force``, and the file appears whole or not at all (:func:`rig._io.atomic_output`).
     Returns the path."""
-    import csv
-    from pathlib import Path
+    from rig._io import write_columns_csv
 
-    from rig._io import atomic_output
-
-    path = Path(path)
     cols = [resp.freqs_hz, resp.x.real, resp.x.imag, gain_db(resp.x), phase_deg(resp.x),
             resp.y.real, resp.y.imag, gain_db(resp.y), phase_deg(resp.y)]
-    with atomic_output(path, force=force) as tmp:
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(CSV_COLUMNS)
-            for row in zip(*cols):
-                w.writerow([repr(float(v)) for v in row])
-    return path
+    return write_columns_csv(path, CSV_COLUMNS, cols, force=force)
