@@ -301,6 +301,23 @@ def fixed_step_refinement(solver) -> Refinement:
                   f"dt_s / 2 (order p = {p}); valid while the error is in its asymptotic range")
 
 
+class SubstepSolver(PendulumSolver):
+    """A pendulum solver set by ``substeps`` whole steps per input interval: the count is
+    validated, :meth:`on_grid` sets it, and :meth:`refined` is the same run at dt_s / 2
+    (:func:`fixed_step_refinement`; a subclass with another estimate overrides it)."""
+
+    substeps: int
+
+    def __post_init__(self):
+        whole_number("substeps", self.substeps)
+
+    def on_grid(self, substeps: int, samples_per_step: int = 1):
+        return dataclasses.replace(self, substeps=substeps)
+
+    def refined(self) -> Refinement:
+        return fixed_step_refinement(self)
+
+
 def output_rows(n_intervals: int, out_every: int) -> np.ndarray:
     """Interval counts at which states are output: 0, out_every, 2 out_every, ..., and the end."""
     idx = np.arange(0, n_intervals + 1, out_every)

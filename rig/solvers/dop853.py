@@ -18,12 +18,12 @@ import numpy as np
 
 from rig.errors import ConfigError
 from rig.solvers._kernels import dop853_kernel
-from rig.solvers.base import PendulumSolver, Refinement, whole_number
+from rig.solvers.base import Refinement, SubstepSolver
 from rig.solvers.rhs import bodies_array, rhs_algorithm
 
 
 @dataclass(frozen=True)
-class Dop853(PendulumSolver):
+class Dop853(SubstepSolver):
     """DOP853 at tolerances ``rtol`` (relative) and ``atol`` (absolute per component [rad,
     rad/s]); ``substeps`` the least number of steps per input interval (the fixed number with
     ``adaptive=False``); ``algorithm`` the right-hand side (as :class:`rig.solvers.rk4.RK4`)."""
@@ -44,13 +44,10 @@ class Dop853(PendulumSolver):
     selectable_rhs: ClassVar[bool] = True
 
     def __post_init__(self):
-        whole_number("substeps", self.substeps)
+        super().__post_init__()
         if not (0.0 < float(self.rtol) < 1.0) or not float(self.atol) > 0.0:
             raise ConfigError(f"rtol = {self.rtol!r}, atol = {self.atol!r} are invalid: expected "
                               "0 < rtol < 1 and atol > 0")
-
-    def on_grid(self, substeps: int, samples_per_step: int = 1) -> "Dop853":
-        return dataclasses.replace(self, substeps=substeps)
 
     def refined(self) -> Refinement:
         # 100 times tighter, and at least two steps per input interval: where the sample grid,

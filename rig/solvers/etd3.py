@@ -11,7 +11,6 @@ stages (``theta,omega,history``), so blocks continue bit for bit.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -21,7 +20,7 @@ import numpy as np
 
 
 from rig.solvers._kernels import ETD3_NODES, etd3_kernel, etd3_kernel2
-from rig.solvers.base import PendulumSolver, Refinement, fixed_step_refinement, whole_number
+from rig.solvers.base import SubstepSolver
 from rig.solvers.exact import discretise
 
 if TYPE_CHECKING:
@@ -115,7 +114,7 @@ def etd3_coefficients(chain: Chain, h: float, hold: str) -> Etd3Coefficients:
 
 
 @dataclass(frozen=True)
-class Etd3(PendulumSolver):
+class Etd3(SubstepSolver):
     """etd3 with ``substeps`` steps per input interval."""
 
     substeps: int = 1
@@ -129,15 +128,6 @@ class Etd3(PendulumSolver):
         "per step)")
     native: ClassVar[str] = "theta,omega,history"
     history_rows: ClassVar[int] = 2
-
-    def __post_init__(self):
-        whole_number("substeps", self.substeps)
-
-    def on_grid(self, substeps: int, samples_per_step: int = 1) -> "Etd3":
-        return dataclasses.replace(self, substeps=substeps)
-
-    def refined(self) -> Refinement:
-        return fixed_step_refinement(self)
 
     def advance(self, chain, native, held, *, h0_s=float("nan")):
         y = native

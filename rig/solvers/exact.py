@@ -9,14 +9,13 @@ samples, :func:`lift_linear`). Cost: one (2n x 2n) mat-vec per substep, or per o
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from rig.solvers._kernels import OK, _lift_taps, lifted_kernel, lifted_kernel2, linear_kernel
-from rig.solvers.base import PendulumSolver, Refinement, whole_number
+from rig.solvers.base import Refinement, SubstepSolver
 
 
 # ================================================================================================
@@ -107,7 +106,7 @@ def lift_linear(phi, g0, g1, hold: str, substeps: int, out_every: int):
 
 
 @dataclass(frozen=True)
-class Exact(PendulumSolver):
+class Exact(SubstepSolver):
     """The exact linear map, ``substeps`` per input interval; ``lift``: step once per output row
     where a row spans more than one substep (the partial last row, if any, per substep);
     ``False`` steps every substep (the same map to round-off, ~out_every times slower)."""
@@ -121,12 +120,6 @@ class Exact(PendulumSolver):
     description: ClassVar[str] = ("exact discretisation (matrix exponential) of the linearised "
                                   "model")
     fixed_step: ClassVar[bool] = False
-
-    def __post_init__(self):
-        whole_number("substeps", self.substeps)
-
-    def on_grid(self, substeps: int, samples_per_step: int = 1) -> "Exact":
-        return dataclasses.replace(self, substeps=substeps)
 
     def refined(self) -> Refinement:
         return Refinement(self.on_grid(2 * self.substeps), 1.0, (

@@ -10,7 +10,6 @@ neither converges raises :class:`rig.errors.DivergenceError` naming dt_s. The na
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -18,23 +17,14 @@ import numpy as np
 
 from rig.solvers._kernels import (GAUSS4_A, GAUSS4_B, GAUSS4_C, MIDPOINT_A, MIDPOINT_B,
                                   MIDPOINT_C, gauss_kernel)
-from rig.solvers.base import PendulumSolver, Refinement, fixed_step_refinement, whole_number
+from rig.solvers.base import SubstepSolver
 
 
-class _Gauss(PendulumSolver):
+class _Gauss(SubstepSolver):
     symplectic: ClassVar[bool] = True
     native: ClassVar[str] = "theta,p"
     kind: ClassVar[str] = "implicit"
     tableau: ClassVar[tuple[np.ndarray, np.ndarray, np.ndarray]]
-
-    def __post_init__(self):
-        whole_number("substeps", self.substeps)
-
-    def on_grid(self, substeps: int, samples_per_step: int = 1):
-        return dataclasses.replace(self, substeps=substeps)
-
-    def refined(self) -> Refinement:
-        return fixed_step_refinement(self)
 
     def advance(self, chain, native, held, *, h0_s=float("nan")):
         y = native

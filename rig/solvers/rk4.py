@@ -7,17 +7,16 @@ interval; the right-hand side is the n = 2 scalar code, the dense solve or the O
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import ClassVar
 
 from rig.solvers._kernels import ALG_TWO, rk4_kernel, rk4_kernel2
-from rig.solvers.base import PendulumSolver, Refinement, fixed_step_refinement, whole_number
+from rig.solvers.base import SubstepSolver
 from rig.solvers.rhs import bodies_array, rhs_algorithm
 
 
 @dataclass(frozen=True)
-class RK4(PendulumSolver):
+class RK4(SubstepSolver):
     """Classic RK4 with ``substeps`` steps per input interval (``algorithm``: the right-hand side,
     ``"auto"``, ``"dense"`` or ``"recursive"``)."""
 
@@ -29,15 +28,6 @@ class RK4(PendulumSolver):
     kind: ClassVar[str] = "fixed"
     description: ClassVar[str] = "classic 4-stage Runge-Kutta, fixed step dt_s"
     selectable_rhs: ClassVar[bool] = True
-
-    def __post_init__(self):
-        whole_number("substeps", self.substeps)
-
-    def on_grid(self, substeps: int, samples_per_step: int = 1) -> "RK4":
-        return dataclasses.replace(self, substeps=substeps)
-
-    def refined(self) -> Refinement:
-        return fixed_step_refinement(self)
 
     def advance(self, chain, native, held, *, h0_s=float("nan")):
         y = native
