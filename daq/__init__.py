@@ -13,7 +13,7 @@ The public names below are imported on first use (PEP 562), so ``import daq`` st
 
 from __future__ import annotations
 
-import importlib
+from rig._exports import lazy_exports
 
 #: public name -> (module, attribute)
 _EXPORTS = {
@@ -43,16 +43,4 @@ _EXPORTS = {
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str):
-    try:
-        module, attr = _EXPORTS[name]
-    except KeyError:
-        raise AttributeError(f"module 'daq' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(module), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports('daq', _EXPORTS, globals())

@@ -11,7 +11,7 @@ modules it needs. Where each lives: spectra and windows :mod:`processing.spectra
 
 from __future__ import annotations
 
-import importlib
+from rig._exports import lazy_exports
 
 _EXPORTS = {
     "processing.spectra": ("AVERAGING", "WINDOWS", "ProcessingError", "SettingsError",
@@ -33,19 +33,8 @@ _EXPORTS = {
                          "coherence_figure"),
     "processing.views": ("bode_figures", "write_views"),
 }
-_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
+_WHERE = {name: (module, name) for module, names in _EXPORTS.items() for name in names}
 
 __all__ = sorted(_WHERE)
 
-
-def __getattr__(name: str):
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module 'processing' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports("processing", _WHERE, globals())

@@ -1,0 +1,26 @@
+"""Lazy re-exports for a package's ``__init__.py`` (PEP 562): a public name is imported from its
+module on first use and kept in the package's namespace, so importing the package costs no more
+than its directory."""
+
+from __future__ import annotations
+
+import importlib
+
+
+def lazy_exports(package: str, exports: dict[str, tuple[str, str]], namespace: dict):
+    """``(__getattr__, __dir__)`` for the package ``package`` whose public names map to
+    ``(module, attribute)`` in ``exports``; ``namespace`` is the package's ``globals()``."""
+
+    def __getattr__(name: str):
+        try:
+            module, attr = exports[name]
+        except KeyError:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
+        value = getattr(importlib.import_module(module), attr)
+        namespace[name] = value
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted(set(namespace) | set(exports))
+
+    return __getattr__, __dir__
