@@ -10,8 +10,7 @@ from pathlib import Path
 import click
 
 from daq.cli_common import force_option, verified_records
-from processing.frf import ESTIMATORS
-from processing.spectra import AVERAGING, WINDOWS
+from processing.choices import AVERAGING, ESTIMATORS, WINDOWS
 from rig._io import check_writable
 
 

@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from processing.choices import ESTIMATORS
 from processing.spectra import (
     SegmentFFTs,
     SettingsError,
@@ -61,7 +62,6 @@ from processing.spectra import (
 )
 from rig.linear import FrequencyResponse
 
-ESTIMATORS = ("h1", "h2", "hv")
 
 
 def random_error(coherence, n_effective) -> np.ndarray:

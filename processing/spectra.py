@@ -69,11 +69,11 @@ from types import MappingProxyType
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-WINDOWS = ("uniform", "hann", "flattop", "force", "exponential")
+from processing.choices import AVERAGING, WINDOWS
+
 #: Cosine-sum coefficients of the periodic windows (those of scipy.signal.windows.hann, .flattop).
 _COSINE_SUMS = {"hann": (0.5, 0.5),
                 "flattop": (0.21557895, 0.41663158, 0.277263158, 0.083578947, 0.006947368)}
-AVERAGING = ("rms", "vector", "exponential", "peak")
 DETRENDS = ("constant", "linear", None)
 SCALINGS = ("density", "spectrum")
 
