@@ -16,7 +16,9 @@ changes. So before importing numba, :func:`materialise` points ``NUMBA_CACHE_DIR
 named after a hash of the source of every kernel file (:func:`cache_dir`): any change to any
 kernel starts a fresh cache, and kernels may call kernels across files. A ``NUMBA_CACHE_DIR``
 set by the caller is kept (the caller owns it, e.g. a cold-start benchmark), and so is numba's
-default if numba was imported before (it reads the variable at import).
+default if numba was imported before (it reads the variable at import). A new directory's older
+siblings are pruned (:func:`prune_cache_dirs`: the newest few are kept, and any used within a day),
+so edits do not pile up compiled code.
 """
 
 from __future__ import annotations
@@ -81,7 +83,10 @@ def materialise() -> None:
     """Import numba, make every registered kernel's dispatcher and patch the namespaces."""
     with _lock:
         if "numba" not in sys.modules and "NUMBA_CACHE_DIR" not in os.environ:
-            os.environ["NUMBA_CACHE_DIR"] = str(cache_dir())
+            path = cache_dir()
+            if not path.exists():
+                prune_cache_dirs(path)
+            os.environ["NUMBA_CACHE_DIR"] = str(path)
         import numba
 
         for k in _registry:
@@ -130,3 +135,40 @@ def cache_dir() -> Path:
     # an installed, read-only package: the user's cache directory instead
     user = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return user / "pendulum-daq" / name
+
+
+#: :func:`prune_cache_dirs` keeps this many of the newest sibling cache directories...
+KEEP_CACHE_DIRS = 3
+#: ... and every one modified less than this long ago [s] (another checkout may be using it)
+KEEP_CACHE_AGE_S = 86400.0
+
+
+def prune_cache_dirs(current: Path, *, keep: int = KEEP_CACHE_DIRS,
+                     min_age_s: float = KEEP_CACHE_AGE_S) -> list[Path]:
+    """Remove the ``numba-*`` siblings of ``current`` (kernel caches of earlier sources) except
+    the ``keep`` most recently modified and those modified within ``min_age_s`` seconds;
+    ``current`` itself is never removed. Best effort (a directory that cannot be removed stays).
+    Returns the directories removed."""
+    import shutil
+    import time
+
+    parent = current.parent
+    if not parent.is_dir():
+        return []
+    found = []
+    for p in parent.glob("numba-*"):
+        if p.is_dir() and p.name != current.name:
+            try:
+                found.append((p.stat().st_mtime, p))
+            except OSError:
+                continue
+    found.sort(reverse=True)
+    now = time.time()
+    removed = []
+    for i, (mtime, p) in enumerate(found):
+        if i < keep or now - mtime < min_age_s:
+            continue
+        shutil.rmtree(p, ignore_errors=True)
+        if not p.exists():
+            removed.append(p)
+    return removed

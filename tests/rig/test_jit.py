@@ -72,3 +72,25 @@ def test_the_lazy_loader_names_no_package_of_its_own():
 
     text = Path(rig._jit.__file__).read_text()
     assert '"daq"' not in text and '"processing"' not in text
+
+
+def test_a_new_cache_directory_prunes_old_siblings_but_keeps_recent_and_newest(tmp_path):
+    import os
+    import time
+
+    from rig import _jit
+
+    now = time.time()
+    ages_days = {"numba-a": 10, "numba-b": 9, "numba-c": 8, "numba-d": 7, "numba-e": 0.5,
+                 "numba-f": 30}
+    for name, days in ages_days.items():
+        d = tmp_path / name
+        d.mkdir()
+        (d / "kernel.nbi").write_bytes(b"x")
+        os.utime(d, (now - days * 86400, now - days * 86400))
+    (tmp_path / "other").mkdir()  # not a kernel cache: never touched
+    current = tmp_path / "numba-new"
+    removed = _jit.prune_cache_dirs(current, keep=2, min_age_s=86400)
+    # kept: the two newest (e, d), and none younger than a day besides; removed the rest
+    assert sorted(p.name for p in removed) == ["numba-a", "numba-b", "numba-c", "numba-f"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["numba-d", "numba-e", "other"]
