@@ -40,7 +40,7 @@ from daq.sinks import Fanout, Sink
 from rig._io import software_version
 from rig._threads import prefetch, single_threaded_blas
 from rig.acquisition_settings import AcquisitionSettings
-from rig.blocks import AnalogBlock, Calibration
+from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
 from rig.errors import ConfigError, RigError
 from rig.scene import Scene
 
@@ -203,7 +203,7 @@ class _RigBench:
     truth_keys = RIG_TRUTH
     saturation_keys = {"a": "a_overrange", "x": "psd_off_detector", "y": "psd_off_detector"}
 
-    def __init__(self, rb, scene: Scene, seed: int, **bench_kw):
+    def __init__(self, rb, scene: Scene, seed: int, *, lifted: bool = True, **bench_kw):
         self._rb, self._scene = rb, scene
         acq = scene.acquisition
         n = min(round(BLOCK_S * acq.rate_hz), round(acq.record_s * acq.rate_hz))
@@ -215,9 +215,19 @@ class _RigBench:
         self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s),
                                        **bench_kw)
         self.fs_hz = float(self._sim.fs_hz)
+        self._lifted = bool(lifted) and self._sim.model.model == "linear"
 
     def blocks(self) -> Iterator[AnalogBlock]:
         return self._sim.blocks(self._block_s, self._duration_s)
+
+    def decimated_blocks(self, sos: np.ndarray, decimation: int
+                         ) -> Iterator[DecimatedBlock] | None:
+        """The run through the anti-alias sections ``sos`` and kept every ``decimation``
+        samples by the fused lifted chain (:mod:`rig.lifted`): the linear model only, and not
+        with ``lifted=False`` (None: use :meth:`blocks`)."""
+        if not self._lifted or decimation != self._sim.model.decimation:
+            return None
+        return self._sim.decimated_blocks(self._block_s, self._duration_s, sos)
 
     def calibrations(self) -> dict[str, Calibration]:
         return dict(self._sim.calibrations())
@@ -232,7 +242,12 @@ class _RigBench:
         return out
 
     def model_info(self) -> dict:
-        return dict(self._sim.model_info())
+        info = dict(self._sim.model_info())
+        if self._lifted:
+            from rig.lifted import PER_SAMPLE
+
+            info["per_sample"] = dict(PER_SAMPLE, rate_hz=self.fs_hz)
+        return info
 
 
 def _as_dict(obj) -> dict:
@@ -404,7 +419,12 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
                           f"simulation_rate_hz = {plan.simulation_rate_hz:g} Hz")
     channels = channels_for(scene.settings["acquisition"], the_bench.calibrations())
     response = model_response(the_bench, aa, plan, channels)
-    blocks = iter(the_bench.blocks())
+    fused = getattr(the_bench, "decimated_blocks", None)
+    blocks = None
+    if fused is not None and tuple(c.name for c in channels) == ("a", "x", "y"):
+        # the bench filters and decimates itself (no simulation-rate arrays)
+        blocks = fused(np.zeros((0, 6)) if aa.kind == "none" else aa.sos, aa.decimation)
+    blocks = iter(the_bench.blocks() if blocks is None else blocks)
     first = next(blocks, None)
     if first is None:
         raise StreamError("the bench yielded no block")
@@ -543,29 +563,16 @@ def _run(header: Header, blocks: Iterator[AnalogBlock], fan: Fanout, progress,
         if missing:
             raise StreamError(f"bench block at t = {ab.t0_s:g} s has no volts for channel(s) "
                               f"{', '.join(missing)}")
-        n = min(ab.samples, need - done_sim)
-        x = np.empty((len(names), n))
-        for i, k in enumerate(names):
-            x[i] = ab.volts[k][:n]
-        if not np.isfinite(x).all():
-            bad = [k for i, k in enumerate(names) if not np.isfinite(x[i]).all()]
-            i = int(np.argmin(np.isfinite(x).all(axis=0)))
-            raise StreamError(f"non-finite volts on channel(s) {', '.join(bad)} at t = "
-                              f"{ab.t0_s + i / fs:.6g} s")
-        kept = aa.kept(state, n)
-        y, state = aa.step(state, x)
+        if isinstance(ab, DecimatedBlock):  # filtered and decimated by the bench itself
+            n, y, truth, saturated = _decimated(ab, names, truth_names, sat_keys, need - done_sim)
+        else:
+            n = min(ab.samples, need - done_sim)
+            y, truth, saturated, state = _filter_block(ab, n, names, aa, state, truth_names,
+                                                       sat_keys, carry)
         m = y.shape[1]
         codes, clipped = {}, {}
         for i, (k, adc) in enumerate(zip(names, adcs)):
             codes[k], clipped[k] = adc.digitize(y[i])
-        truth = {}
-        for k in truth_names:
-            truth[k] = np.asarray(ab.truth[k])[:n][kept]
-        saturated = {}
-        for k, key in sat_keys.items():
-            if key in ab.truth:
-                saturated[k], carry[k] = _interval_any(np.asarray(ab.truth[key])[:n], kept,
-                                                       carry[k])
         pos = 0
         while pos < m:
             g = done_out + pos
@@ -597,3 +604,45 @@ def _run(header: Header, blocks: Iterator[AnalogBlock], fan: Fanout, progress,
             return
     raise StreamError(f"the bench stopped at t = {done_sim / fs:g} s; the run needs "
                       f"{need / fs:g} s")
+
+
+def _check_finite_volts(x: np.ndarray, names, t0_s: float, dt_s: float) -> None:
+    if not np.isfinite(x).all():
+        bad = [k for i, k in enumerate(names) if not np.isfinite(x[i]).all()]
+        i = int(np.argmin(np.isfinite(x).all(axis=0)))
+        raise StreamError(f"non-finite volts on channel(s) {', '.join(bad)} at t = "
+                          f"{t0_s + i * dt_s:.6g} s")
+
+
+def _filter_block(ab: AnalogBlock, n: int, names, aa: AntiAliasFilter, state, truth_names,
+                  sat_keys: dict, carry: dict):
+    """The first ``n`` samples of a block at the simulation rate through the anti-alias filter
+    and the decimation: (filtered volts (channels, kept), truth and saturation flags at the kept
+    instants, the filter state after it); updates ``carry``."""
+    x = np.empty((len(names), n))
+    for i, k in enumerate(names):
+        x[i] = ab.volts[k][:n]
+    _check_finite_volts(x, names, ab.t0_s, 1 / ab.fs_hz)
+    kept = aa.kept(state, n)
+    y, state = aa.step(state, x)
+    truth = {k: np.asarray(ab.truth[k])[:n][kept] for k in truth_names}
+    saturated = {}
+    for k, key in sat_keys.items():
+        if key in ab.truth:
+            saturated[k], carry[k] = _interval_any(np.asarray(ab.truth[key])[:n], kept,
+                                                   carry[k])
+    return y, truth, saturated, state
+
+
+def _decimated(ab: DecimatedBlock, names, truth_names, sat_keys: dict, left: int):
+    """A block the bench filtered and decimated (:class:`rig.blocks.DecimatedBlock`): (its
+    samples, volts (channels, kept), truth, saturation flags), or StreamError if it runs past
+    the run or carries non-finite volts."""
+    if ab.samples > left:
+        raise StreamError(f"bench block at t = {ab.t0_s:g} s has {ab.samples} samples; the run "
+                          f"needs {left} more")
+    y = np.stack([np.asarray(ab.volts[k], dtype=float) for k in names])
+    _check_finite_volts(y, names, ab.t0_s, ab.decimation / ab.fs_hz)
+    truth = {k: np.asarray(ab.truth[k]) for k in truth_names}
+    saturated = {k: np.asarray(ab.saturated[k]) for k in sat_keys if k in ab.saturated}
+    return ab.samples, y, truth, saturated

@@ -59,3 +59,28 @@ class AnalogBlock:
     def times_s(self) -> np.ndarray:
         """Sample instants [s], shape (samples,)."""
         return self.t0_s + np.arange(self.samples) / self.fs_hz
+
+
+@dataclass(frozen=True)
+class DecimatedBlock:
+    """A block of the run already through the anti-alias filter and the decimation: only the
+    kept instants (every ``decimation``-th simulation sample from ``t0_s``).
+
+    Attributes
+    ----------
+    t0_s : time of the block's first simulation sample (its first kept instant) [s].
+    fs_hz : simulation rate [Hz]; ``decimation`` simulation samples per kept instant;
+        ``samples`` simulation samples in the block (a multiple of ``decimation``).
+    volts : filtered channel volts at the kept instants [V], each (kept,).
+    truth : the ground truth at the kept instants (names as :class:`AnalogBlock`).
+    saturated : channel -> (kept,) bool: its sensor saturated within the kept instant's
+        decimation interval (since the previous kept instant, up to and including it).
+    """
+
+    t0_s: float
+    fs_hz: float
+    decimation: int
+    samples: int
+    volts: dict
+    truth: dict
+    saturated: dict

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Iterator
 
-from rig.blocks import AnalogBlock, Calibration
+from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
 from rig.errors import ConfigError
 from rig._threads import Prefetch
 from rig.scene import Scene
@@ -85,21 +85,51 @@ class BenchSimulation:
             n = _block_sizes(fs, self.model.decimation, block_s, None)[0]
             while True:
                 yield self.next_block(n)
-        sizes = _block_sizes(fs, self.model.decimation, block_s, duration_s)
-        ahead, self._ahead = self._ahead, None
-        if ahead is not None and ahead[0] == (block_s, duration_s) and self.state.index == 0:
-            made = ahead[2]
-        else:
-            if ahead is not None:
-                ahead[2].close()
-            # the source does not depend on the bench: its blocks are made ahead in a thread
-            made = Prefetch(_source_blocks(self.model.source, self.state.source, sizes), 2)
+        sizes, made = self._sources(block_s, duration_s)
         try:
             for k, src in zip(sizes, made):
                 block, self.state = advance(self.model, self.state, k, src)
                 yield block
         finally:
             made.close()
+
+    def decimated_blocks(self, block_s: float, duration_s: float, sos
+                         ) -> Iterator[DecimatedBlock]:
+        """Like :meth:`blocks`, but through the anti-alias sections ``sos`` (rows ``[b0, b1,
+        b2, 1, a1, a2]``, (0, 6) for none) and kept at every ``decimation``-th sample, by the
+        fused lifted chain (:mod:`rig.lifted`, the linear model only; equal to :meth:`blocks`
+        filtered and decimated up to round-off). Starts at a kept instant."""
+        from rig import lifted as rl
+
+        if self.model.model != "linear":
+            raise ConfigError(f"decimated_blocks needs the linear model, not "
+                              f"{self.model.model!r}")
+        q = self.model.decimation
+        if self.state.index % q:
+            raise ConfigError(f"decimated_blocks must start at a kept instant (sample "
+                              f"{self.state.index} is not a multiple of {q})")
+        lifted = rl.lift(self.model, q)
+        chain = rl.start_decimated(sos)
+        sizes, made = self._sources(block_s, duration_s)
+        try:
+            for k, src in zip(sizes, made):
+                block, self.state, chain = rl.advance_decimated(self.model, lifted, self.state,
+                                                                chain, k, sos, src)
+                yield block
+        finally:
+            made.close()
+
+    def _sources(self, block_s, duration_s):
+        """The block sizes and the source's blocks for them, made ahead in a thread (those made
+        since construction if ``ahead`` matches and nothing ran yet)."""
+        sizes = _block_sizes(self.model.fs_hz, self.model.decimation, block_s, duration_s)
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead[0] == (block_s, duration_s) and self.state.index == 0:
+            return sizes, ahead[2]
+        if ahead is not None:
+            ahead[2].close()
+        # the source does not depend on the bench: its blocks are made ahead in a thread
+        return sizes, Prefetch(_source_blocks(self.model.source, self.state.source, sizes), 2)
 
     def run(self, duration_s: float) -> AnalogBlock:
         """The next ``duration_s`` seconds as one block."""

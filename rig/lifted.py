@@ -1,0 +1,317 @@
+"""The linear bench lifted to the output rate, fused with its sensors and the anti-alias filter.
+
+What ``acquisition.model = "linear"`` computes per DAC sample (:func:`rig.bench.advance`) is
+``z_{k+1} = Phi z_k + Gamma V_k`` (the exact zero-order-hold step), then the sensors read the
+state, noise is added, the outputs are clipped and flagged, and the acquisition's anti-alias
+filter runs over every sample before every ``q``-th is kept (``q = acquisition.decimation``).
+Only the kept instants are stored. Here the same chain runs per *decimation interval* of ``q``
+DAC samples, in one compiled pass that writes only what is kept:
+
+1. the bench state only at the kept instants ``k = q j`` (lifting)::
+
+       z_{j+1} = Phi^q z_j + sum_{i<q} Phi^(q-1-i) Gamma V_{qj+i}
+
+2. the three linear readings the sensors need at every sample ``qj + i`` (the sensed
+   acceleration ``x0'' - w_c q``, the mirror translation ``w . theta`` and rotation
+   ``theta_mirror``), straight from ``z_j`` and the interval's held inputs::
+
+       r(qj+i) = R Phi^i z_j + sum_{l<i} R Phi^(i-1-l) Gamma V_{qj+l}
+
+   (``R`` the (3, nz) reading rows; one (nz + q, 3q) matrix, :attr:`Lifted.readings`);
+
+3. per sample, what is not linear and so is not lifted: the optical lever's exact geometry
+   (:func:`rig.devices.optical_lever._spot`, second order in the angles: ~0.4 % of the spot's
+   rms, far above round-off), the white noise of the accelerometer and of both PSD axes (drawn
+   inside the kernel from the same numpy generators, the same values in the same order as
+   :meth:`Accelerometer.sense_and_output` and :meth:`OpticalLever.measure` draw them), the
+   clipping at the accelerometer's range and at the detector's edge with their flags, and the
+   anti-alias filter's second-order sections (``scipy.signal.sosfilt``'s arithmetic, passed in
+   as plain arrays: rig does not import daq), whose input is that clipped, noisy sum;
+
+4. kept: the filtered volts, the truth (``stage_accel_mps2``, ``theta_rad``, ``mirror_x_m``,
+   ``mirror_rot_rad``, ``source_v``) and, per channel, whether its sensor saturated within the
+   kept instant's interval (the acquisition's interval rule, :class:`rig.blocks.DecimatedBlock`).
+
+Equal to the per-sample path up to round-off: steps 1-2 are the same exact linear map with the
+products of ``Phi`` formed once and summed in another order, so the states differ by rounding
+that the stable bench does not amplify (bound and measurement: tests/rig/test_lifted.py); the
+noise, geometry, clipping and filter arithmetic are the per-sample path's own. Any split of a
+run into blocks of whole intervals gives the same bytes (every sum runs per interval, in a fixed
+order). Cost per interval: ``nz (nz + q)`` multiply-adds for the state, ``3 q (nz + q)`` for the
+readings, then the per-sample sensors and ``6 x sections`` per sample and channel for the filter.
+
+Public API: :class:`Lifted`, :func:`lift`, :func:`advance_decimated`, :func:`start_decimated`,
+:class:`DecimatedState`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rig._jit import njit
+from rig.blocks import DecimatedBlock
+from rig.devices.optical_lever import _spot
+from rig.errors import ConfigError, DivergenceError
+
+READINGS = ("accel_sensed_mps2", "mirror_x_m", "mirror_rot_rad")
+#: what the fused chain runs at every DAC sample and why (the run file's model info)
+PER_SAMPLE = {
+    "what": "the sensors' three linear readings (sensed acceleration, mirror translation and "
+            "rotation) from the lifted state, the optical lever's exact geometry, the sensors' "
+            "white noise (one draw per sample and channel), the clipping at the detector edge "
+            "and the accelerometer's range with their flags, and the anti-alias filter; the "
+            "bench state itself is stepped once per output sample (lifted: Phi^q, exact)",
+    "why": "the bench from the DAC to the readings is linear, so it is lifted to the output "
+           "rate; the rest is not linear and not lifted: the lever's second-order geometry is "
+           "~0.4 % of the spot's rms in u (far above round-off), clipping and flags act on "
+           "each sample, and the filter's input is the sum of those and the noise",
+    "lifted": "bench state at the kept instants (rig.lifted)",
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Lifted:
+    """The lifted matrices of one linear :class:`rig.bench.BenchModel` at decimation ``q``.
+
+    Attributes
+    ----------
+    q : DAC samples per kept instant.
+    phi_q_t : (nz, nz) ``Phi^q`` transposed (C order).
+    gamma_q : (q, nz) row i: ``Phi^(q-1-i) Gamma``.
+    readings : (nz + q, 3 q): column ``3 i + r`` gives reading r at sample i of an interval
+        from ``(z_j, V_qj .. V_qj+q-1)`` (module docstring, step 2).
+    accel_row : (nz,) x0'' = accel_row . z;  theta : (start, stop) of theta in z;
+    mirror_w : (n,) mirror translation weights;  mirror_body : the mirror's body.
+    """
+
+    q: int
+    phi_q_t: np.ndarray
+    gamma_q: np.ndarray
+    readings: np.ndarray
+    accel_row: np.ndarray
+    theta: tuple
+    mirror_w: np.ndarray
+    mirror_body: int
+
+
+def lift(model, q: int) -> Lifted:
+    """The :class:`Lifted` matrices of a linear bench model (``model.model == "linear"``) for
+    ``q`` DAC samples per kept instant."""
+    if model.model != "linear":
+        raise ConfigError(f"the lifted chain needs the linear model, not {model.model!r}")
+    if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or q < 1:
+        raise ConfigError(f"decimation = {q!r} is invalid: expected an integer >= 1")
+    q = int(q)
+    phi, gamma = np.asarray(model.phi), np.asarray(model.gamma)
+    nz = phi.shape[0]
+    sl = model.slices
+    th = sl["theta_rad"]
+    scene = model.scene
+    w = np.asarray(scene.mirror_weights(), float)
+    rows = np.zeros((3, nz))
+    rows[0] = model.accel_row
+    if model.accelerometer.n_states:
+        rows[0, sl["accel_highpass_q_mps"].start] -= model.accelerometer.corner_rad_s
+    rows[1, th] = w
+    rows[2, th.start + scene.mirror.body] = 1.0
+    powers = [np.eye(nz)]
+    for _ in range(q):
+        powers.append(phi @ powers[-1])
+    gamma_q = np.array([powers[q - 1 - i] @ gamma for i in range(q)])
+    readings = np.zeros((nz + q, 3 * q))
+    for i in range(q):
+        readings[:nz, 3 * i:3 * i + 3] = (rows @ powers[i]).T
+        for m in range(i):  # input of sample m reaches sample i through Phi^(i-1-m) Gamma
+            readings[nz + m, 3 * i:3 * i + 3] = rows @ (powers[i - 1 - m] @ gamma)
+    return Lifted(q=q, phi_q_t=np.ascontiguousarray(powers[q].T),
+                  gamma_q=np.ascontiguousarray(gamma_q), readings=np.ascontiguousarray(readings),
+                  accel_row=np.ascontiguousarray(model.accel_row, dtype=float),
+                  theta=(th.start, th.stop), mirror_w=np.ascontiguousarray(w),
+                  mirror_body=int(scene.mirror.body))
+
+
+@dataclass(frozen=True, eq=False)
+class DecimatedState:
+    """What the fused chain carries besides the bench's own :class:`rig.bench.BenchState`: the
+    anti-alias sections' state ``zi`` (sections, 3, 2) and, per channel (a, x, y), whether its
+    sensor saturated after the last kept instant (``carry``, (3,) bool)."""
+
+    zi: np.ndarray
+    carry: np.ndarray
+
+
+def start_decimated(sos: np.ndarray) -> DecimatedState:
+    """At rest: zero filter state, no saturation carried."""
+    return DecimatedState(zi=np.zeros((np.asarray(sos).shape[0], 3, 2)),
+                          carry=np.zeros(3, dtype=np.bool_))
+
+
+def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: int,
+                      sos: np.ndarray, source_block=None):
+    """Run ``n`` DAC samples (a whole number of intervals) from ``state`` (a
+    :class:`rig.bench.BenchState` at a kept instant) through the fused chain (module
+    docstring). ``sos``: the anti-alias filter's sections, rows ``[b0, b1, b2, 1, a1, a2]``
+    ((0, 6): no filter). ``source_block`` as in :func:`rig.bench.advance`.
+
+    Returns (:class:`rig.blocks.DecimatedBlock`, the bench state after it, the chain state
+    after it).
+
+    Raises
+    ------
+    ConfigError : ``n`` not a positive multiple of the decimation.
+    DivergenceError : a non-finite state in the block.
+    """
+    from rig.bench.run import BenchState, _readonly, _rng
+    from rig.devices.source import generate
+
+    q = lifted.q
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < q or n % q:
+        raise ConfigError(f"n_samples = {n!r} is invalid: expected a positive multiple of the "
+                          f"decimation {q}")
+    n = int(n)
+    fs = model.fs_hz
+    if source_block is None:
+        v, src = generate(model.source, state.source, n)
+    else:
+        v, src = source_block
+        if v.shape != (n,) or src.index != state.source.index + n:
+            raise ValueError(f"source_block covers samples up to {src.index} ({v.shape[0]}); "
+                             f"expected {n} samples from {state.source.index}")
+    v = np.ascontiguousarray(v, dtype=float)
+    z = np.array(state.z, dtype=float)
+    z_start = z.copy()
+    acc, lever = model.accelerometer, model.lever
+    rng_a = _rng(state.rng_states["accelerometer"])
+    rng_x = _rng(state.rng_states["psd_x"])
+    rng_y = _rng(state.rng_states["psd_y"])
+    sd_a = acc.noise_rms_v(fs) if acc.noise_mps2_rthz > 0 else 0.0
+    sd_p = lever.noise_rms_m(fs) if lever.noise_m_rthz > 0 else 0.0
+    j = n // q
+    nth = lifted.theta[1] - lifted.theta[0]
+    volts = np.empty((3, j))
+    accel = np.empty(j)
+    theta = np.empty((j, nth))
+    mx = np.empty(j)
+    mrot = np.empty(j)
+    sat = np.empty((3, j), dtype=np.bool_)
+    zi = np.array(chain.zi, dtype=float)
+    carry = np.array(chain.carry, dtype=np.bool_)
+    phi_rad = lever.phi_rad
+    _fused_kernel(lifted.phi_q_t, lifted.gamma_q, lifted.readings, lifted.accel_row,
+                  lifted.theta[0], lifted.mirror_w, lifted.mirror_body, v, z,
+                  rng_a, rng_x, rng_y, sd_a, sd_p,
+                  acc.volts_per_mps2, acc.sensitivity_vpmps2 * acc.range_mps2,
+                  np.cos(phi_rad), np.sin(phi_rad), lever.distance_m, lever.half_size_m,
+                  lever.sign_x * lever.gain_vpm, lever.sign_y * lever.gain_vpm,
+                  np.ascontiguousarray(sos, dtype=float).reshape(-1, 6), zi, carry,
+                  volts, accel, theta, mx, mrot, sat)
+    t0 = state.index / fs
+    if not (np.all(np.isfinite(z)) and np.all(np.isfinite(volts))):
+        raise DivergenceError(
+            f"bench ({model.model}): a non-finite state in the block starting at t = {t0:.9g} s "
+            f"({n} samples); the state at its start was {z_start.tolist()}", t0, z_start)
+    truth = {"stage_accel_mps2": accel, "theta_rad": theta, "mirror_x_m": mx,
+             "mirror_rot_rad": mrot, "source_v": v[::q].copy()}
+    block = DecimatedBlock(t0_s=t0, fs_hz=fs, decimation=q, samples=n,
+                           volts={"a": volts[0], "x": volts[1], "y": volts[2]}, truth=truth,
+                           saturated={"a": sat[0], "x": sat[1], "y": sat[2]})
+    rng_states = {"accelerometer": rng_a.bit_generator.state,
+                  "psd_x": rng_x.bit_generator.state, "psd_y": rng_y.bit_generator.state}
+    new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
+                     seed_entropy=state.seed_entropy)
+    return block, new, DecimatedState(zi=zi, carry=carry)
+
+
+@njit(cache=True, nogil=True)
+def _sections(sos, zi, ch, cur):
+    """One sample through the sections (``sosfilt``'s transposed direct form II, the order of
+    ``daq.antialias._sosfilt_inplace``), updating ``zi[:, ch, :]``."""
+    for s in range(sos.shape[0]):
+        new = sos[s, 0] * cur + zi[s, ch, 0]
+        zi[s, ch, 0] = sos[s, 1] * cur - sos[s, 4] * new + zi[s, ch, 1]
+        zi[s, ch, 1] = sos[s, 2] * cur - sos[s, 5] * new
+        cur = new
+    return cur
+
+
+@njit(cache=True, nogil=True)
+def _fused_kernel(phi_q_t, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
+                  rng_a, rng_x, rng_y, sd_a, sd_p, gain_a, lim_a, cphi, sphi, dist, half,
+                  gain_x, gain_y, sos, zi, carry, volts, accel, theta, mx, mrot, sat):
+    """The fused chain over ``v.size / q`` intervals (module docstring); ``z`` (in/out) the
+    state at the block's first kept instant, ends at the next block's; ``zi``, ``carry``
+    (in/out) the filter state and the saturation carried (a, x, y); writes the kept volts
+    (3, J), truth and saturation flags (3, J)."""
+    nz = z.shape[0]
+    q = gamma_q.shape[0]
+    nr = 3 * q
+    nth = theta.shape[1]
+    noisy_a = sd_a > 0.0
+    noisy_p = sd_p > 0.0
+    r = np.empty(nr)
+    zn = np.empty(nz)
+    for j in range(v.shape[0] // q):
+        k0 = j * q
+        # the readings at every sample of the interval and the state at the next kept instant
+        for c in range(nr):
+            r[c] = 0.0
+        for c in range(nz):
+            zc = z[c]
+            for m in range(nr):
+                r[m] += readings[c, m] * zc
+        for i in range(q - 1):  # the last input reaches no sample of this interval
+            vi = v[k0 + i]
+            for m in range(nr):
+                r[m] += readings[nz + i, m] * vi
+        for m in range(nz):
+            zn[m] = 0.0
+        for i in range(q):
+            vi = v[k0 + i]
+            for m in range(nz):
+                zn[m] += gamma_q[i, m] * vi
+        for c in range(nz):
+            zc = z[c]
+            for m in range(nz):
+                zn[m] += phi_q_t[c, m] * zc
+        # the truth at the kept instant
+        s = 0.0
+        for c in range(nz):
+            s += accel_row[c] * z[c]
+        accel[j] = s
+        s = 0.0
+        for b in range(nth):
+            theta[j, b] = z[th0 + b]
+            s += mirror_w[b] * z[th0 + b]
+        mx[j] = s
+        mrot[j] = z[th0 + body]
+        for m in range(nz):
+            z[m] = zn[m]
+        # per sample: sensors, noise, clipping, flags, anti-alias sections
+        for i in range(q):
+            va = gain_a * r[3 * i]
+            if noisy_a:
+                va = va + sd_a * rng_a.standard_normal()
+            over = abs(va) > lim_a
+            va = min(max(va, -lim_a), lim_a)
+            uk, vk = _spot(r[3 * i + 1], 0.0, r[3 * i + 2], cphi, sphi, dist)
+            if noisy_p:
+                uk = uk + sd_p * rng_x.standard_normal()
+                vk = vk + sd_p * rng_y.standard_normal()
+            off = (abs(uk) > half) or (abs(vk) > half)
+            ya = _sections(sos, zi, 0, va)
+            yx = _sections(sos, zi, 1, gain_x * min(max(uk, -half), half))
+            yy = _sections(sos, zi, 2, gain_y * min(max(vk, -half), half))
+            carry[0] = carry[0] or over
+            carry[1] = carry[1] or off
+            if i == 0:
+                volts[0, j] = ya
+                volts[1, j] = yx
+                volts[2, j] = yy
+                sat[0, j] = carry[0]
+                sat[1, j] = carry[1]
+                sat[2, j] = carry[1]
+                carry[0] = False
+                carry[1] = False
+    carry[2] = carry[1]
