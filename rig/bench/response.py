@@ -23,6 +23,7 @@ from rig.blocks import Calibration
 from rig.errors import ConfigError
 from rig.linear import FrequencyResponse
 from rig.scene import Scene
+from rig.scene_memo import per_scene
 from rig.devices.source import NOISE_TYPES, Source
 from rig.bench.model import BenchModel, build_model
 
@@ -91,6 +92,7 @@ _RESPONSE_FIELDS = ("a", "x", "y", "stage_accel", "stage_disp", "mirror_x", "mir
                     "theta_2", "h_t_pendulum", "theta_2_pendulum")
 
 
+@per_scene()
 def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> BenchResponse:
     """The exact linear response of the whole chain source -> channels at ``freqs_hz`` [Hz].
 
@@ -99,6 +101,7 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
     frequency_response`) times the DAC hold; ``sampled=True`` the exact discrete-time transfer
     function of the simulated samples (:class:`BenchResponse`). Both use the linear pendulum and
     the linearised optical lever; both need ``0 <= f < fs / 2``.
+    Memoised per scene and grid (:mod:`rig.scene_memo`).
     """
     model = build_model(scene) if scene.acquisition.model == "linear" else \
         build_model(_as_linear(scene))

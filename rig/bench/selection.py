@@ -50,6 +50,7 @@ from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers.exact import discretise
 from rig.scene import Scene
+from rig.scene_memo import per_scene
 from rig.devices.source import generate, start_source
 
 PREDICTOR_ENTROPY = 20090005  # the predictor's own random stream (the choice is the scene's)
@@ -234,6 +235,7 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
     }
 
 
+@per_scene()
 def select_model(scene: Scene) -> dict:
     """The model for ``acquisition.model`` and ``acquisition.error_budget``, and why.
 
@@ -243,6 +245,7 @@ def select_model(scene: Scene) -> dict:
     Returns a dict (JSON-ready): ``requested``, ``chosen``, ``error_budget``,
     ``linear_meets_budget``, ``predicted_linear_error`` (the max over bodies), its ``upper``,
     ``reason`` (a sentence), ``prediction`` (the predictor's dict, with ``how``).
+    Memoised per scene (:mod:`rig.scene_memo`): it depends on the scene alone.
     """
     requested = scene.acquisition.model
     budget = scene.acquisition.error_budget
