@@ -78,7 +78,7 @@ class Lifted:
     Attributes
     ----------
     q : DAC samples per kept instant.
-    phi_q_t : (nz, nz) ``Phi^q`` transposed (C order).
+    phi_q : (nz, nz) ``Phi^q``.
     gamma_q : (q, nz) row i: ``Phi^(q-1-i) Gamma``.
     readings : (nz + q, 3 q): column ``3 i + r`` gives reading r at sample i of an interval
         from ``(z_j, V_qj .. V_qj+q-1)`` (module docstring, step 2).
@@ -87,7 +87,7 @@ class Lifted:
     """
 
     q: int
-    phi_q_t: np.ndarray
+    phi_q: np.ndarray
     gamma_q: np.ndarray
     readings: np.ndarray
     accel_row: np.ndarray
@@ -125,7 +125,7 @@ def lift(model, q: int) -> Lifted:
         readings[:nz, 3 * i:3 * i + 3] = (rows @ powers[i]).T
         for m in range(i):  # input of sample m reaches sample i through Phi^(i-1-m) Gamma
             readings[nz + m, 3 * i:3 * i + 3] = rows @ (powers[i - 1 - m] @ gamma)
-    return Lifted(q=q, phi_q_t=np.ascontiguousarray(powers[q].T),
+    return Lifted(q=q, phi_q=np.ascontiguousarray(powers[q]),
                   gamma_q=np.ascontiguousarray(gamma_q), readings=np.ascontiguousarray(readings),
                   accel_row=np.ascontiguousarray(model.accel_row, dtype=float),
                   theta=(th.start, th.stop), mirror_w=np.ascontiguousarray(w),
@@ -135,8 +135,9 @@ def lift(model, q: int) -> Lifted:
 @dataclass(frozen=True, eq=False)
 class DecimatedState:
     """What the fused chain carries besides the bench's own :class:`rig.bench.BenchState`: the
-    anti-alias sections' state ``zi`` (sections, 3, 2) and, per channel (a, x, y), whether its
-    sensor saturated after the last kept instant (``carry``, (3,) bool)."""
+    anti-alias filter's state of each channel (a, x, y) in the sections' coordinates (``zi``,
+    (3, 2 x sections)) and, per channel, whether its sensor saturated after the last kept
+    instant (``carry``, (3,) bool)."""
 
     zi: np.ndarray
     carry: np.ndarray
@@ -144,16 +145,17 @@ class DecimatedState:
 
 def start_decimated(sos: np.ndarray) -> DecimatedState:
     """At rest: zero filter state, no saturation carried."""
-    return DecimatedState(zi=np.zeros((np.asarray(sos).shape[0], 3, 2)),
+    return DecimatedState(zi=np.zeros((3, 2 * np.asarray(sos).reshape(-1, 6).shape[0])),
                           carry=np.zeros(3, dtype=np.bool_))
 
 
 def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: int,
-                      sos: np.ndarray, source_block=None):
+                      sections: tuple, source_block=None):
     """Run ``n`` DAC samples (a whole number of intervals) from ``state`` (a
     :class:`rig.bench.BenchState` at a kept instant) through the fused chain (module
-    docstring). ``sos``: the anti-alias filter's sections, rows ``[b0, b1, b2, 1, a1, a2]``
-    ((0, 6): no filter). ``source_block`` as in :func:`rig.bench.advance`.
+    docstring). ``sections``: the anti-alias filter lifted to the decimation,
+    :func:`lift_sections` of its ``sos`` (rows ``[b0, b1, b2, 1, a1, a2]``; (0, 6): no
+    filter). ``source_block`` as in :func:`rig.bench.advance`.
 
     Returns (:class:`rig.blocks.DecimatedBlock`, the bench state after it, the chain state
     after it).
@@ -196,17 +198,17 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
     mx = np.empty(j)
     mrot = np.empty(j)
     sat = np.empty((3, j), dtype=np.bool_)
-    zi = np.array(chain.zi, dtype=float)
+    s_aa = np.array(chain.zi, dtype=float)
     carry = np.array(chain.carry, dtype=np.bool_)
     phi_rad = lever.phi_rad
-    _fused_kernel(lifted.phi_q_t, lifted.gamma_q, lifted.readings, lifted.accel_row,
+    aa_t, am_t, ac, ad = sections
+    _fused_kernel(lifted.phi_q, lifted.gamma_q, lifted.readings, lifted.accel_row,
                   lifted.theta[0], lifted.mirror_w, lifted.mirror_body, v, z,
                   rng_a, rng_x, rng_y, sd_a, sd_p,
                   acc.volts_per_mps2, acc.sensitivity_vpmps2 * acc.range_mps2,
                   np.cos(phi_rad), np.sin(phi_rad), lever.distance_m, lever.half_size_m,
                   lever.sign_x * lever.gain_vpm, lever.sign_y * lever.gain_vpm,
-                  np.ascontiguousarray(sos, dtype=float).reshape(-1, 6), zi, carry,
-                  volts, accel, theta, mx, mrot, sat)
+                  aa_t, am_t, ac, ad, s_aa, carry, volts, accel, theta, mx, mrot, sat)
     t0 = state.index / fs
     if not (np.all(np.isfinite(z)) and np.all(np.isfinite(volts))):
         raise DivergenceError(
@@ -221,7 +223,38 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
                   "psd_x": rng_x.bit_generator.state, "psd_y": rng_y.bit_generator.state}
     new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
                      seed_entropy=state.seed_entropy)
-    return block, new, DecimatedState(zi=zi, carry=carry)
+    return block, new, DecimatedState(zi=s_aa, carry=carry)
+
+
+def lift_sections(sos: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                   np.ndarray]:
+    """The anti-alias sections ``sos`` lifted to ``q`` samples, in their own state coordinates
+    (``zi`` of every section, ``2 x sections`` states ``s``): ``s_{j+1} = A s_j + M x_j`` over
+    an interval's q inputs ``x_j`` and the kept output ``y_j = C s_j + D x_j[0]`` (the filtered
+    sample at the interval's first instant). Returns ``(A^T, M^T, C, D)`` as (ns, ns), (q, ns),
+    (ns,), (1,); built by running the sections (:func:`_sections`) on unit states and inputs,
+    so they are the sections' own linear map."""
+    sos = np.ascontiguousarray(sos, dtype=float).reshape(-1, 6)
+    ns = 2 * sos.shape[0]
+
+    def run(s0, x):
+        zi = s0.reshape(-1, 1, 2).copy()
+        ys = [_sections(sos, zi, 0, xi) for xi in x]
+        return zi.reshape(-1), ys[0]
+
+    a, c = np.zeros((ns, ns)), np.zeros(ns)
+    for k in range(ns):
+        e = np.zeros(ns)
+        e[k] = 1.0
+        a[:, k], c[k] = run(e, np.zeros(q))
+    m = np.zeros((ns, q))
+    for i in range(q):
+        x = np.zeros(q)
+        x[i] = 1.0
+        m[:, i], y0 = run(np.zeros(ns), x)
+        if i == 0:
+            d = np.array([y0])
+    return (np.ascontiguousarray(a.T), np.ascontiguousarray(m.T), c, d)
 
 
 @njit(cache=True, nogil=True)
@@ -237,81 +270,129 @@ def _sections(sos, zi, ch, cur):
 
 
 @njit(cache=True, nogil=True)
-def _fused_kernel(phi_q_t, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
+def _fused_kernel(phi_q, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
                   rng_a, rng_x, rng_y, sd_a, sd_p, gain_a, lim_a, cphi, sphi, dist, half,
-                  gain_x, gain_y, sos, zi, carry, volts, accel, theta, mx, mrot, sat):
-    """The fused chain over ``v.size / q`` intervals (module docstring); ``z`` (in/out) the
-    state at the block's first kept instant, ends at the next block's; ``zi``, ``carry``
-    (in/out) the filter state and the saturation carried (a, x, y); writes the kept volts
-    (3, J), truth and saturation flags (3, J)."""
+                  gain_x, gain_y, aa_t, am_t, ac, ad, s_aa, carry, volts, accel, theta, mx,
+                  mrot, sat):
+    """The fused chain over ``J = v.size / q`` intervals (module docstring) in four passes over
+    the block: (1) the state at every kept instant, (2) the readings at every sample (loops
+    over the intervals innermost: vectorised), (3) per sample the sensors, noise, clipping and
+    flags, (4) the lifted anti-alias sections (:func:`lift_sections`: ``aa_t`` = A^T, ``am_t``
+    = M^T, ``ac``, ``ad``) per channel. ``z`` (in/out) the state at the block's first kept
+    instant, ends at the next block's; ``s_aa`` (3, ns) and ``carry`` (3,) (in/out) the filter
+    states and the saturation carried (a, x, y); writes the kept volts (3, J), truth and
+    saturation flags (3, J). Every sum runs per interval in a fixed order."""
     nz = z.shape[0]
     q = gamma_q.shape[0]
     nr = 3 * q
+    nj = v.shape[0] // q
     nth = theta.shape[1]
-    noisy_a = sd_a > 0.0
-    noisy_p = sd_p > 0.0
-    r = np.empty(nr)
-    zn = np.empty(nz)
-    for j in range(v.shape[0] // q):
-        k0 = j * q
-        # the readings at every sample of the interval and the state at the next kept instant
-        for c in range(nr):
-            r[c] = 0.0
-        for c in range(nz):
-            zc = z[c]
-            for m in range(nr):
-                r[m] += readings[c, m] * zc
-        for i in range(q - 1):  # the last input reaches no sample of this interval
-            vi = v[k0 + i]
-            for m in range(nr):
-                r[m] += readings[nz + i, m] * vi
+    ns = s_aa.shape[1]
+    # (1) inputs by interval, the input terms of the state, the states at the kept instants
+    x = np.empty((nz + q, nj))  # z_j then the interval's inputs, one column per interval
+    for i in range(q):
+        for j in range(nj):
+            x[nz + i, j] = v[j * q + i]
+    u = np.zeros((nz, nj))
+    for i in range(q):
         for m in range(nz):
-            zn[m] = 0.0
-        for i in range(q):
-            vi = v[k0 + i]
-            for m in range(nz):
-                zn[m] += gamma_q[i, m] * vi
-        for c in range(nz):
-            zc = z[c]
-            for m in range(nz):
-                zn[m] += phi_q_t[c, m] * zc
-        # the truth at the kept instant
+            g = gamma_q[i, m]
+            for j in range(nj):
+                u[m, j] += g * x[nz + i, j]
+    for j in range(nj):
+        for m in range(nz):
+            x[m, j] = z[m]
+        for m in range(nz):  # one register sum per row, the rows independent
+            s = u[m, j]
+            for c in range(nz):
+                s += phi_q[m, c] * x[c, j]
+            z[m] = s
+    # the truth at the kept instants
+    for j in range(nj):
         s = 0.0
         for c in range(nz):
-            s += accel_row[c] * z[c]
+            s += accel_row[c] * x[c, j]
         accel[j] = s
         s = 0.0
         for b in range(nth):
-            theta[j, b] = z[th0 + b]
-            s += mirror_w[b] * z[th0 + b]
+            theta[j, b] = x[th0 + b, j]
+            s += mirror_w[b] * x[th0 + b, j]
         mx[j] = s
-        mrot[j] = z[th0 + body]
-        for m in range(nz):
-            z[m] = zn[m]
-        # per sample: sensors, noise, clipping, flags, anti-alias sections
-        for i in range(q):
-            va = gain_a * r[3 * i]
-            if noisy_a:
-                va = va + sd_a * rng_a.standard_normal()
-            over = abs(va) > lim_a
-            va = min(max(va, -lim_a), lim_a)
-            uk, vk = _spot(r[3 * i + 1], 0.0, r[3 * i + 2], cphi, sphi, dist)
-            if noisy_p:
-                uk = uk + sd_p * rng_x.standard_normal()
-                vk = vk + sd_p * rng_y.standard_normal()
-            off = (abs(uk) > half) or (abs(vk) > half)
-            ya = _sections(sos, zi, 0, va)
-            yx = _sections(sos, zi, 1, gain_x * min(max(uk, -half), half))
-            yy = _sections(sos, zi, 2, gain_y * min(max(vk, -half), half))
-            carry[0] = carry[0] or over
-            carry[1] = carry[1] or off
-            if i == 0:
-                volts[0, j] = ya
-                volts[1, j] = yx
-                volts[2, j] = yy
-                sat[0, j] = carry[0]
-                sat[1, j] = carry[1]
-                sat[2, j] = carry[1]
-                carry[0] = False
-                carry[1] = False
+        mrot[j] = x[th0 + body, j]
+    # (2) the readings at every sample: r[3 i + k, j]
+    r = np.zeros((nr, nj))
+    for c in range(nz + q - 1):  # the last input reaches no sample of its interval
+        for m in range(nr):
+            w = readings[c, m]
+            if w != 0.0:
+                for j in range(nj):
+                    r[m, j] += w * x[c, j]
+    # (3) per sample: sensors, noise, clipping, flags -> the filter's inputs; the noise is
+    # drawn first, in sample order (each stream as the per-sample path draws it)
+    n = nj * q
+    wa = np.zeros(n if sd_a > 0.0 else 0)
+    wx = np.zeros(n if sd_p > 0.0 else 0)
+    wy = np.zeros(wx.shape[0])
+    for k in range(wa.shape[0]):
+        wa[k] = sd_a * rng_a.standard_normal()
+    for k in range(wx.shape[0]):
+        wx[k] = sd_p * rng_x.standard_normal()
+    for k in range(wy.shape[0]):
+        wy[k] = sd_p * rng_y.standard_normal()
+    xin = np.empty((3, q, nj))
+    flag = np.empty((2, q, nj), dtype=np.bool_)
+    for i in range(q):
+        for j in range(nj):
+            va = gain_a * r[3 * i, j]
+            if wa.shape[0]:
+                va = va + wa[j * q + i]
+            flag[0, i, j] = abs(va) > lim_a
+            xin[0, i, j] = min(max(va, -lim_a), lim_a)
+        for j in range(nj):
+            uk, vk = _spot(r[3 * i + 1, j], 0.0, r[3 * i + 2, j], cphi, sphi, dist)
+            if wx.shape[0]:
+                uk = uk + wx[j * q + i]
+                vk = vk + wy[j * q + i]
+            flag[1, i, j] = (abs(uk) > half) or (abs(vk) > half)
+            xin[1, i, j] = gain_x * min(max(uk, -half), half)
+            xin[2, i, j] = gain_y * min(max(vk, -half), half)
+    for f in range(2):  # the interval rule: since the previous kept instant, up to this one
+        c = carry[f]
+        for j in range(nj):
+            sat[f, j] = c or flag[f, 0, j]
+            c = False
+            for i in range(1, q):
+                c = c or flag[f, i, j]
+        carry[f] = c
+    for j in range(nj):
+        sat[2, j] = sat[1, j]
     carry[2] = carry[1]
+    # (4) the lifted anti-alias sections, per channel
+    if ns == 0:
+        for ch in range(3):
+            for j in range(nj):
+                volts[ch, j] = xin[ch, 0, j]
+        return
+    ua = np.zeros((ns, nj))
+    sn = np.empty(ns)
+    for ch in range(3):
+        for k in range(ns):
+            for j in range(nj):
+                ua[k, j] = 0.0
+        for i in range(q):
+            for k in range(ns):
+                g = am_t[i, k]
+                for j in range(nj):
+                    ua[k, j] += g * xin[ch, i, j]
+        for j in range(nj):
+            y = ad[0] * xin[ch, 0, j]
+            for k in range(ns):
+                y += ac[k] * s_aa[ch, k]
+                sn[k] = ua[k, j]
+            volts[ch, j] = y
+            for c in range(ns):
+                sc = s_aa[ch, c]
+                for k in range(ns):
+                    sn[k] += aa_t[c, k] * sc
+            for k in range(ns):
+                s_aa[ch, k] = sn[k]

@@ -108,13 +108,13 @@ class BenchSimulation:
         if self.state.index % q:
             raise ConfigError(f"decimated_blocks must start at a kept instant (sample "
                               f"{self.state.index} is not a multiple of {q})")
-        lifted = rl.lift(self.model, q)
+        lifted, sections = rl.lift(self.model, q), rl.lift_sections(sos, q)
         chain = rl.start_decimated(sos)
         sizes, made = self._sources(block_s, duration_s)
         try:
             for k, src in zip(sizes, made):
                 block, self.state, chain = rl.advance_decimated(self.model, lifted, self.state,
-                                                                chain, k, sos, src)
+                                                                chain, k, sections, src)
                 yield block
         finally:
             made.close()

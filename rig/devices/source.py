@@ -70,6 +70,7 @@ from functools import lru_cache
 import numpy as np
 
 from rig.errors import ConfigError
+from rig._jit import njit
 from rig.params import param
 
 SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine")
@@ -348,6 +349,21 @@ class SourceState:
     offset: int = 0
 
 
+def standard_normals(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``rng.standard_normal(n)``: the same values from the same stream, leaving ``rng`` in the
+    same state, drawn in compiled code (numba's Generator runs numpy's ziggurat on the same bit
+    generator, ~3 times faster here than numpy's own loop)."""
+    out = np.empty(int(n))
+    _fill_standard_normal(rng, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _fill_standard_normal(rng, out):
+    for i in range(out.shape[0]):
+        out[i] = rng.standard_normal()
+
+
 def _generator(state: dict) -> np.random.Generator:
     bg = getattr(np.random, state["bit_generator"])(0)  # fixed seed, overwritten at once
     bg.state = state
@@ -367,7 +383,7 @@ def start_source(source: Source, seed) -> SourceState:
         rng = np.random.Generator(np.random.PCG64(seed))
     history = None
     if source.type in NOISE_TYPES:
-        history = rng.standard_normal(source.n_taps - 1)  # primes the FIR: stationary from t = 0
+        history = standard_normals(rng, source.n_taps - 1)  # primes the FIR: stationary from t = 0
     return SourceState(index=0, rng_state=_copy_state(rng), history=_readonly(history),
                        buffer=_readonly(np.empty(0)), offset=0)
 
@@ -395,7 +411,7 @@ def _noise(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, Sour
             break
         if rng is None:
             rng = _generator(state.rng_state)
-        fresh = rng.standard_normal(frame - n_taps + 1)
+        fresh = standard_normals(rng, frame - n_taps + 1)
         x = np.concatenate([history, fresh])
         y = np.fft.irfft(np.fft.rfft(x) * source._taps_spectrum, n=frame)
         buffer = _readonly(y[n_taps - 1:])
