@@ -201,14 +201,14 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
     s_aa = np.array(chain.zi, dtype=float)
     carry = np.array(chain.carry, dtype=np.bool_)
     phi_rad = lever.phi_rad
-    aa_t, am_t, ac, ad = sections
+    aa, am_t, ac, ad = sections
     _fused_kernel(lifted.phi_q, lifted.gamma_q, lifted.readings, lifted.accel_row,
                   lifted.theta[0], lifted.mirror_w, lifted.mirror_body, v, z,
                   rng_a, rng_x, rng_y, sd_a, sd_p,
                   acc.volts_per_mps2, acc.sensitivity_vpmps2 * acc.range_mps2,
                   np.cos(phi_rad), np.sin(phi_rad), lever.distance_m, lever.half_size_m,
                   lever.sign_x * lever.gain_vpm, lever.sign_y * lever.gain_vpm,
-                  aa_t, am_t, ac, ad, s_aa, carry, volts, accel, theta, mx, mrot, sat)
+                  aa, am_t, ac, ad, s_aa, carry, volts, accel, theta, mx, mrot, sat)
     t0 = state.index / fs
     if not (np.all(np.isfinite(z)) and np.all(np.isfinite(volts))):
         raise DivergenceError(
@@ -231,7 +231,7 @@ def lift_sections(sos: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, np.n
     """The anti-alias sections ``sos`` lifted to ``q`` samples, in their own state coordinates
     (``zi`` of every section, ``2 x sections`` states ``s``): ``s_{j+1} = A s_j + M x_j`` over
     an interval's q inputs ``x_j`` and the kept output ``y_j = C s_j + D x_j[0]`` (the filtered
-    sample at the interval's first instant). Returns ``(A^T, M^T, C, D)`` as (ns, ns), (q, ns),
+    sample at the interval's first instant). Returns ``(A, M^T, C, D)`` as (ns, ns), (q, ns),
     (ns,), (1,); built by running the sections (:func:`_sections`) on unit states and inputs,
     so they are the sections' own linear map."""
     sos = np.ascontiguousarray(sos, dtype=float).reshape(-1, 6)
@@ -254,7 +254,7 @@ def lift_sections(sos: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, np.n
         m[:, i], y0 = run(np.zeros(ns), x)
         if i == 0:
             d = np.array([y0])
-    return (np.ascontiguousarray(a.T), np.ascontiguousarray(m.T), c, d)
+    return (np.ascontiguousarray(a), np.ascontiguousarray(m.T), c, d)
 
 
 @njit(cache=True, nogil=True)
@@ -272,12 +272,12 @@ def _sections(sos, zi, ch, cur):
 @njit(cache=True, nogil=True)
 def _fused_kernel(phi_q, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
                   rng_a, rng_x, rng_y, sd_a, sd_p, gain_a, lim_a, cphi, sphi, dist, half,
-                  gain_x, gain_y, aa_t, am_t, ac, ad, s_aa, carry, volts, accel, theta, mx,
+                  gain_x, gain_y, aa, am_t, ac, ad, s_aa, carry, volts, accel, theta, mx,
                   mrot, sat):
     """The fused chain over ``J = v.size / q`` intervals (module docstring) in four passes over
     the block: (1) the state at every kept instant, (2) the readings at every sample (loops
     over the intervals innermost: vectorised), (3) per sample the sensors, noise, clipping and
-    flags, (4) the lifted anti-alias sections (:func:`lift_sections`: ``aa_t`` = A^T, ``am_t``
+    flags, (4) the lifted anti-alias sections (:func:`lift_sections`: ``aa`` = A, ``am_t``
     = M^T, ``ac``, ``ad``) per channel. ``z`` (in/out) the state at the block's first kept
     instant, ends at the next block's; ``s_aa`` (3, ns) and ``carry`` (3,) (in/out) the filter
     states and the saturation carried (a, x, y); writes the kept volts (3, J), truth and
@@ -373,26 +373,47 @@ def _fused_kernel(phi_q, gamma_q, readings, accel_row, th0, mirror_w, body, v, z
             for j in range(nj):
                 volts[ch, j] = xin[ch, 0, j]
         return
-    ua = np.zeros((ns, nj))
-    sn = np.empty(ns)
+    ua = np.zeros((3, ns, nj))
     for ch in range(3):
-        for k in range(ns):
-            for j in range(nj):
-                ua[k, j] = 0.0
         for i in range(q):
             for k in range(ns):
                 g = am_t[i, k]
                 for j in range(nj):
-                    ua[k, j] += g * xin[ch, i, j]
-        for j in range(nj):
-            y = ad[0] * xin[ch, 0, j]
-            for k in range(ns):
-                y += ac[k] * s_aa[ch, k]
-                sn[k] = ua[k, j]
-            volts[ch, j] = y
+                    ua[ch, k, j] += g * xin[ch, i, j]
+    # the three channels' recursions side by side (independent sums in flight together)
+    sn = np.empty((ns, 3))
+    sk = np.empty((ns, 3))
+    for k in range(ns):
+        for ch in range(3):
+            sn[k, ch] = s_aa[ch, k]
+    d = ad[0]
+    for j in range(nj):
+        y0 = d * xin[0, 0, j]
+        y1 = d * xin[1, 0, j]
+        y2 = d * xin[2, 0, j]
+        for k in range(ns):
+            ck = ac[k]
+            y0 += ck * sn[k, 0]
+            y1 += ck * sn[k, 1]
+            y2 += ck * sn[k, 2]
+        volts[0, j] = y0
+        volts[1, j] = y1
+        volts[2, j] = y2
+        for k in range(ns):
+            s0 = ua[0, k, j]
+            s1 = ua[1, k, j]
+            s2 = ua[2, k, j]
             for c in range(ns):
-                sc = s_aa[ch, c]
-                for k in range(ns):
-                    sn[k] += aa_t[c, k] * sc
-            for k in range(ns):
-                s_aa[ch, k] = sn[k]
+                akc = aa[k, c]
+                s0 += akc * sn[c, 0]
+                s1 += akc * sn[c, 1]
+                s2 += akc * sn[c, 2]
+            sk[k, 0] = s0
+            sk[k, 1] = s1
+            sk[k, 2] = s2
+        for k in range(ns):
+            for ch in range(3):
+                sn[k, ch] = sk[k, ch]
+    for k in range(ns):
+        for ch in range(3):
+            s_aa[ch, k] = sn[k, ch]
