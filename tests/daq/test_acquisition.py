@@ -347,9 +347,11 @@ def test_rig_channels_are_the_sensor_chain_of_the_truth_within_half_an_lsb():
         ref = signal.sosfilt(sos, expected[c.name])[::10][500:].reshape(2, 500)
         err = np.abs(rec.volts(c.name) - ref)
         assert err.max() <= c.adc.lsb_v / 2 + 1e-12 * c.range_v, c.name
-    # the truth in the file is the bench's truth at the sample instants
-    np.testing.assert_array_equal(rec.truth["mirror_x_m"].reshape(-1),
-                                  tr["mirror_x_m"][::10][500:])
+    # the truth in the file is the bench's truth at the sample instants, up to the lifted
+    # chain's round-off (1e-11 of the rms, tests/rig/test_lifted.py)
+    want = tr["mirror_x_m"][::10][500:]
+    assert np.max(np.abs(rec.truth["mirror_x_m"].reshape(-1) - want)) <= 1e-11 * np.sqrt(
+        np.mean(want**2))
 
 
 def test_rig_model_response_is_the_exact_chain_at_a_sine_line():

@@ -1,0 +1,43 @@
+"""The acquisition of a linear run through the bench's fused lifted chain (rig.lifted, the
+default) equals the per-sample path (``rig_bench(lifted=False)``) within round-off, and the run
+file says which parts ran per sample."""
+
+import functools
+
+import numpy as np
+
+from daq.acquisition import acquire, rig_bench
+from daq.sinks import MemorySink
+from rig.scene import load_scene
+
+SHORT = ["acquisition.records=2", "acquisition.record_s=4", "acquisition.settle_s=10"]
+#: tests/rig/test_lifted.py: the largest difference of a series over its rms
+ROUND_OFF = 1e-11
+
+
+def _run(over, **kw):
+    mem = MemorySink()
+    acquire(load_scene("ishizaki2009", [*SHORT, *over]), seed=21, sinks=[mem],
+            bench=functools.partial(rig_bench, **kw))
+    return mem.recording
+
+
+def test_a_lifted_run_equals_the_per_sample_run_within_round_off():
+    new, old = _run(["acquisition.model=linear"]), _run(["acquisition.model=linear"],
+                                                        lifted=False)
+    for k, v in old.truth.items():
+        v, w = np.asarray(v), np.asarray(new.truth[k])
+        assert np.max(np.abs(w - v)) <= ROUND_OFF * np.sqrt(np.mean(v**2)), k
+    for k, v in old.codes.items():
+        # a code changes only where its sample lies within the round-off of a rounding edge
+        d = np.abs(np.asarray(new.codes[k], np.int64) - np.asarray(v, np.int64))
+        assert d.max() <= 1 and np.mean(d > 0) <= 1e-3, k
+        assert np.array_equal(new.clipped[k], old.clipped[k]), k
+        assert np.array_equal(new.saturated[k], old.saturated[k]), k
+    assert "lifted" in new.header.model_info["per_sample"]
+    assert "lifted" not in old.header.model_info["per_sample"]
+
+
+def test_a_nonlinear_run_keeps_the_per_sample_path():
+    rec = _run(["acquisition.model=nonlinear"])
+    assert "lifted" not in rec.header.model_info["per_sample"]
