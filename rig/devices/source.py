@@ -46,10 +46,9 @@ tapered by a Kaiser window (beta = 8.6, ~ 87 dB stopband). ``n_taps`` is the pow
 ``FILTER_SPAN_S`` = 128 s (131072 taps at 1 kHz), so the band edges are about
 ``2 sqrt(1 + (beta/pi)^2) / span`` = 0.045 Hz wide with -6.02 dB at the nominal edge, the pass
 band is flat to 1e-3 dB and the stop band is below -80 dB 0.05 Hz beyond the edges
-(tests/rig/devices/test_source.py). The filter runs by overlap-save in frames of ``8 n_taps``
-samples (FFT), each frame producing ``7 n_taps + 1`` outputs that are buffered (fewer FFT
-operations per output than shorter frames: BENCHMARKS.md); a request for any number of samples
-is served from that buffer. Because frames never depend on how the output is requested, blocks of
+(tests/rig/devices/test_source.py). The filter runs by overlap-save in frames of ``4 n_taps``
+samples (FFT), each frame producing ``3 n_taps + 1`` outputs that are buffered; a request for
+any number of samples is served from that buffer. Because frames never depend on how the output is requested, blocks of
 any size reproduce a one-shot run bit for bit, and the signal is continuous across blocks (it is
 one stationary process; there are no joins). The filter's history is primed with ``n_taps - 1``
 white samples before the first output, so the noise is stationary from t = 0. Deterministic types
@@ -78,7 +77,7 @@ SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine")
 NOISE_TYPES = ("random", "burst-random", "pink")
 FILTER_SPAN_S = 128.0  # minimum duration of the noise-shaping FIR [s]
 KAISER_BETA = 8.6
-FRAME_FACTOR = 8  # FFT length of one overlap-save frame = FRAME_FACTOR * n_taps
+FRAME_FACTOR = 4  # FFT length of one overlap-save frame = FRAME_FACTOR * n_taps
 _DESIGN_OVERSAMPLE = 8
 _REL = 1e-9
 
