@@ -7,6 +7,7 @@ run paid before), interleaved; and the peer for the linear bench, ``scipy.signal
 
     .venv/bin/python benchmarks/acquire_lifted.py               # 9 rounds, ~1 minute
     .venv/bin/python benchmarks/acquire_lifted.py --rounds 15 --lsim-s 100
+    .venv/bin/python benchmarks/acquire_lifted.py --parts 5 --rounds 0 --lsim-s 0   # where it goes
 
 Every round runs both once, in alternating order, after one warm-up run each (numba's cache
 loaded, the filter design memoised). Printed: median and quartiles of CPU
@@ -102,11 +103,66 @@ def lsim_peer(seconds):
     return cpu, cpu * 3.33e6 / n, err
 
 
+def parts(rounds):
+    """CPU of the lifted run's parts, each alone and in sequence (no threads), medians: the
+    source, the fused kernel, the model information (its probe), and whole acquisitions
+    without a sink and with the run file."""
+    from daq.acquisition import antialias_for
+    from daq.records import RecordPlan
+
+    scene = load_scene(*SCENE)
+    acq = scene.acquisition
+    plan = RecordPlan.from_acquisition(acq)
+    aa = antialias_for(acq, plan)
+    model = rb.build_model(scene)
+    lifted, sections = rl.lift(model, model.decimation), rl.lift_sections(aa.sos, model.decimation)
+    n_all, blk = plan.simulation_samples, 10_000
+    out = {k: [] for k in ("source", "fused kernel", "model info", "acquire, no sink",
+                           "acquire, run file")}
+
+    def cpu(f):
+        c = time.process_time()
+        r = f()
+        return time.process_time() - c, r
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(rounds):
+            def source():
+                st, got = start_source(model.source, 1), []
+                for i in range(0, n_all, blk):
+                    v, st = generate(model.source, st, min(blk, n_all - i))
+                    got.append((v, st))
+                return got
+            t, got = cpu(source)
+            out["source"].append(t)
+
+            def fused():
+                st, ch = rb.start(model, 1), rl.start_decimated(aa.sos)
+                for v, s in got:
+                    s = type(s)(index=st.source.index + v.size, rng_state={}, history=None,
+                                buffer=np.empty(0))
+                    _, st, ch = rl.advance_decimated(model, lifted, st, ch, v.size, sections,
+                                                     (v, s))
+            out["fused kernel"].append(cpu(fused)[0])
+            out["model info"].append(cpu(lambda: rb.model_info(scene, seed=1))[0])
+            out["acquire, no sink"].append(cpu(lambda: acquire(scene, seed=2009))[0])
+            out["acquire, run file"].append(cpu(lambda: acquire(
+                scene, seed=2009, sinks=[Hdf5Sink(Path(tmp) / "p.h5", force=True)]))[0])
+    print(f"\nparts of the lifted run, CPU [s], medians of {rounds}")
+    for k, v in out.items():
+        print(f"  {k}: {np.median(v):.3f}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rounds", type=int, default=9)
     ap.add_argument("--lsim-s", type=float, default=100.0, help="lsim piece [s] (0: skip)")
+    ap.add_argument("--parts", type=int, default=0, help="rounds of the parts' timing (0: skip)")
     args = ap.parse_args(argv)
+    if args.parts:
+        parts(args.parts)
+    if args.rounds < 1:
+        return
     names = ["per-sample", "lifted"]
     print(f"load average before: {os.getloadavg()}")
     with tempfile.TemporaryDirectory() as tmp:

@@ -5,7 +5,8 @@ What ``acquisition.model = "linear"`` computes per DAC sample (:func:`rig.bench.
 state, noise is added, the outputs are clipped and flagged, and the acquisition's anti-alias
 filter runs over every sample before every ``q``-th is kept (``q = acquisition.decimation``).
 Only the kept instants are stored. Here the same chain runs per *decimation interval* of ``q``
-DAC samples, in one compiled pass that writes only what is kept:
+DAC samples, in one compiled kernel (:func:`_fused_kernel`) that writes only what is kept, in
+four passes over a block:
 
 1. the bench state only at the kept instants ``k = q j`` (lifting)::
 
@@ -24,24 +25,31 @@ DAC samples, in one compiled pass that writes only what is kept:
    rms, far above round-off), the white noise of the accelerometer and of both PSD axes (drawn
    inside the kernel from the same numpy generators, the same values in the same order as
    :meth:`Accelerometer.sense_and_output` and :meth:`OpticalLever.measure` draw them), the
-   clipping at the accelerometer's range and at the detector's edge with their flags, and the
-   anti-alias filter's second-order sections (``scipy.signal.sosfilt``'s arithmetic, passed in
-   as plain arrays: rig does not import daq), whose input is that clipped, noisy sum;
+   clipping at the accelerometer's range and at the detector's edge with their flags;
 
-4. kept: the filtered volts, the truth (``stage_accel_mps2``, ``theta_rad``, ``mirror_x_m``,
-   ``mirror_rot_rad``, ``source_v``) and, per channel, whether its sensor saturated within the
-   kept instant's interval (the acquisition's interval rule, :class:`rig.blocks.DecimatedBlock`).
+4. the anti-alias filter (the acquisition's sections, passed in as plain arrays: rig does not
+   import daq), linear in its input, that clipped noisy sum: lifted to the interval in the
+   sections' own state coordinates (:func:`lift_sections`, ``s_{j+1} = A s_j + M x_j``, ``y_j
+   = C s_j + D x_qj``; ``A`` is block lower triangular, as a cascade is), the three channels'
+   recursions side by side.
 
-Equal to the per-sample path up to round-off: steps 1-2 are the same exact linear map with the
-products of ``Phi`` formed once and summed in another order, so the states differ by rounding
-that the stable bench does not amplify (bound and measurement: tests/rig/test_lifted.py); the
-noise, geometry, clipping and filter arithmetic are the per-sample path's own. Any split of a
-run into blocks of whole intervals gives the same bytes (every sum runs per interval, in a fixed
-order). Cost per interval: ``nz (nz + q)`` multiply-adds for the state, ``3 q (nz + q)`` for the
-readings, then the per-sample sensors and ``6 x sections`` per sample and channel for the filter.
+Kept: the filtered volts, the truth (``stage_accel_mps2``, ``theta_rad``, ``mirror_x_m``,
+``mirror_rot_rad``, ``source_v``) and, per channel, whether its sensor saturated within the kept
+instant's interval (the acquisition's interval rule, :class:`rig.blocks.DecimatedBlock`).
 
-Public API: :class:`Lifted`, :func:`lift`, :func:`advance_decimated`, :func:`start_decimated`,
-:class:`DecimatedState`.
+Equal to the per-sample path up to round-off: steps 1, 2 and 4 are the same exact linear maps
+with their products formed once and summed in another order, so the values differ by rounding
+that the stable bench and filter do not amplify (the bound and what it was measured at:
+tests/rig/test_lifted.py); the noise, the geometry and the clipping are the per-sample path's
+own arithmetic. Any split of a run into blocks of whole intervals gives the same bytes (every
+sum runs per interval, in a fixed order). Valid for the linear model only (the nonlinear bench
+has no Phi^q). Cost per interval and channel set: ``nz (nz + q)`` multiply-adds for the state,
+``3 q (nz + q)`` for the readings (vectorised over the intervals), ``q`` spot geometries and
+``3 q`` normal draws, and per channel ``q ns`` (vectorised) plus ``ns (ns + 2) / 2 + ns`` for
+the filter (``ns = 2 x sections``); measured in BENCHMARKS.md.
+
+Public API: :class:`Lifted`, :func:`lift`, :func:`lift_sections`, :func:`advance_decimated`,
+:func:`start_decimated`, :class:`DecimatedState`, :data:`PER_SAMPLE`.
 """
 
 from __future__ import annotations
@@ -55,7 +63,6 @@ from rig.blocks import DecimatedBlock
 from rig.devices.optical_lever import _spot
 from rig.errors import ConfigError, DivergenceError
 
-READINGS = ("accel_sensed_mps2", "mirror_x_m", "mirror_rot_rad")
 #: what the fused chain runs at every DAC sample and why (the run file's model info)
 PER_SAMPLE = {
     "what": "the sensors' three linear readings (sensed acceleration, mirror translation and "
