@@ -172,8 +172,7 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
     ConfigError : ``n`` not a positive multiple of the decimation.
     DivergenceError : a non-finite state in the block.
     """
-    from rig.bench.run import BenchState, _readonly, _rng
-    from rig.devices.source import generate
+    from rig.bench.run import BenchState, _readonly, _rng, source_samples
 
     q = lifted.q
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < q or n % q:
@@ -181,13 +180,7 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
                           f"decimation {q}")
     n = int(n)
     fs = model.fs_hz
-    if source_block is None:
-        v, src = generate(model.source, state.source, n)
-    else:
-        v, src = source_block
-        if v.shape != (n,) or src.index != state.source.index + n:
-            raise ValueError(f"source_block covers samples up to {src.index} ({v.shape[0]}); "
-                             f"expected {n} samples from {state.source.index}")
+    v, src = source_samples(model, state, n, source_block)
     v = np.ascontiguousarray(v, dtype=float)
     z = np.array(state.z, dtype=float)
     z_start = z.copy()

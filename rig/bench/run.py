@@ -146,6 +146,18 @@ def _check_finite(model, state, z_out, z, t0, n):
             np.asarray(state.z))
 
 
+def source_samples(model: BenchModel, state: BenchState, n: int, source_block=None):
+    """The source's next ``n`` samples and state from ``state``: ``source_block`` (made ahead,
+    checked to start at ``state``) or generated now."""
+    if source_block is None:
+        return generate(model.source, state.source, n)
+    v, src = source_block
+    if v.shape != (n,) or src.index != state.source.index + n:
+        raise ValueError(f"source_block covers samples up to {src.index} ({v.shape[0]}); "
+                         f"expected {n} samples from {state.source.index}")
+    return v, src
+
+
 def advance(model: BenchModel, state: BenchState, n: int, source_block=None
             ) -> tuple[AnalogBlock, BenchState]:
     """Run ``n`` samples from ``state``: the block (volts and truth at the instants
@@ -164,13 +176,7 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     n = int(n)
     fs = model.fs_hz
     t0 = state.index / fs
-    if source_block is None:
-        v, src = generate(model.source, state.source, n)
-    else:
-        v, src = source_block
-        if v.shape != (n,) or src.index != state.source.index + n:
-            raise ValueError(f"source_block covers samples up to {src.index} ({v.shape[0]}); "
-                             f"expected {n} samples from {state.source.index}")
+    v, src = source_samples(model, state, n, source_block)
     sl = model.slices
     chain = model.chain
     z = np.array(state.z, dtype=float)
