@@ -83,7 +83,7 @@ def _rel_rms(diff: np.ndarray, ref: np.ndarray) -> float:
     return float(np.max(r))
 
 
-def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
+def _model_info(model: BenchModel, *, probe_s: float, seed, probe_v=None) -> dict:
     scene = model.scene
     acq = scene.acquisition
     fs = model.fs_hz
@@ -133,7 +133,10 @@ def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
                "decision uses the predicted error ('selection'), not this rule of thumb",
     }
     root, children = _spawn(seed)
-    v, _ = generate(model.source, start_source(model.source, children[0]), n)
+    if probe_v is not None and probe_v.shape == (n,):  # the run's own first samples, made ahead
+        v = probe_v
+    else:
+        v, _ = generate(model.source, start_source(model.source, children[0]), n)
     z0 = np.array(start(model, root).z)
     if model.model == "linear":
         info["method"] = ("exact discretisation (zero-order hold, matrix exponential) of the "

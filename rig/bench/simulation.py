@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Iterator
 
+import numpy as np
+
 from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
 from rig.errors import ConfigError
 from rig._threads import Prefetch
@@ -18,6 +20,26 @@ from rig.bench.estimates import _model_info
 from rig.bench.model import build_model
 from rig.bench.response import _calibrations
 from rig.bench.run import _REL, _block_sizes, _source_blocks, _spawn, advance, start
+
+
+class _Replay:
+    """Items taken from a :class:`rig._threads.Prefetch` ahead of time, then the rest of it;
+    ``close()`` closes it."""
+
+    def __init__(self, taken: list, rest: Prefetch):
+        self._taken, self._rest = list(taken), rest
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        if self._taken:
+            return self._taken.pop(0)
+        return next(self._rest)
+
+    def close(self) -> None:
+        self._taken = []
+        self._rest.close()
 
 
 class BenchSimulation:
@@ -159,5 +181,24 @@ class BenchSimulation:
         model's round-off are measured on a ``probe_s`` run of the scene's drive from rest.
         """
         if self._info is None or self._info["probe_s"] != probe_s:
-            self._info = _model_info(self.model, probe_s=probe_s, seed=self.seed)
+            n = max(1, int(round(probe_s * self.model.fs_hz)))
+            self._info = _model_info(self.model, probe_s=probe_s, seed=self.seed,
+                                     probe_v=self._first_samples(n))
         return self._info
+
+    def _first_samples(self, n: int):
+        """The run's first ``n`` source samples from the blocks made ahead (the probe of
+        :meth:`model_info` drives the bench with the same stream from rest: no need to make
+        them twice), or None if there are none or too few. The blocks taken are handed to the
+        run as before."""
+        if self._ahead is None or self.state.index != 0:
+            return None
+        args, sizes, made = self._ahead
+        got, have = [], 0
+        try:
+            while have < n and len(got) < len(sizes):
+                got.append(next(made))
+                have += got[-1][0].size
+        finally:
+            self._ahead = (args, sizes, _Replay(got, made))
+        return np.concatenate([g[0] for g in got])[:n] if have >= n else None

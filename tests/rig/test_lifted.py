@@ -137,3 +137,15 @@ def test_the_lifted_chain_refuses_a_nonlinear_model_and_a_block_off_the_decimati
     sim.next_block(3)
     with pytest.raises(ConfigError, match="kept instant"):
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
+
+
+def test_the_model_info_probe_reuses_the_run_s_source_made_ahead_without_changing_anything():
+    sc = load_scene("ishizaki2009", ["acquisition.model=linear", "acquisition.records=2",
+                                     "acquisition.record_s=10", "acquisition.settle_s=10"])
+    ahead = BenchSimulation(sc, 5, ahead=(10.0, 30.0))
+    plain = BenchSimulation(sc, 5)
+    assert ahead.model_info()["error_estimate"] == plain.model_info()["error_estimate"]
+    aa = antialias_for(sc.acquisition, RecordPlan.from_acquisition(sc.acquisition))
+    for a, b in zip(ahead.decimated_blocks(10.0, 30.0, aa.sos),
+                    plain.decimated_blocks(10.0, 30.0, aa.sos)):
+        assert all(np.array_equal(a.volts[k], b.volts[k]) for k in a.volts)
