@@ -15,7 +15,6 @@ convention).
 
 from __future__ import annotations
 
-import math
 from dataclasses import InitVar, dataclass
 from functools import cached_property
 
@@ -23,31 +22,12 @@ import numpy as np
 
 from processing.choices import AVERAGING, WINDOWS
 from processing.errors import SettingsError
+from rig._check import integer, number, positive
 
 #: Cosine-sum coefficients of the periodic windows (those of scipy.signal.windows.hann, .flattop).
 _COSINE_SUMS = {"hann": (0.5, 0.5),
                 "flattop": (0.21557895, 0.41663158, 0.277263158, 0.083578947, 0.006947368)}
 DETRENDS = ("constant", "linear", None)
-
-
-def _check_real(name: str, value, *, positive: bool = True) -> float:
-    if isinstance(value, bool):
-        raise SettingsError(f"{name} = {value!r} is invalid: expected a finite number")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise SettingsError(f"{name} = {value!r} is invalid: expected a finite number") from None
-    if not math.isfinite(v) or (positive and v <= 0):
-        raise SettingsError(f"{name} = {value!r} is invalid: expected a finite number > 0")
-    return v
-
-
-def _check_int(name: str, value, *, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise SettingsError(f"{name} = {value!r} is invalid: expected an integer >= {minimum}")
-    if value < minimum:
-        raise SettingsError(f"{name} = {value!r} is invalid: expected an integer >= {minimum}")
-    return int(value)
 
 
 def _periodic_cosine_sum(n: int, coeffs) -> np.ndarray:
@@ -173,17 +153,16 @@ class SpectralSettings:
 
     def __post_init__(self, overlap):
         set_ = object.__setattr__
-        set_(self, "fs", _check_real("fs", self.fs))
-        set_(self, "nperseg", _check_int("nperseg", self.nperseg, minimum=2))
+        set_(self, "fs", positive("fs", self.fs, error=SettingsError))
+        set_(self, "nperseg", integer("nperseg", self.nperseg, minimum=2, error=SettingsError))
         if self.window not in WINDOWS:
             raise SettingsError(f"window = {self.window!r} is invalid: expected one of {WINDOWS}")
         if overlap is not None:
             if self.noverlap is not None:
                 raise SettingsError(
                     f"noverlap = {self.noverlap!r} and overlap = {overlap!r} both given: give one")
-            frac = _check_real("overlap", overlap, positive=False)
-            if not 0.0 <= frac < 1.0:
-                raise SettingsError(f"overlap = {overlap!r} is invalid: expected 0 <= overlap < 1")
+            frac = number("overlap", overlap, lo=0.0, hi=1.0, hi_open=True,
+                          valid="0 <= overlap < 1", error=SettingsError)
             set_(self, "noverlap", min(round(frac * self.nperseg), self.nperseg - 1))
         elif self.noverlap is None:
             set_(self, "noverlap", self.nperseg // 2)
@@ -200,21 +179,18 @@ class SpectralSettings:
         if self.detrend not in DETRENDS:
             raise SettingsError(
                 f"detrend = {self.detrend!r} is invalid: expected one of {DETRENDS}")
-        set_(self, "exp_averages", _check_int("exp_averages", self.exp_averages, minimum=1))
-        frac = _check_real("force_fraction", self.force_fraction)
-        if frac > 1.0:
-            raise SettingsError(
-                f"force_fraction = {self.force_fraction!r} is invalid: expected 0 < value <= 1")
-        set_(self, "force_fraction", frac)
+        set_(self, "exp_averages", integer("exp_averages", self.exp_averages, minimum=1,
+                                           error=SettingsError))
+        set_(self, "force_fraction", positive("force_fraction", self.force_fraction, hi=1.0,
+                                              valid="0 < force_fraction <= 1",
+                                              error=SettingsError))
         tau = (self.nperseg / self.fs / 4.0 if self.exp_tau_s is None
-               else _check_real("exp_tau_s", self.exp_tau_s))
+               else positive("exp_tau_s", self.exp_tau_s, unit="s", error=SettingsError))
         set_(self, "exp_tau_s", tau)
         if self.span_hz is not None:
-            span = _check_real("span_hz", self.span_hz)
-            if span > self.fs / 2 * (1 + 1e-12):
-                raise SettingsError(f"span_hz = {self.span_hz!r} is invalid: expected 0 < span_hz "
-                                    f"<= fs/2 = {self.fs / 2:g} Hz")
-            set_(self, "span_hz", span)
+            set_(self, "span_hz", positive("span_hz", self.span_hz, hi=self.fs / 2 * (1 + 1e-12),
+                                           valid=f"0 < span_hz <= fs/2 = {self.fs / 2:g} Hz",
+                                           error=SettingsError))
 
     @classmethod
     def from_lines(cls, fs: float, lines: int, span_hz: float, *, overlap: float = 0.0,
@@ -238,9 +214,9 @@ class SpectralSettings:
         **kwargs
             Any other :class:`SpectralSettings` field (``window``, ``averaging``, ...).
         """
-        lines = _check_int("lines", lines, minimum=1)
-        fs_v = _check_real("fs", fs)
-        span = _check_real("span_hz", span_hz)
+        lines = integer("lines", lines, minimum=1, error=SettingsError)
+        fs_v = positive("fs", fs, error=SettingsError)
+        span = positive("span_hz", span_hz, error=SettingsError)
         n = fs_v * lines / span
         if abs(n - round(n)) > 1e-6 * max(1.0, n):
             raise SettingsError(
