@@ -11,7 +11,7 @@ The rooms: the settings and their window (:mod:`processing.spectral_settings`: w
 corrections), the segment FFTs and their averages (:mod:`processing.segments`: segmentation,
 scaling and sign convention, the effective number of averages), the errors
 (:mod:`processing.errors`); this module holds the averaged spectra and re-exports the names
-above, so ``from processing.spectra import SpectralSettings, segment_ffts`` works as before.
+above (``from processing.spectra import SpectralSettings, segment_ffts``).
 """
 
 from __future__ import annotations
