@@ -236,19 +236,17 @@ def _accel(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, re
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
-    """The same as :func:`_accel` for n = 2, from the dense equations (one division)::
+def _dense2_equations(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s1, c1, s2, c2):
+    """The dense n = 2 equations of :func:`_accel2` at state ``z``, given the angles' sines and
+    cosines ``s1, c1, s2, c2``: ``(b0, r0, u1, u2, h11, h12, h22, r1, r2)`` of::
 
-        [[M + m, S1 c1, S2 c2], [S1 c1, H11, H12 c12], [S2 c2, H12 c12, H22]] (x0'', alpha)
-          = (F_ext + S1 s1 w1^2 + S2 s2 w2^2, -H12 s12 w2^2 - g S1 s1 - (C w)_1,
-             H12 s12 w1^2 - g S2 s2 - (C w)_2)
+        b0 x0'' + u1 alpha1 + u2 alpha2 = r0           (reaction on; off: b0 x0'' = r0)
+        u1 x0'' + h11 alpha1 + h12 alpha2 = r1
+        u2 x0'' + h12 alpha1 + h22 alpha2 = r2
 
-    (c_j = cos th_j, s12 = sin(th1 - th2); without the reaction the first row is M x0'' =
-    F_ext), solved for alpha on the Schur complement of the stage entry."""
-    s1 = math.sin(z[th0])
-    c1 = math.cos(z[th0])
-    s2 = math.sin(z[th0 + 1])
-    c2 = math.cos(z[th0 + 1])
+    with ``b0 = M + m, r0 = F_ext + S1 s1 w1^2 + S2 s2 w2^2`` (reaction) or ``b0 = M, r0 = F_ext``.
+    The one set-up of :func:`_accel2` and :func:`_remainder2_fast`, which solve it each their
+    own way."""
     w1 = z[th0 + 2]
     w2 = z[th0 + 3]
     c12 = c1 * c2 + s1 * s2
@@ -260,11 +258,29 @@ def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
     r1 = -hs * w2 * w2 - g * s[0] * s1 - cm[0, 0] * w1 - cm[0, 1] * w2
     r2 = hs * w1 * w1 - g * s[1] * s2 - cm[1, 0] * w1 - cm[1, 1] * w2
     fext = kf * z[0] - k * z[1] - c * z[2]
-    h11 = hc[0, 0]
-    h22 = hc[1, 1]
     if reaction:
         b0 = m_stage + mtot
         r0 = fext + s[0] * s1 * w1 * w1 + s[1] * s2 * w2 * w2
+    else:
+        b0 = m_stage
+        r0 = fext
+    return b0, r0, u1, u2, hc[0, 0], h12, hc[1, 1], r1, r2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
+    """The same as :func:`_accel` for n = 2, from the dense equations (one division)::
+
+        [[M + m, S1 c1, S2 c2], [S1 c1, H11, H12 c12], [S2 c2, H12 c12, H22]] (x0'', alpha)
+          = (F_ext + S1 s1 w1^2 + S2 s2 w2^2, -H12 s12 w2^2 - g S1 s1 - (C w)_1,
+             H12 s12 w1^2 - g S2 s2 - (C w)_2)
+
+    (c_j = cos th_j, s12 = sin(th1 - th2); without the reaction the first row is M x0'' =
+    F_ext), solved for alpha on the Schur complement of the stage entry."""
+    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(
+        g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, math.sin(z[th0]),
+        math.cos(z[th0]), math.sin(z[th0 + 1]), math.cos(z[th0 + 1]))
+    if reaction:
         h11 = h11 - u1 * u1 / b0
         h22 = h22 - u2 * u2 / b0
         h12 = h12 - u1 * u2 / b0
@@ -275,7 +291,7 @@ def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
         a2 = (h11 * r2 - h12 * r1) / det
         ax = (r0 - u1 * a1 - u2 * a2) / b0
     else:
-        ax = fext / m_stage
+        ax = r0 / b0  # F_ext / M
         r1 = r1 - u1 * ax
         r2 = r2 - u2 * ax
         det = h11 * h22 - h12 * h12
@@ -511,22 +527,9 @@ def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx
         s2, c2 = _sincos_poly(t2)
     else:
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-    w1 = z[th0 + 2]
-    w2 = z[th0 + 3]
-    c12 = c1 * c2 + s1 * s2
-    s12 = s1 * c2 - c1 * s2
-    h12 = hc[0, 1] * c12
-    hs = hc[0, 1] * s12
-    u1 = s[0] * c1
-    u2 = s[1] * c2
-    r1 = -hs * w2 * w2 - g * s[0] * s1 - cm[0, 0] * w1 - cm[0, 1] * w2
-    r2 = hs * w1 * w1 - g * s[1] * s2 - cm[1, 0] * w1 - cm[1, 1] * w2
-    fext = kf * z[0] - k * z[1] - c * z[2]
-    h11 = hc[0, 0]
-    h22 = hc[1, 1]
+    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(
+        g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s1, c1, s2, c2)
     if reaction:
-        b0 = m_stage + mtot
-        r0 = fext + s[0] * s1 * w1 * w1 + s[1] * s2 * w2 * w2
         # the Schur complement of the stage entry, det * b0 * b0 kept as one division
         h11b = h11 * b0 - u1 * u1
         h22b = h22 * b0 - u2 * u2
@@ -540,7 +543,7 @@ def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx
         a2 = n2 * inv * b0
         ax = (r0 * (h11b * h22b - h12b * h12b) - u1 * n1 - u2 * n2) * inv
     else:
-        ax = fext / m_stage
+        ax = r0 / b0  # F_ext / M
         r1 = r1 - u1 * ax
         r2 = r2 - u2 * ax
         inv = 1.0 / (h11 * h22 - h12 * h12)
