@@ -147,7 +147,7 @@ def coupled_params(chain: Chain, stage: Stage, a: np.ndarray, *, q_idx: int = -1
 
 
 # ================================================================================================
-# the nonlinear accelerations (own copy of the articulated-body recursion of rig.chain)
+# the nonlinear accelerations (the articulated-body recursion with the stage's base-force split)
 # ================================================================================================
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -342,10 +342,22 @@ def _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_sta
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
-               m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha, f):
+def _kernel_scratch(mass, rows, z):
+    """``(n, two, nz, nf, work, alpha)``: the kernels' sizes (bodies, n = 2?, states, remainder
+    rows) and the recursion's scratch ``work`` (n, 7) and ``alpha`` (n,)."""
+    n = mass.shape[0]
+    return n, n == 2, z.shape[0], rows.shape[0], np.empty((n, 7)), np.empty(n)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _remainder(two, prm, z, work, alpha, f):
     """The remainder f and the nonlinear x0'': :func:`_remainder2` where ``two`` (n = 2, inlined),
-    else :func:`_remainder_n` (a call)."""
+    else :func:`_remainder_n` (a call). ``prm`` is the kernels' leading arguments as one tuple
+    (:meth:`CoupledParams.args`), which a kernel packs from its own arguments: the kernels keep
+    them as separate arguments (taken out of a tuple *argument* the arrays made etdab's step
+    slower)."""
+    (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
+     reaction, th0, q_idx, wc, rows, a_rows) = prm
     if two:
         return _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
                            a_rows, z, alpha, f)
@@ -374,14 +386,7 @@ def remainder(params: CoupledParams, z) -> np.ndarray:
     p = params
     z = np.ascontiguousarray(z, dtype=float)
     f = np.empty(p.rows.size)
-    alpha = np.empty(p.n)
-    if p.n == 2:
-        _remainder2(p.g, p.hc, p.s, p.cm, p.mtot, p.kf, p.k, p.c, p.m_stage, p.reaction, p.th0,
-                    p.q_idx, p.wc, p.a_rows, z, alpha, f)
-    else:
-        _remainder_n(p.mass, p.length, p.com, p.inertia, p.gamma, p.relative, p.g, p.kf, p.k, p.c,
-                     p.m_stage, p.reaction, p.th0, p.q_idx, p.wc, p.a_rows, z,
-                     np.empty((p.n, 7)), alpha, f)
+    _remainder(p.n == 2, p.args(), z, np.empty((p.n, 7)), np.empty(p.n), f)
     return f
 
 
@@ -413,12 +418,9 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
     z_out[k] = z and ax_out[k] = x0'' at DAC instant k (k < len(v)); ``z`` (in/out) ends at the
     instant len(v). Every row is summed in a fixed order, so block splits reproduce one-shot runs
     bit for bit."""
-    n = mass.shape[0]
-    two = n == 2
-    nz = z.shape[0]
-    nf = rows.shape[0]
-    work = np.empty((n, 7))
-    alpha = np.empty(n)
+    n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
+    prm = (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
+           reaction, th0, q_idx, wc, rows, a_rows)
     f1 = np.empty(nf)
     f2 = np.empty(nf)
     f3 = np.empty(nf)
@@ -431,9 +433,7 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
         for col in range(nz):
             z_out[kk, col] = z[col]
         for sub in range(nsub):
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                            alpha, f1)
+            ax = _remainder(two, prm, z, work, alpha, f1)
             if sub == 0:
                 ax_out[kk] = ax
             for r in range(nz):
@@ -450,26 +450,20 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f1[i]
                 zt[r] = p2[r] + 0.5 * h * acc
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                            alpha, f2)
+            ax = _remainder(two, prm, zt, work, alpha, f2)
             # stage 3
             for r in range(nz):
                 zt[r] = p2[r]
             for i in range(nf):
                 zt[rows[i]] += 0.5 * h * f2[i]
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                            alpha, f3)
+            ax = _remainder(two, prm, zt, work, alpha, f3)
             # stage 4
             for r in range(nz):
                 acc = 0.0
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f3[i]
                 zt[r] = ph[r] + h * acc
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                            alpha, f4)
+            ax = _remainder(two, prm, zt, work, alpha, f4)
             # the step
             for r in range(nz):
                 acc = 0.0
@@ -594,15 +588,10 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
     none yet (a start: every entry is taken as f(z_0)). ``z`` (in/out) ends at
     the instant len(v). The rows are summed in a fixed order, so block splits reproduce one-shot
     runs bit for bit."""
-    n = mass.shape[0]
-    two = n == 2
-    nz = z.shape[0]
-    nf = rows.shape[0]
+    n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
     order = w.shape[0]
     nh = hist.shape[0]
     lag = nh - order
-    work = np.empty((n, 7))
-    alpha = np.empty(n)
     f = np.empty(nf)
     zn = np.empty(nz)
     zw = np.empty(nz)
@@ -664,21 +653,16 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     ``sums[b, 2, j] = max |d_theta_j|``; over every sample ``peaks[0, j] = max |theta_j|``,
     ``peaks[1, j] = max |d_theta_j|`` (is the first order valid all along?). ``z``, ``d``
     (in/out) end at the last sample."""
-    n = mass.shape[0]
-    two = n == 2
-    nz = z.shape[0]
-    nf = rows.shape[0]
-    work = np.empty((n, 7))
-    alpha = np.empty(n)
+    n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
+    prm = (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
+           reaction, th0, q_idx, wc, rows, a_rows)
     f = np.empty(nf)
     fn = np.empty(nf)
     zt = np.empty(nz)
     dt = np.empty(nz)
     n_s = v.shape[0]
     n_rec = n_s - k_rec
-    ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                    mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                    alpha, f)
+    ax = _remainder(two, prm, z, work, alpha, f)
     for kk in range(n_s):
         for j in range(n):
             if abs(z[th0 + j]) > peaks[0, j]:
@@ -705,9 +689,7 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
             zt[r] = acc
         for r in range(nz):
             z[r] = zt[r]
-        ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                        mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                        alpha, fn)
+        ax = _remainder(two, prm, z, work, alpha, fn)
         for r in range(nz):
             acc = 0.0
             for col in range(nz):
