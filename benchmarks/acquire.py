@@ -5,6 +5,9 @@ with the earlier one (lawson4), interleaved, CPU and wall time.
 
     .venv/bin/python benchmarks/acquire.py                 # 7 rounds (~2 minutes)
     .venv/bin/python benchmarks/acquire.py --rounds 11 --configs linear,etdab
+    .venv/bin/python benchmarks/acquire.py --rounds 5 --configs linear,etdab,etdab_per_sample
+
+(``*_per_sample``: the same model without the fused chain, ``rig_bench(lifted=False)``.)
 
 Every round runs each configuration once, in a rotating order (A B C, B C A, ...), after one
 warm-up run each (numba's cache loaded, the filter design memoised). Printed per configuration:
@@ -34,6 +37,10 @@ CONFIGS = {
     "linear": ("acquisition.model=linear", {}),
     "etdab": ("acquisition.model=nonlinear", {"method": "etdab"}),
     "lawson4": ("acquisition.model=nonlinear", {"method": "lawson4"}),
+    # the unfused paths (rig_bench(lifted=False)): the bench's per-sample blocks, then daq's
+    # anti-alias filter and decimation (the "before" of the fused chains)
+    "linear_per_sample": ("acquisition.model=linear", {"lifted": False}),
+    "etdab_per_sample": ("acquisition.model=nonlinear", {"method": "etdab", "lifted": False}),
 }
 
 

@@ -215,7 +215,7 @@ class _RigBench:
         self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s),
                                        **bench_kw)
         self.fs_hz = float(self._sim.fs_hz)
-        self._lifted = bool(lifted) and self._sim.model.model == "linear"
+        self._lifted = bool(lifted)  # the fused chain (rig.lifted), either model
 
     def blocks(self) -> Iterator[AnalogBlock]:
         return self._sim.blocks(self._block_s, self._duration_s)
@@ -223,8 +223,9 @@ class _RigBench:
     def decimated_blocks(self, sos: np.ndarray, decimation: int
                          ) -> Iterator[DecimatedBlock] | None:
         """The run through the anti-alias sections ``sos`` and kept every ``decimation``
-        samples by the fused lifted chain (:mod:`rig.lifted`): the linear model only, and not
-        with ``lifted=False`` (None: use :meth:`blocks`)."""
+        samples by the fused chain (:mod:`rig.lifted`: the linear model lifted, the nonlinear
+        one fused after its per-sample bench), not with ``lifted=False`` (None: use
+        :meth:`blocks`)."""
         if not self._lifted or decimation != self._sim.model.decimation:
             return None
         return self._sim.decimated_blocks(self._block_s, self._duration_s, sos)
@@ -244,9 +245,10 @@ class _RigBench:
     def model_info(self) -> dict:
         info = dict(self._sim.model_info())
         if self._lifted:
-            from rig.lifted import PER_SAMPLE
+            from rig.lifted import PER_SAMPLE, PER_SAMPLE_NONLINEAR
 
-            info["per_sample"] = dict(PER_SAMPLE, rate_hz=self.fs_hz)
+            fused = PER_SAMPLE if self._sim.model.model == "linear" else PER_SAMPLE_NONLINEAR
+            info["per_sample"] = dict(fused, rate_hz=self.fs_hz)
         return info
 
 

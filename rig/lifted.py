@@ -54,6 +54,7 @@ Public API: :class:`Lifted`, :func:`lift`, :func:`lift_sections`, :func:`advance
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -428,3 +429,157 @@ def _fused_kernel(phi_q, gamma_q, readings, accel_row, th0, mirror_w, body, v, z
     for k in range(ns):
         for ch in range(3):
             s_aa[ch, k] = sn[k, ch]
+
+
+#: what the nonlinear model's fused chain runs at every DAC sample (the run file's model info)
+PER_SAMPLE_NONLINEAR = {
+    "what": "the whole bench state (the nonlinear bench integrated at every DAC sample), the "
+            "mirror's exact kinematics, the optical lever's exact geometry, the sensors' white "
+            "noise (one draw per sample and channel), the clipping at the detector edge and the "
+            "accelerometer's range with their flags, and the anti-alias filter's sections",
+    "why": "not linear, so not lifted to the output rate (no Phi^q): the pendulum's large-angle "
+           "terms and the lever's second-order geometry (~0.4 % of the spot's rms in u, far "
+           "above round-off) act on each sample, clipping and flags too, and the filter's "
+           "input is the sum of those and the noise",
+    "fused": "the sensors, noise, clipping, flags and the anti-alias sections in one compiled "
+             "pass per block that writes only the kept instants (rig.lifted), the per-sample "
+             "path's own arithmetic in its own order",
+}
+
+
+def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sos: np.ndarray,
+                                source_block=None):
+    """The nonlinear model's ``n`` DAC samples (a whole number of intervals) from ``state`` (at
+    a kept instant) through the sensors, the anti-alias sections ``sos`` (rows ``[b0, b1, b2,
+    1, a1, a2]``; (0, 6): no filter) and the decimation, keeping every ``q``-th sample.
+
+    The bench state at every DAC sample is :func:`rig.bench.run.bench_states` (what
+    :func:`rig.bench.advance` steps), the mirror's exact kinematics
+    (``_mirror_kinematics(exact=True)``) its numpy arithmetic; then one compiled pass
+    (:func:`_nonlinear_kernel`) per sample: the accelerometer (``x0'' - w_c q``, gain, noise,
+    clip, flag: :meth:`Accelerometer.sense_and_output`'s arithmetic), the lever
+    (:func:`rig.devices.optical_lever._spot`, noise, clip, flag: :meth:`OpticalLever.measure`'s),
+    the sections per sample (``daq.antialias._sosfilt_inplace``'s order), and at the kept
+    instants the volts and the interval rule's flags. The noise is drawn in numpy as the
+    per-sample path draws it (one ``standard_normal(n)`` per stream and block). So the kept
+    values equal :func:`rig.bench.advance` then daq's filter and decimation bit for bit; the
+    per-sample truth arrays, spot positions and sensed acceleration are never made. Cost: the
+    bench's own, plus per sample ``2 nth`` sines and cosines, one spot geometry, three normal
+    draws and ``3 x 5 x sections`` multiply-adds of the filter.
+
+    Returns (:class:`rig.blocks.DecimatedBlock`, the bench state after it, the chain state).
+    ``chain.zi`` (3, 2 x sections): the sections' state per channel (``zi[s, ch, i]`` at
+    ``[ch, 2 s + i]``), as :func:`start_decimated` makes it.
+
+    Raises
+    ------
+    ConfigError : ``n`` not a positive multiple of the decimation, or a linear model.
+    DivergenceError : a non-finite state in the block.
+    """
+    from rig.bench.run import BenchState, _mirror_kinematics, _readonly, _rng, bench_states
+
+    if model.model != "nonlinear":
+        raise ConfigError(f"advance_decimated_nonlinear needs the nonlinear model, not "
+                          f"{model.model!r}")
+    q = model.decimation
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < q or n % q:
+        raise ConfigError(f"n_samples = {n!r} is invalid: expected a positive multiple of the "
+                          f"decimation {q}")
+    n = int(n)
+    fs = model.fs_hz
+    v, src, z_out, z, accel, native, h_next = bench_states(model, state, n, source_block)
+    sl = model.slices
+    theta = z_out[:, sl["theta_rad"]]
+    acc, lever = model.accelerometer, model.lever
+    hp = (np.ascontiguousarray(z_out[:, sl["accel_highpass_q_mps"]][:, 0]) if acc.n_states
+          else np.zeros(n))
+    accel = np.ascontiguousarray(accel, dtype=float)
+    rng_a = _rng(state.rng_states["accelerometer"])
+    rng_x = _rng(state.rng_states["psd_x"])
+    rng_y = _rng(state.rng_states["psd_y"])
+    if acc.noise_mps2_rthz > 0:
+        sd_a, wa = acc.noise_rms_v(fs), rng_a.standard_normal(n)
+    else:
+        sd_a, wa = 0.0, np.zeros(0)
+    mx, mz, mrot = _mirror_kinematics(model.scene, theta, exact=True)
+    if lever.noise_m_rthz > 0:
+        sd_p = lever.noise_rms_m(fs)
+        wx, wy = rng_x.standard_normal(n), rng_y.standard_normal(n)
+    else:
+        sd_p, wx, wy = 0.0, np.zeros(0), np.zeros(0)
+    sos = np.ascontiguousarray(sos, dtype=float).reshape(-1, 6)
+    nsec = sos.shape[0]
+    zi = np.ascontiguousarray(np.asarray(chain.zi, dtype=float).reshape(3, nsec, 2)
+                              .transpose(1, 0, 2))
+    carry = np.array(chain.carry, dtype=np.bool_)
+    j = n // q
+    volts = np.empty((3, j))
+    sat = np.empty((3, j), dtype=np.bool_)
+    phi_rad = lever.phi_rad
+    _nonlinear_kernel(accel, hp, acc.corner_rad_s, acc.volts_per_mps2, wa, sd_a,
+                      acc.sensitivity_vpmps2 * acc.range_mps2,
+                      np.ascontiguousarray(mx), np.ascontiguousarray(mz),
+                      np.ascontiguousarray(mrot), math.cos(phi_rad), math.sin(phi_rad),
+                      lever.distance_m, wx, wy, sd_p, lever.half_size_m,
+                      lever.sign_x * lever.gain_vpm, lever.sign_y * lever.gain_vpm,
+                      sos, zi, q, carry, volts, sat)
+    t0 = state.index / fs
+    truth = {"stage_accel_mps2": accel[::q].copy(), "theta_rad": theta[::q].copy(),
+             "mirror_x_m": mx[::q].copy(), "mirror_rot_rad": mrot[::q].copy(),
+             "source_v": v[::q].copy()}
+    block = DecimatedBlock(t0_s=t0, fs_hz=fs, decimation=q, samples=n,
+                           volts={"a": volts[0], "x": volts[1], "y": volts[2]}, truth=truth,
+                           saturated={"a": sat[0], "x": sat[1], "y": sat[2]})
+    rng_states = {"accelerometer": rng_a.bit_generator.state,
+                  "psd_x": rng_x.bit_generator.state, "psd_y": rng_y.bit_generator.state}
+    new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
+                     native=None if native is None else _readonly(np.array(native)),
+                     h_next_s=float(h_next), seed_entropy=state.seed_entropy)
+    s_aa = np.ascontiguousarray(zi.transpose(1, 0, 2).reshape(3, 2 * nsec))
+    return block, new, DecimatedState(zi=s_aa, carry=carry)
+
+
+@njit(cache=True, nogil=True)
+def _nonlinear_kernel(accel, hp, wc, gain_a, wa, sd_a, lim_a, mx, mz, mrot, cphi, sphi, dist,
+                      wx, wy, sd_p, half, gain_x, gain_y, sos, zi, q, carry, volts, sat):
+    """Per DAC sample k: the accelerometer (``_sense_output_kernel``'s arithmetic), the lever
+    (``_measure_kernel``'s), the three channels through the sections (:func:`_sections`; ``zi``
+    (sections, 3, 2) in/out), and at every ``q``-th sample the filtered volts (3, J) and, per
+    channel, whether its sensor saturated since the previous kept instant (``sat`` (3, J);
+    ``carry`` (3,) in/out: after the last kept instant). ``wa`` / ``wx`` empty: no noise."""
+    noisy_a = wa.shape[0] > 0
+    noisy_p = wx.shape[0] > 0
+    c_a = carry[0]
+    c_p = carry[1]
+    for k in range(accel.shape[0]):
+        va = gain_a * (accel[k] - wc * hp[k])
+        if noisy_a:
+            va = va + sd_a * wa[k]
+        f_a = abs(va) > lim_a
+        xa = min(max(va, -lim_a), lim_a)
+        uk, vk = _spot(mx[k], mz[k], mrot[k], cphi, sphi, dist)
+        if noisy_p:
+            uk = uk + sd_p * wx[k]
+            vk = vk + sd_p * wy[k]
+        f_p = (abs(uk) > half) or (abs(vk) > half)
+        xx = gain_x * min(max(uk, -half), half)
+        xy = gain_y * min(max(vk, -half), half)
+        ya = _sections(sos, zi, 0, xa)
+        yx = _sections(sos, zi, 1, xx)
+        yy = _sections(sos, zi, 2, xy)
+        if k % q == 0:
+            j = k // q
+            volts[0, j] = ya
+            volts[1, j] = yx
+            volts[2, j] = yy
+            sat[0, j] = c_a or f_a
+            sat[1, j] = c_p or f_p
+            sat[2, j] = sat[1, j]
+            c_a = False
+            c_p = False
+        else:
+            c_a = c_a or f_a
+            c_p = c_p or f_p
+    carry[0] = c_a
+    carry[1] = c_p
+    carry[2] = c_p

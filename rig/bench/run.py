@@ -158,22 +158,12 @@ def source_samples(model: BenchModel, state: BenchState, n: int, source_block=No
     return v, src
 
 
-def advance(model: BenchModel, state: BenchState, n: int, source_block=None
-            ) -> tuple[AnalogBlock, BenchState]:
-    """Run ``n`` samples from ``state``: the block (volts and truth at the instants
-    ``(state.index + k) / fs``, k < n) and the state after it.
+def bench_states(model: BenchModel, state: BenchState, n: int, source_block=None):
+    """The bench's part of :func:`advance` (``n`` a checked int >= 1): the source samples and
+    the bench state at the block's ``n`` DAC instants, before any sensor reads them.
 
-    ``source_block``: the source's next ``n`` samples and state, ``generate(model.source,
-    state.source, n)``, when already computed (e.g. ahead, in another thread); checked to start at
-    this block.
-
-    Raises
-    ------
-    DivergenceError : a non-finite state in the block (with the block's start time and state).
-    """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ConfigError(f"n_samples = {n!r} is invalid: expected an integer >= 1")
-    n = int(n)
+    Returns ``(v, source state, z_out (n, nz), z after the block, x0'' (n,), native,
+    h_next)``; raises DivergenceError as :func:`advance` does."""
     fs = model.fs_hz
     t0 = state.index / fs
     v, src = source_samples(model, state, n, source_block)
@@ -185,8 +175,6 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     if COUPLED_BENCH in solver.systems:  # the whole bench as one system
         z_out, accel, native = solver.advance_bench(model, z, native, v)
         _check_finite(model, state, z_out, z, t0, n)
-        theta = z_out[:, sl["theta_rad"]]
-        omega = z_out[:, sl["omega_rad_s"]]
         if accel is None:
             accel = z_out @ model.accel_row
     else:  # the pendulum on the exactly stepped stage's motion
@@ -211,9 +199,32 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
         z[sl["theta_rad"]] = y[n, :chain.n]
         z[sl["omega_rad_s"]] = y[n, chain.n:]
         _check_finite(model, state, z_out, z, t0, n)
-        theta = z_out[:, sl["theta_rad"]]
-        omega = z_out[:, sl["omega_rad_s"]]
         accel = a_fine[:n * m:m].copy()
+    return v, src, z_out, z, accel, native, h_next
+
+
+def advance(model: BenchModel, state: BenchState, n: int, source_block=None
+            ) -> tuple[AnalogBlock, BenchState]:
+    """Run ``n`` samples from ``state``: the block (volts and truth at the instants
+    ``(state.index + k) / fs``, k < n) and the state after it.
+
+    ``source_block``: the source's next ``n`` samples and state, ``generate(model.source,
+    state.source, n)``, when already computed (e.g. ahead, in another thread); checked to start at
+    this block.
+
+    Raises
+    ------
+    DivergenceError : a non-finite state in the block (with the block's start time and state).
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ConfigError(f"n_samples = {n!r} is invalid: expected an integer >= 1")
+    n = int(n)
+    fs = model.fs_hz
+    t0 = state.index / fs
+    v, src, z_out, z, accel, native, h_next = bench_states(model, state, n, source_block)
+    sl = model.slices
+    theta = z_out[:, sl["theta_rad"]]
+    omega = z_out[:, sl["omega_rad_s"]]
 
     # sensors
     acc = model.accelerometer

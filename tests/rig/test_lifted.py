@@ -128,11 +128,12 @@ def test_the_lifted_chain_gives_the_same_bytes_for_the_same_seed_and_others_for_
 
 def test_the_lifted_chain_refuses_a_nonlinear_model_and_a_block_off_the_decimation():
     from rig.errors import ConfigError
+    from rig.lifted import lift
 
     scene = load_scene("ishizaki2009", ["acquisition.model=nonlinear"])
-    aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
     with pytest.raises(ConfigError, match="linear model"):
-        next(BenchSimulation(scene, 1).decimated_blocks(1.0, 2.0, aa.sos))
+        lift(BenchSimulation(scene, 1).model, 10)
+    aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
     sim = BenchSimulation(_scene("paper"), 1)
     sim.next_block(3)
     with pytest.raises(ConfigError, match="kept instant"):
@@ -149,3 +150,114 @@ def test_the_model_info_probe_reuses_the_run_s_source_made_ahead_without_changin
     for a, b in zip(ahead.decimated_blocks(10.0, 30.0, aa.sos),
                     plain.decimated_blocks(10.0, 30.0, aa.sos)):
         assert all(np.array_equal(a.volts[k], b.volts[k]) for k in a.volts)
+
+
+# -- the nonlinear model: per-sample bench, fused sensors and filter (bit for bit) ------------
+
+#: the nonlinear scenes: the paper's, ten times its drive, and a clipping one, by the coupled
+#: integrator (etdab, the default) and the pendulum on the exactly stepped stage (rk4, which
+#: needs the stage without reaction)
+NONLINEAR = {
+    "paper": (["acquisition.model=nonlinear"], {}, 60.0),
+    "driven_1v": (["acquisition.model=nonlinear", "source.level_vrms=1.0"], {}, 30.0),
+    "driven_clipping": (["acquisition.model=nonlinear", *SCENES["driven_clipping"][1]], {},
+                        30.0),
+    "paper_rk4": (["acquisition.model=nonlinear", "stage.reaction=false"], {"method": "rk4"},
+                  20.0),
+}
+
+
+def _nl(name):
+    over, kw, dur = NONLINEAR[name]
+    return load_scene("ishizaki2009", over), kw, dur
+
+
+def _per_sample_nl(scene, seed, duration_s, kw, block_s=10.0):
+    """The nonlinear reference: per-sample bench blocks, filtered and decimated like daq's."""
+    acq = scene.acquisition
+    aa = antialias_for(acq, RecordPlan.from_acquisition(acq))
+    sim = BenchSimulation(scene, seed, **kw)
+    st = aa.initial_state(3)
+    out = {k: [] for k in ("a", "x", "y", *TRUTH, "sat_a", "sat_x")}
+    carry = {"a": False, "x": False}
+    for b in sim.blocks(block_s, duration_s):
+        x = np.stack([b.volts[k] for k in "axy"])
+        kept = aa.kept(st, x.shape[1])
+        y, st = aa.step(st, x)
+        for i, k in enumerate("axy"):
+            out[k].append(y[i])
+        for k in TRUTH:
+            out[k].append(np.asarray(b.truth[k])[kept])
+        for k, key in (("a", "a_overrange"), ("x", "psd_off_detector")):
+            s, carry[k] = _interval_any(b.truth[key], kept, carry[k])
+            out["sat_" + k].append(s)
+    return {k: np.concatenate(v) for k, v in out.items()}, aa, sim
+
+
+def _fused_nl(scene, seed, duration_s, aa, kw, block_s=10.0):
+    sim = BenchSimulation(scene, seed, **kw)
+    out = {k: [] for k in ("a", "x", "y", *TRUTH, "sat_a", "sat_x", "sat_y")}
+    for b in sim.decimated_blocks(block_s, duration_s, aa.sos):
+        for k in "axy":
+            out[k].append(b.volts[k])
+            out["sat_" + k].append(b.saturated[k])
+        for k in TRUTH:
+            out[k].append(b.truth[k])
+    return {k: np.concatenate(v) for k, v in out.items()}, sim
+
+
+@pytest.mark.parametrize("name", list(NONLINEAR))
+def test_the_fused_nonlinear_chain_equals_the_per_sample_path_bit_for_bit(name):
+    # the same arithmetic in the same order (rig.lifted.advance_decimated_nonlinear): no
+    # round-off bound is needed, the kept values are the per-sample path's own
+    scene, kw, dur = _nl(name)
+    ref, aa, ref_sim = _per_sample_nl(scene, 11, dur, kw)
+    new, sim = _fused_nl(scene, 11, dur, aa, kw)
+    assert sim.model.model == "nonlinear"
+    for k, v in ref.items():
+        assert new[k].dtype == v.dtype and new[k].shape == v.shape, k
+        assert np.array_equal(new[k], v), (k, np.max(np.abs(new[k] - v)))
+    assert np.array_equal(new["sat_y"], new["sat_x"])
+    if name == "driven_clipping":  # the flags were exercised, and agree
+        assert 0 < ref["sat_x"].sum() < ref["sat_x"].size
+        assert 0 < ref["sat_a"].sum() < ref["sat_a"].size
+    # the bench and the noise streams end where the per-sample path leaves them
+    assert sim.state.rng_states == ref_sim.state.rng_states
+    assert np.array_equal(sim.state.z, ref_sim.state.z)
+
+
+def test_fused_nonlinear_blocks_reproduce_a_one_shot_run_bit_for_bit():
+    scene, kw, _ = _nl("driven_clipping")
+    aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
+    one, _ = _fused_nl(scene, 4, 6.0, aa, kw, block_s=6.0)
+    for block_s in (0.01, 0.37, 2.5):
+        split, _ = _fused_nl(scene, 4, 6.0, aa, kw, block_s=block_s)
+        for k, v in one.items():
+            assert np.array_equal(split[k], v), (block_s, k)
+
+
+def test_the_fused_nonlinear_chain_gives_the_same_bytes_for_the_same_seed_only():
+    scene, kw, _ = _nl("driven_1v")
+    aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
+    a, _ = _fused_nl(scene, 9, 5.0, aa, kw)
+    b, _ = _fused_nl(scene, 9, 5.0, aa, kw)
+    c, _ = _fused_nl(scene, 10, 5.0, aa, kw)
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+    assert not np.array_equal(a["x"], c["x"])
+
+
+def test_the_fused_nonlinear_chain_refuses_a_linear_model_and_a_block_off_the_decimation():
+    from rig.errors import ConfigError
+    from rig.lifted import advance_decimated_nonlinear, start_decimated
+
+    lin = BenchSimulation(_scene("paper"), 1)
+    aa = antialias_for(lin.model.scene.acquisition,
+                       RecordPlan.from_acquisition(lin.model.scene.acquisition))
+    with pytest.raises(ConfigError, match="nonlinear model"):
+        advance_decimated_nonlinear(lin.model, lin.state, start_decimated(aa.sos), 10, aa.sos)
+    sim = BenchSimulation(_nl("paper")[0], 1)
+    with pytest.raises(ConfigError, match="multiple of the decimation 10"):
+        advance_decimated_nonlinear(sim.model, sim.state, start_decimated(aa.sos), 15, aa.sos)
+    sim.next_block(3)
+    with pytest.raises(ConfigError, match="kept instant"):
+        next(sim.decimated_blocks(1.0, 2.0, aa.sos))
