@@ -38,8 +38,6 @@ EXCEPTIONS = {
         "the dataset runner acquires its runs: a second composition root beside the CLI",
     ("processing.bench_geometry", "daq.antialias"):
         "the live view filters its expected signal with the acquisition's own anti-alias kernel",
-    ("processing.uff", "daq.uff"):
-        "the analyzer's FRFs are written with the run's UFF node map and writer",
 }
 
 #: Cycles inside one package, each with what removes it (a new cycle fails).

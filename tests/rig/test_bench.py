@@ -1,4 +1,4 @@
-"""The whole bench (rig/bench.py): source -> coil -> stage -> pendulum -> sensors, in blocks."""
+"""The whole bench (rig.bench): source -> coil -> stage -> pendulum -> sensors, in blocks."""
 
 import math
 

@@ -1,0 +1,68 @@
+"""The whole bench, run continuously: source -> amplifier/coil -> stage -> pendulum -> sensors.
+
+The input is the source voltage, a DAC sample held for one sample interval ``h = 1 /
+simulation_rate_hz`` (SPEC section 8): that held staircase is, by definition, the true DAC
+output; the source's analog reconstruction filter smooths it (:mod:`rig.devices.source`) and the
+stage acceleration ``x0''`` is whatever the continuous amplifier, coil and stage make of that.
+
+Models (``acquisition.model``, ``acquisition.error_budget``)
+------------------------------------------------------------
+``linear``
+    The coil, stage, linearised pendulum (with its reaction on the stage if ``stage.reaction``)
+    and the accelerometer's high-pass form one linear system ``z' = A z + B V``, discretised
+    exactly for the held input (``z_{k+1} = Phi z_k + Gamma V_k``) and stepped by a compiled
+    loop: exact at the DAC instants up to round-off. The sensors read the states at the
+    instants. Its error is the linearisation (a model error, predicted by
+    :func:`predict_linearisation_error`).
+``nonlinear``
+    ``method="etdab"`` (default): the whole bench, nonlinear pendulum *and* its reaction on the
+    stage (or without it), integrated as one system by :mod:`rig.coupled`: the linear bench is
+    propagated exactly (the matrix exponential of the exact linear model) and only the nonlinear
+    remainder (relative size ~theta^2) is integrated, by exponential Adams-Bashforth of order 4
+    (:func:`rig.coupled.etd_ab_kernel`: the remainder's integral over a step from the
+    polynomial through its values at the last 4 steps; one evaluation per step, at the step's
+    own state), ``substeps`` steps per DAC interval. Where the motion is far from linear its
+    error constant is larger than lawson4's at the same step (the estimate says so).
+    ``method="lawson4"``: the same split, the remainder by Lawson's RK4 (four evaluations per
+    step). ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the stage is
+    discretised exactly at ``h / oversample`` and the pendulum's nonlinear equations are
+    integrated through :func:`rig.solvers.integrate` on that prescribed stage acceleration,
+    linear between the sub-instants (``hold="linear"``, O((h/oversample)^2)).
+``auto`` (default)
+    The cheapest model that meets ``acquisition.error_budget`` (:func:`select_model`).
+
+Error estimates: :func:`model_info` (:mod:`rig.bench.estimates`). Measured accuracies, costs and
+levels for the defaults are in docs/bench_model.md and BENCHMARKS.md; levels and signal-to-noise
+ratios of the sensors in :mod:`rig.devices.stage`, :mod:`rig.devices.accelerometer` and
+:mod:`rig.devices.optical_lever`.
+
+Rooms
+-----
+``model``       :class:`BenchModel`, :func:`build_model` (the state space and its exact step)
+``run``         :class:`BenchState`, :func:`start`, :func:`advance` (one block), the stage kernel
+``simulation``  :class:`BenchSimulation` (the stateful wrapper: blocks, calibrations, model info)
+``response``    :func:`calibrations`, :func:`expected_response`, :class:`BenchResponse`,
+                :func:`stationary_levels`, :func:`signal_to_noise`
+``selection``   :func:`predict_linearisation_error`, :func:`select_model`
+``estimates``   :func:`model_info` and the error estimates (Richardson)
+
+Public API: :class:`BenchSimulation`, :class:`BenchModel`, :class:`BenchState`,
+:class:`BenchResponse`, :func:`build_model`, :func:`start`, :func:`advance`, :func:`calibrations`,
+:func:`expected_response`, :func:`stationary_levels`, :func:`signal_to_noise`, :func:`model_info`,
+:func:`select_model`, :func:`predict_linearisation_error`.
+"""
+
+from rig.bench.selection import (FIRST_ORDER_LIMIT, PREDICTOR_BATCHES, PREDICTOR_ENTROPY,
+                                 SPREAD_CALIBRATION, predict_linearisation_error, select_model)
+from rig.bench.model import (COUPLED_METHODS, DEFAULT_METHOD, MODELS, NONLINEAR_METHODS,
+                             PRESCRIBED_STAGE_METHODS, BenchModel, build_model)
+from rig.bench.run import (STREAMS, BenchState, _spawn, advance, stage_fine_kernel, start)
+from rig.bench.response import (BenchResponse, _as_linear, calibrations, expected_response,
+                                signal_to_noise, stationary_levels)
+from rig.bench.estimates import _kernel_theta, model_info, model_seed
+from rig.bench.simulation import BenchSimulation
+
+__all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
+           "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
+           "model_info", "select_model", "predict_linearisation_error", "MODELS",
+           "NONLINEAR_METHODS", "STREAMS"]

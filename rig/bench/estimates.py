@@ -1,0 +1,261 @@
+"""What runs, why, and how accurate it is: the bench's model information and error estimates.
+
+:func:`model_info` (and :meth:`rig.bench.BenchSimulation.model_info`, stored in the run file):
+the model choice (:func:`rig.bench.selection.select_model`), the method, and the error estimate
+of the model that runs, measured on a ``probe_s`` run of the scene's own drive from rest:
+
+- ``linear``: the predicted linearisation error plus the discretisation's (one exact step
+  against two exact half steps per DAC sample: round-off only);
+- ``etdab`` / ``lawson4`` (the coupled bench, :mod:`rig.coupled`): Richardson against twice the
+  steps per DAC sample, ``|theta - theta_fine| 2^p / (2^p - 1)`` with the method's order ``p``
+  (the error is the small nonlinear remainder's: the linear part is exact), and the
+  nonlinear-minus-linear difference on the probe;
+- ``rk4`` / ``gauss4`` / ``dop853`` (reaction off, the pendulum on the prescribed stage
+  acceleration, linear between ``oversample`` sub-instants, O((h/oversample)^2)): the input
+  interpolation (the linearised pendulum through the same interpolated input against the exact
+  linear bench) plus the integrator's (Richardson, or tolerances / 100 for dop853).
+
+Cost: two to three probe runs of ``probe_s`` (docs/bench_model.md has the measured accuracies).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from rig.solvers import Exact, integrate
+from rig.solvers.etdab import ETDAB_ORDER
+from rig.solvers.exact import discretise
+from rig.scene import Scene
+from rig.devices.source import generate, start_source
+from rig.bench.model import BenchModel, build_model
+from rig.bench.response import _as_linear
+from rig.bench.run import _spawn, advance, stage_fine_kernel, start
+from rig.bench.selection import select_model
+
+
+def model_info(scene: Scene, *, seed=0, probe_s: float = 20.0, method: str | None = None,
+               oversample: int = 8, substeps: int = 1) -> dict:
+    """Which model runs, why, how, and its error estimate (measured on a ``probe_s`` run of the
+    scene's own drive from rest); see :meth:`BenchSimulation.model_info`."""
+    return _model_info(build_model(scene, method=method, oversample=oversample,
+                                   substeps=substeps), probe_s=probe_s, seed=seed)
+
+
+def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
+    """Angles of an n-sample run from rest through the full bench (sensors included)."""
+    blk, _ = advance(model, start(model, seed), n)
+    return blk.truth["theta_rad"]
+
+
+def _kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    """Angles at the DAC instants of the linear, lawson4 or etdab kernel alone (no sensors)."""
+    z_out, _, _ = model.solver.advance_bench(model, z0.copy(), None, v)
+    return z_out[:, model.slices["theta_rad"]]
+
+
+def _richardson_estimate(scene, model: BenchModel, v: np.ndarray, z0: np.ndarray,
+                         order: int) -> dict:
+    """Error estimate of a coupled-bench method of ``order`` on the probe input ``v``: Richardson
+    against the same method with twice the steps per DAC sample, ``|theta - theta_fine| 2^p /
+    (2^p - 1)`` [rad], and the nonlinear-minus-linear model difference on the probe."""
+    theta = _kernel_theta(model, v, z0)
+    fine = build_model(scene, method=model.method, substeps=2 * model.substeps,
+                       selection=model.selection)
+    diff = (theta - _kernel_theta(fine, v, z0)) * (2.0**order / (2.0**order - 1.0))
+    lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
+    return {
+        "max_abs_theta_rad": float(np.max(np.abs(diff))),
+        "relative_rms_theta": _rel_rms(diff, theta),
+        "integrator_max_abs_theta_rad": float(np.max(np.abs(diff))),
+        "probe_nonlinear_minus_linear_relative_rms_theta": _rel_rms(theta - lin, theta),
+    }
+
+
+def _rel_rms(diff: np.ndarray, ref: np.ndarray) -> float:
+    """max over bodies of rms(diff_j) / rms(ref_j) (0 where nothing moves)."""
+    num = np.sqrt(np.mean(diff**2, axis=0))
+    den = np.sqrt(np.mean(ref**2, axis=0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(den > 0, num / den, 0.0)
+    return float(np.max(r))
+
+
+def _model_info(model: BenchModel, *, probe_s: float, seed) -> dict:
+    scene = model.scene
+    acq = scene.acquisition
+    fs = model.fs_hz
+    n = max(1, int(round(probe_s * fs)))
+    tic = time.perf_counter()
+    sel = model.selection if model.selection is not None else select_model(scene)
+    budget = sel["error_budget"]
+    info = {
+        "model": model.model,
+        "requested_model": acq.model,
+        "error_budget": budget,
+        "reason": sel["reason"],
+        "fs_hz": fs,
+        "hold": "zoh: the source DAC value is held for 1/fs; the stage acceleration it makes is "
+                "continuous",
+        "reaction": model.stage.reaction,
+        "states": model.state_names(),
+        "seed": model_seed(model, seed),
+        "probe_s": probe_s,
+        "selection": sel,
+    }
+    info["per_sample"] = {
+        "rate_hz": fs,
+        "what": "the bench state (one exact step per DAC sample), the optical lever's exact "
+                "geometry, the sensors' white noise (one draw per sample and channel), the "
+                "clipping at the detector edge and the accelerometer's range with their flags, "
+                "and the anti-alias filter",
+        "why": "not linear, so not lifted to the output rate: the lever's second-order "
+               "geometry is ~0.4 % of the spot's rms in u (far above round-off), clipping and "
+               "flags act on each sample, and the filter's input is the sum of those and the "
+               "noise",
+    }
+    pred = sel["prediction"]
+    _, q = scene.chain.modes()
+    qmax = float(np.max(q)) if q.size else math.inf
+    th3 = 3 * max(pred["theta_rms_rad"])
+    shift = th3**2 / 16  # relative frequency shift of a pendulum at amplitude th3
+    info["linearity"] = {
+        "theta_rms_rad": pred["theta_rms_rad"],
+        "frequency_shift_at_3_sigma": shift,
+        "half_bandwidth": 1 / (2 * qmax),
+        "shift_over_half_bandwidth": shift * 2 * qmax,
+        "predicted_linear_error": pred["max"],
+        "how": "rms angles of the linear bench under the scene's source (the predictor's runs); "
+               "a pendulum's frequency falls by ~A^2/16 at amplitude A (here 3 rms of the larger "
+               "angle), compared with the highest-Q mode's half-power half-bandwidth 1/(2Q). The "
+               "decision uses the predicted error ('selection'), not this rule of thumb",
+    }
+    root, children = _spawn(seed)
+    v, _ = generate(model.source, start_source(model.source, children[0]), n)
+    z0 = np.array(start(model, root).z)
+    if model.model == "linear":
+        info["method"] = ("exact discretisation (zero-order hold, matrix exponential) of the "
+                          "coupled linear bench: coil, stage, linearised pendulum"
+                          + (" with its reaction" if model.stage.reaction else "")
+                          + ", accelerometer high-pass; compiled loop, one step per DAC sample")
+        theta = _kernel_theta(model, v, z0)
+        theta2 = _kernel_theta(_half_step_model(model), v, z0)
+        e_disc = float(np.max(np.abs(theta - theta2)))
+        rel_disc = _rel_rms(theta - theta2, theta)
+        e_lin = pred["max"]
+        info["error_estimate"] = {
+            "max_abs_theta_rad": pred["max_abs_theta_rad"] + e_disc,
+            "relative_rms_theta": e_lin + rel_disc,
+            "linearisation_relative_rms_theta": e_lin,
+            "linearisation_upper_relative_rms_theta": pred["upper"],
+            "discretisation_max_abs_theta_rad": e_disc,
+            "discretisation_relative_rms_theta": rel_disc,
+        }
+        info["error_method"] = (
+            "linearisation (the model error, against the nonlinear bench): predicted, see "
+            "selection.prediction.how; discretisation: |theta_h - theta_h/2| over a "
+            f"{probe_s:g} s probe of the scene's drive from rest against the same exact "
+            "discretisation with two half steps per DAC sample (round-off only)")
+    elif model.method == "etdab":
+        loads = " that it loads (reaction)" if model.stage.reaction else ""
+        info["method"] = (
+            f"nonlinear pendulum on the stage{loads}, the whole bench as one system "
+            "(rig.coupled): the linear bench propagated exactly (matrix exponential, zero-order "
+            "hold), the nonlinear remainder by exponential Adams-Bashforth of order "
+            f"{ETDAB_ORDER} (its integral over a step from the polynomial through its last "
+            f"{ETDAB_ORDER} values, one evaluation per step), {model.substeps} step(s) per DAC "
+            "sample")
+        info["error_estimate"] = _richardson_estimate(scene, model, v, z0, ETDAB_ORDER)
+        info["error_method"] = (
+            f"Richardson on a {probe_s:g} s probe of the scene's drive from rest: |theta - "
+            f"theta(2x steps)| 2^{ETDAB_ORDER}/(2^{ETDAB_ORDER} - 1) (the error is that of the "
+            "small nonlinear remainder: the linear part is exact). "
+            "'probe_nonlinear_minus_linear' is the model difference on the probe (the run's is "
+            "predicted in 'selection')")
+    elif model.method == "lawson4":
+        loads = " that it loads (reaction)" if model.stage.reaction else ""
+        info["method"] = (f"nonlinear pendulum on the stage{loads}, the whole bench as one "
+                          "system (rig.coupled): the linear bench propagated exactly (matrix "
+                          "exponential, zero-order hold), the nonlinear remainder by Lawson's "
+                          f"RK4, {model.substeps} step(s) per DAC sample")
+        info["error_estimate"] = _richardson_estimate(scene, model, v, z0, 4)
+        info["error_method"] = (
+            f"Richardson on a {probe_s:g} s probe of the scene's drive from rest: |theta - "
+            "theta(2x steps)| 16/15 (order 4; the error is that of the small nonlinear "
+            "remainder: the linear part is exact). 'probe_nonlinear_minus_linear' is the model "
+            "difference on the probe (the run's is predicted in 'selection')")
+    else:
+        mi = model.solver
+        info["method"] = (f"nonlinear pendulum via rig.integrators {model.method} "
+                          f"({mi.description}), {model.substeps} step(s) per sub-interval; stage "
+                          f"and accelerometer exact (ZOH) at {model.oversample} sub-instants per "
+                          "DAC sample, the stage acceleration linear between them")
+        theta = _probe_theta(model, n, seed)
+        scale = max(float(np.max(np.abs(theta))), 1e-300)
+        # (1) input interpolation: linearised pendulum, interpolated input vs exact linear bench
+        lin_model = build_model(_as_linear(scene))
+        theta_exact = _probe_theta(lin_model, n, seed)
+        m = model.oversample
+        zs = np.zeros(model.n_states - 2 * scene.chain.n)
+        a_fine = np.empty(n * m + 1)
+        stage_fine_kernel(model.stage_phi, model.stage_gamma, model.stage_accel_row, v, m, zs,
+                          np.empty((n, zs.size)), a_fine)
+        y0 = np.concatenate([scene.theta0_rad, scene.omega0_rad_s])
+        lin = integrate(scene.chain, y0, a_fine, None, hold="linear", h_in=1 / (fs * m),
+                        n_intervals=n * m, out_every=m, solver=Exact())
+        d_input = lin.y_out[:n, :scene.chain.n] - theta_exact
+        e_input = float(np.max(np.abs(d_input)))
+        # (2) integrator: Richardson against twice the steps
+        fine = build_model(scene, method=model.method, oversample=model.oversample,
+                           substeps=2 * model.substeps, rtol=model.rtol / 100,
+                           atol=model.atol / 100, selection=model.selection)
+        theta_f = _probe_theta(fine, n, seed)
+        if mi.order is not None and not mi.adaptive:
+            factor = 2.0**mi.order / (2.0**mi.order - 1.0)
+            how_int = (f"Richardson |theta - theta(2x steps)| 2^{mi.order}/(2^{mi.order} - 1)")
+        else:
+            factor = 1.0
+            how_int = "|theta - theta(rtol, atol / 100)|"
+        e_int = float(np.max(np.abs(theta - theta_f))) * factor
+        info["error_estimate"] = {
+            "input_interpolation_max_abs_theta_rad": e_input,
+            "integrator_max_abs_theta_rad": e_int,
+            "max_abs_theta_rad": e_input + e_int,
+            "relative_to_max_theta": (e_input + e_int) / scale,
+            "relative_rms_theta": _rel_rms(d_input, theta) + _rel_rms((theta - theta_f) * factor,
+                                                                       theta),
+            "nonlinear_minus_linear_max_abs_theta_rad": float(np.max(np.abs(theta - theta_exact))),
+        }
+        info["error_method"] = (
+            f"on a {probe_s:g} s probe of the scene's drive from rest: (1) input interpolation: "
+            "the linearised pendulum driven through the same sub-sampled, linearly interpolated "
+            "stage acceleration (rig.integrators 'linear', exact for that input) against the "
+            "exact linear bench; (2) integrator: " + how_int + "; the sum is the estimate. "
+            "'nonlinear_minus_linear' is the model difference (the linearisation's error) on "
+            "the probe")
+    info["budget_met"] = bool(info["error_estimate"]["relative_rms_theta"] <= budget)
+    if not info["budget_met"]:
+        info["reason"] += (f". The estimated error of the model that runs, "
+                           f"{info['error_estimate']['relative_rms_theta']:.2g}, is OVER the "
+                           f"budget {budget:g}")
+    info["estimate_wall_time_s"] = time.perf_counter() - tic
+    return info
+
+
+def model_seed(model: BenchModel, seed) -> object:
+    """The seed as recorded: the root SeedSequence's entropy (an int, or a list of ints)."""
+    root, _ = _spawn(seed)
+    return root.entropy
+
+
+def _half_step_model(model: BenchModel) -> BenchModel:
+    """The same linear bench stepped as two exact half steps per DAC sample (round-off check)."""
+    import dataclasses
+
+    phi_h, g_h, _ = discretise(model.a, model.b, 0.5 / model.fs_hz, "zoh")
+    phi = phi_h @ phi_h
+    gamma = phi_h @ g_h[:, 0] + g_h[:, 0]
+    return dataclasses.replace(model, phi=np.ascontiguousarray(phi),
+                               gamma=np.ascontiguousarray(gamma))
