@@ -1319,12 +1319,30 @@ def _sincos4(a, b, c, d):
 def _nsplit2(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
     """(N0, N1, N2) of the n = 2 chain at (theta, omega), as six numbers (N0_0, N0_1, N1_0, ...);
     s0, c0, s1, c1 are sin and cos of th0 and th1."""
+    n00, n01, n10, n11, m01, idet = _nsplit2h(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0,
+                                              s1, c1)
+    n20, n21 = _n2_two(hc, s, s0, s1, m01, idet)
+    return n00, n01, n10, n11, n20, n21
+
+
+@njit(cache=True, inline="always")
+def _mass2(hc, s0, c0, s1, c1):
+    """The n = 2 mass matrix's coupling m01 = H01 cos(th0 - th1), H01 sin(th0 - th1) and
+    1 / det M."""
     h01 = hc[0, 1]
     m01 = h01 * (c0 * c1 + s0 * s1)
     hs = h01 * (s0 * c1 - c0 * s1)
+    idet = 1.0 / (hc[0, 0] * hc[1, 1] - m01 * m01)
+    return m01, hs, idet
+
+
+@njit(cache=True, inline="always")
+def _nsplit2h(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
+    """(N0, N1) of the n = 2 chain at (theta, omega), and m01, 1 / det M for the vertical gain
+    (:func:`_n2_two`); :func:`_nsplit2` without N2."""
+    m01, hs, idet = _mass2(hc, s0, c0, s1, c1)
     h00 = hc[0, 0]
     h11 = hc[1, 1]
-    idet = 1.0 / (h00 * h11 - m01 * m01)
     f0 = -s[0] * g * s0 - cm[0, 0] * w0 - cm[0, 1] * w1 - hs * w1 * w1
     f1 = -s[1] * g * s1 - cm[1, 0] * w0 - cm[1, 1] * w1 + hs * w0 * w0
     lin0 = p[0, 0] * th0 + p[0, 1] * th1 + q[0, 0] * w0 + q[0, 1] * w1
@@ -1335,11 +1353,15 @@ def _nsplit2(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
     e1 = -s[1] * c1
     n10 = (h11 * e0 - m01 * e1) * idet - bw[0]
     n11 = (h00 * e1 - m01 * e0) * idet - bw[1]
+    return n00, n01, n10, n11, m01, idet
+
+
+@njit(cache=True, inline="always")
+def _n2_two(hc, s, s0, s1, m01, idet):
+    """The vertical gain N2 of the n = 2 chain from sin th0, sin th1, m01 and 1 / det M."""
     e0 = -s[0] * s0
     e1 = -s[1] * s1
-    n20 = (h11 * e0 - m01 * e1) * idet
-    n21 = (h00 * e1 - m01 * e0) * idet
-    return n00, n01, n10, n11, n20, n21
+    return (hc[1, 1] * e0 - m01 * e1) * idet, (hc[0, 0] * e1 - m01 * e0) * idet
 
 
 @njit(cache=True)
@@ -2205,29 +2227,6 @@ def _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b2
 
 
 @njit(cache=True, inline="always")
-def _nsplit2h(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
-    """(N0, N1) of the n = 2 chain: :func:`_nsplit2` without the vertical gain N2, the same
-    arithmetic for the four numbers it returns."""
-    h01 = hc[0, 1]
-    m01 = h01 * (c0 * c1 + s0 * s1)
-    hs = h01 * (s0 * c1 - c0 * s1)
-    h00 = hc[0, 0]
-    h11 = hc[1, 1]
-    idet = 1.0 / (h00 * h11 - m01 * m01)
-    f0 = -s[0] * g * s0 - cm[0, 0] * w0 - cm[0, 1] * w1 - hs * w1 * w1
-    f1 = -s[1] * g * s1 - cm[1, 0] * w0 - cm[1, 1] * w1 + hs * w0 * w0
-    lin0 = p[0, 0] * th0 + p[0, 1] * th1 + q[0, 0] * w0 + q[0, 1] * w1
-    lin1 = p[1, 0] * th0 + p[1, 1] * th1 + q[1, 0] * w0 + q[1, 1] * w1
-    n00 = (h11 * f0 - m01 * f1) * idet + lin0
-    n01 = (h00 * f1 - m01 * f0) * idet + lin1
-    e0 = -s[0] * c0
-    e1 = -s[1] * c1
-    n10 = (h11 * e0 - m01 * e1) * idet - bw[0]
-    n11 = (h00 * e1 - m01 * e0) * idet - bw[1]
-    return n00, n01, n10, n11
-
-
-@njit(cache=True, inline="always")
 def _etd4m_row2h(mat, i, r, z0, z1, z2, z3, acc, base, g0, g1):
     """:func:`_etd4m_row2` without the vertical input: row r of mat[i] @ z + the (4, 2) block at
     ``base`` of acc @ g (n = 2)."""
@@ -2286,7 +2285,8 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     one = zero + 1
     if not have:
         s0, c0, s1, c1 = _sincos_pair(z0, z1)
-        a00, a01, a10, a11 = _nsplit2h(hc, s, cm, g, p, q, bw, z0, z1, z2, z3, s0, c0, s1, c1)
+        a00, a01, a10, a11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, z0, z1, z2, z3, s0, c0, s1,
+                                             c1)
         b00, b01, b10, b11 = a00, a01, a10, a11
         d00, d01, d10, d11 = a00, a01, a10, a11
         nev += 1
@@ -2315,11 +2315,11 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
                                         d00, d01, d10, d11)
         sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
         sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
-        a00, a01, a10, a11 = _nsplit2h(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0, cp0, sp1,
+        a00, a01, a10, a11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0, cp0, sp1,
                                        cp1)
-        b00, b01, b10, b11 = _nsplit2h(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0, cq0, sq1,
+        b00, b01, b10, b11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0, cq0, sq1,
                                        cq1)
-        d00, d01, d10, d11 = _nsplit2h(hc, s, cm, g, p, q, bw, r0, r1, r2, r3, sr0, cr0, sr1,
+        d00, d01, d10, d11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, r0, r1, r2, r3, sr0, cr0, sr1,
                                        cr1)
         nev += 3
         n0 = ((_etd4m_row2h(phi3, 0, 0, z0, z1, z2, z3, acc, 0, bw0 + a10, bw1 + a11)
@@ -2338,41 +2338,30 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
                + (wq[0, 3, 0] * a00 + wq[0, 3, 1] * a01))
               + _etd4m_end2h(3, acc, wq, 1, b00, b01, bw0 + b10, bw1 + b11)
               + _etd4m_end2h(3, acc, wq, 2, d00, d01, bw0 + d10, bw1 + d11))
-        z0 = n0
-        z1 = n1
-        z2 = n2
-        z3 = n3
+        z0, z1, z2, z3 = n0, n1, n2, n3
         left -= 1
         if left == 0 or k + 1 == n_steps:
             left = out_steps
-            y[0] = z0
-            y[1] = z1
-            y[2] = z2
-            y[3] = z3
-            ok = _store(y, y_out, row)
             row += 1
-            if not ok:
+            if not _store4(y, y_out, row - 1, z0, z1, z2, z3):
                 status = NONFINITE
                 done = k + 1
                 break
-    y[0] = z0
-    y[1] = z1
-    y[2] = z2
-    y[3] = z3
+    y[0], y[1], y[2], y[3] = z0, z1, z2, z3
     # N2 at the last step's stages for the native state (their sines and cosines as the step
     # formed them); without a step, the history's or the start state's
     if n_steps > 0:
         sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
         sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
-        a20, a21 = _n2_two(hc, s, sp0, cp0, sp1, cp1)
-        b20, b21 = _n2_two(hc, s, sq0, cq0, sq1, cq1)
-        d20, d21 = _n2_two(hc, s, sr0, cr0, sr1, cr1)
+        a20, a21 = _n2_at(hc, s, sp0, cp0, sp1, cp1)
+        b20, b21 = _n2_at(hc, s, sq0, cq0, sq1, cq1)
+        d20, d21 = _n2_at(hc, s, sr0, cr0, sr1, cr1)
     elif have:
         a20, a21, b20, b21 = hist[0, 4], hist[0, 5], hist[1, 4], hist[1, 5]
         d20, d21 = hist[2, 4], hist[2, 5]
     else:
         s0, c0, s1, c1 = _sincos_pair(z0, z1)
-        a20, a21 = _n2_two(hc, s, s0, c0, s1, c1)
+        a20, a21 = _n2_at(hc, s, s0, c0, s1, c1)
         b20, b21, d20, d21 = a20, a21, a20, a21
     _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
                  d11, d20, d21)
@@ -2380,12 +2369,14 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
 
 
 @njit(cache=True, inline="always")
-def _n2_two(hc, s, s0, c0, s1, c1):
-    """The vertical gain N2 of the n = 2 chain at the angles with these sines and cosines, as
-    :func:`_nsplit2` forms it."""
-    h01 = hc[0, 1]
-    m01 = h01 * (c0 * c1 + s0 * s1)
-    idet = 1.0 / (hc[0, 0] * hc[1, 1] - m01 * m01)
-    e0 = -s[0] * s0
-    e1 = -s[1] * s1
-    return (hc[1, 1] * e0 - m01 * e1) * idet, (hc[0, 0] * e1 - m01 * e0) * idet
+def _n2_at(hc, s, s0, c0, s1, c1):
+    """The vertical gain N2 of the n = 2 chain at the angles with these sines and cosines."""
+    m01, _, idet = _mass2(hc, s0, c0, s1, c1)
+    return _n2_two(hc, s, s0, s1, m01, idet)
+
+
+@njit(cache=True, inline="always")
+def _store4(y, y_out, row, z0, z1, z2, z3):
+    """y = z (n = 2), stored as :func:`_store` does; returns whether it is finite."""
+    y[0], y[1], y[2], y[3] = z0, z1, z2, z3
+    return _store(y, y_out, row)

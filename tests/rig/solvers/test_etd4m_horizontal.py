@@ -120,27 +120,14 @@ def test_a_block_with_a_vertical_input_continues_from_the_horizontal_kernels_sta
 
 def test_blockwise_runs_through_the_horizontal_kernel_reproduce_the_one_shot_run():
     """Blocks of a horizontal-only input (the damped double rod from (1.0, -0.5) rad, the same
-    splits as etd4m's block test) join to the one-shot run bit for bit."""
-    chain = rod_chain(2, damping=0.02)
-    rng = np.random.default_rng(1)
-    base = BaseInput(0.5 * rng.standard_normal(500), 0.01)
+    splits as etd4m's block test) join to the one-shot run bit for bit, the final native state
+    included; with the vertical input as well (the kernel with the vertical terms) too."""
     kw = dict(method="etd4m", dt_s=0.02, output_dt_s=0.04, estimate_error=False)
-    one = simulate(chain, 5.0, theta0=(1.0, -0.5), base=base, **kw)
-    state, parts = None, []
-    for k0, k1 in [(0, 160), (160, 320), (320, 500)]:
-        blk = base.block(k0, k1)
-        if state is None:
-            tr = simulate(chain, blk.duration_s, theta0=(1.0, -0.5), base=blk, **kw)
-            parts.append(tr.theta_rad)
-        else:
-            tr = simulate(chain, blk.duration_s, start=state, base=blk, **kw)
-            parts.append(tr.theta_rad[1:])
-        state = tr.final_state
-    np.testing.assert_array_equal(np.concatenate(parts), one.theta_rad)
-    np.testing.assert_array_equal(state.native, one.final_state.native)
-    # the shared helper's input has a vertical part: that path is unchanged too
-    joined, st, one_v = blockwise_and_one_shot([(0, 160), (160, 320), (320, 500)], **kw)
-    np.testing.assert_array_equal(joined, one_v.theta_rad)
+    for vertical in (False, True):
+        joined, state, one = blockwise_and_one_shot([(0, 160), (160, 320), (320, 500)],
+                                                    vertical=vertical, **kw)
+        np.testing.assert_array_equal(joined, one.theta_rad)
+        np.testing.assert_array_equal(state.native, one.final_state.native)
 
 
 def test_papers_shortened_run_through_the_horizontal_kernel_is_within_1e6():
