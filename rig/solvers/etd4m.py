@@ -25,7 +25,9 @@ The differences from etd3m, both raising the order in the step:
 
 The stage omegas, where N is evaluated, carry etd3m's correction for the staircase's sawtooth
 (the interpolation then sees each interval's mean). Three remainder evaluations per step; per
-sample a FIR of 6 weight sets (2n x n each), the stage sets skipped past their nodes. The first
+sample a FIR of 6 weight sets (2n x n each), the stage sets skipped past their nodes (for n = 2
+every row in full, which the compiler vectorises; without a vertical input the n = 2 kernel
+forms neither N2 nor its products with the zero input, the same numbers). The first
 step after a (re)start predicts with N(z0) at one more evaluation; the three stages are part of
 the native state (theta, omega, valid flag, step H, then 9n numbers), so blocks that end on output
 rows continue bit for bit.
