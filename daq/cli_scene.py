@@ -7,12 +7,10 @@ import json
 from pathlib import Path
 
 import click
-import numpy as np
 
 from daq.cli_common import fmt, force_option, set_option
 from daq.cli_live import viewer_stream
 from rig._io import atomic_output, check_writable
-from rig.solvers import PENDULUM, SOLVERS, names_for
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -139,6 +137,25 @@ def _floats(ctx, param, value):
         raise click.BadParameter(f"{value!r} is not a comma-separated list of numbers") from None
 
 
+class PendulumMethods(click.Choice):
+    """The methods of :data:`rig.solvers.SOLVERS` that step the pendulum on a prescribed base, as
+    a choice read from the registry when first needed (``daq simulate``'s help, completion or
+    parse), so that the command line's start-up does not import the solvers (and numpy)."""
+
+    def __init__(self):
+        super().__init__(())
+
+    @property
+    def choices(self) -> tuple:
+        from rig.solvers import PENDULUM, names_for
+
+        return tuple(names_for(PENDULUM))
+
+    @choices.setter
+    def choices(self, value) -> None:  # click.Choice.__init__ sets it; the registry decides
+        pass
+
+
 @click.command()
 @click.argument("scene_name", metavar="SCENE")
 @click.option("--duration", required=True, type=float, help="Simulated time [s].")
@@ -147,7 +164,7 @@ def _floats(ctx, param, value):
 @click.option("--omega0", callback=_floats, metavar="A,B,...",
               help="Initial angular velocities [rad/s] (default: the scene's).")
 @click.option("--method", default="dop853", show_default=True,
-              type=click.Choice(names_for(PENDULUM)),
+              type=PendulumMethods(),
               help="Integrator (rig.solvers.SOLVERS; etd3m and etd4m step over held input "
                    "samples, so they need a moving base: on this fixed base use etd3).")
 @click.option("--rtol", type=float, help="Relative tolerance of dop853 [default 1e-10].")
@@ -174,6 +191,7 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     from daq.trajectory import trajectory_format, write_trajectory
     from rig.scene import load_scene
     from rig.simulate import simulate as run_simulation
+    from rig.solvers import SOLVERS
 
     if rtol is not None and dt_s is not None:
         raise click.UsageError("give --rtol (adaptive dop853) or --dt (fixed step), not both")
@@ -208,7 +226,7 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     e = traj.energy_j
     click.echo(f"{'wrote ' + str(out) if out else 'simulated'}: {traj.t_s.size} samples over {duration:g} s, {sc.chain.n} bodies, "
                f"method {traj.method} ({traj.n_steps} steps, {traj.wall_time_s:.3g} s)")
-    click.echo(f"energy: {e[0]:.9g} J at t = 0, max |E - E0| = {np.max(np.abs(e - e[0])):.3g} J")
+    click.echo(f"energy: {e[0]:.9g} J at t = 0, max |E - E0| = {abs(e - e[0]).max():.3g} J")
     if traj.error_estimate_rad is not None:
         click.echo(f"estimated max angle error: {traj.max_error_rad:.3g} rad "
                    f"({traj.error_method})")

@@ -52,6 +52,7 @@ from processing.sampled_bench import SampledBench
 from processing.spectra import (AVERAGING, WINDOWS, ChannelDataError, SettingsError,
                                 SpectralSettings, _readonly, auto_spectrum, cross_spectrum,
                                 segment_ffts)
+from rig import _check
 from rig._threads import single_threaded_blas
 from rig.errors import ConfigError
 
@@ -76,22 +77,11 @@ def _band(name: str, value) -> tuple[float, float]:
 
 
 def _positive_int(name: str, value, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise SettingsError(f"{name} = {value!r} is invalid: expected an integer >= {minimum}")
-    return int(value)
+    return _check.integer(name, value, minimum=minimum, error=SettingsError)
 
 
 def _finite(name: str, value, *, lo=None, hi=None, hi_open=False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = math.nan
-    if isinstance(value, bool) or not math.isfinite(v) or (lo is not None and v < lo) or (
-            hi is not None and (v >= hi if hi_open else v > hi)):
-        rng = f"{lo if lo is not None else '-inf'} <= {name} {'<' if hi_open else '<='} " \
-              f"{hi if hi is not None else 'inf'}"
-        raise SettingsError(f"{name} = {value!r} is invalid: expected a finite number with {rng}")
-    return v
+    return _check.number(name, value, lo=lo, hi=hi, hi_open=hi_open, error=SettingsError)
 
 
 @dataclass(frozen=True)

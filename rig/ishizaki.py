@@ -51,6 +51,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from rig._check import number, positive
 from rig.chain import G_STANDARD, Chain
 from rig.errors import ConfigError
 
@@ -71,6 +72,7 @@ PAPER_Q2 = 100.0
 LENGTH2_M = 0.0375
 
 _ROUNDOFF = 1e-12  # relative tolerance for "J = 0 up to round-off" and "l = r1"
+_UNDAMPED = "> 0 (inf for no damping)"  # what a quality factor may be
 
 
 # -- design parameters -----------------------------------------------------------------------
@@ -124,29 +126,17 @@ class DesignParameters:
 
     def __post_init__(self):
         for f in fields(self):
-            v = getattr(self, f.name)
-            try:
-                v = float(v)
-            except (TypeError, ValueError):
-                raise ConfigError(
-                    f"DesignParameters.{f.name} = {v!r} is invalid: expected a number") from None
-            object.__setattr__(self, f.name, v)
+            where, v = f"DesignParameters.{f.name}", getattr(self, f.name)
             if f.name in ("Q1", "Q2"):
-                if not v > 0:  # inf is fine (undamped)
-                    raise ConfigError(f"DesignParameters.{f.name} = {v} is invalid: expected > 0")
-                continue
-            if not math.isfinite(v):
-                raise ConfigError(f"DesignParameters.{f.name} = {v} is invalid: expected a finite "
-                                  "number")
-            if f.name in ("zeta1", "zeta2"):
-                if v < 0:
-                    raise ConfigError(f"DesignParameters.{f.name} = {v} is invalid: expected >= 0")
+                v = positive(where, v, allow_inf=True, valid=_UNDAMPED)
+            elif f.name in ("zeta1", "zeta2"):
+                v = number(where, v, lo=0.0)
             elif f.name == "beta2":
-                if not 0 <= v < 1:
-                    raise ConfigError(f"DesignParameters.beta2 = {v} is invalid: expected "
-                                      "0 <= beta^2 < 1 (a positive definite mass matrix)")
-            elif not v > 0:
-                raise ConfigError(f"DesignParameters.{f.name} = {v} is invalid: expected > 0")
+                v = number(where, v, lo=0.0, hi=1.0, hi_open=True,
+                           valid="0 <= beta^2 < 1 (a positive definite mass matrix)")
+            else:
+                v = positive(where, v)
+            object.__setattr__(self, f.name, v)
 
 
 def design_parameters(chain: Chain) -> DesignParameters:
@@ -204,17 +194,6 @@ def design_parameters(chain: Chain) -> DesignParameters:
 
 # -- design numbers -> chain -----------------------------------------------------------------
 
-def _positive(name: str, v, *, allow_inf: bool = False) -> float:
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{name} = {v!r} is invalid: expected a number") from None
-    if math.isnan(v) or not v > 0 or (math.isinf(v) and not allow_inf):
-        what = "> 0 (inf for no damping)" if allow_inf else "a finite number > 0"
-        raise ConfigError(f"{name} = {v} is invalid: expected {what}")
-    return v
-
-
 def chain_from_design(*, r1_m, r2_m, f1_hz, f2_hz, eps, total_mass_kg, q1, q2, l_m=None,
                       length2_m=LENGTH2_M, g_mps2=G_STANDARD) -> Chain:
     """Build the 2-body chain with the given design numbers (SPEC section 4).
@@ -257,23 +236,18 @@ def chain_from_design(*, r1_m, r2_m, f1_hz, f2_hz, eps, total_mass_kg, q1, q2, l
         (r2 > g/omega2^2). The bound is J >= 0; a value within 1e-12 of the body's pivot inertia is
         taken as round-off and set to 0.
     """
-    r1 = _positive("r1_m", r1_m)
-    r2 = _positive("r2_m", r2_m)
-    f1 = _positive("f1_hz", f1_hz)
-    f2 = _positive("f2_hz", f2_hz)
-    mtot = _positive("total_mass_kg", total_mass_kg)
-    q1 = _positive("q1", q1, allow_inf=True)
-    q2 = _positive("q2", q2, allow_inf=True)
-    l = r1 if l_m is None else _positive("l_m", l_m)
-    length2 = _positive("length2_m", length2_m)
-    g = _positive("g_mps2", g_mps2)
-    try:
-        eps = float(eps)
-    except (TypeError, ValueError):
-        raise ConfigError(f"eps = {eps!r} is invalid: expected a number") from None
-    if not (math.isfinite(eps) and eps > 1):
-        raise ConfigError(f"eps = {eps} is invalid: expected a finite number > 1 "
-                          "(eps = 1 + m1 r1/(m2 l) and m1 > 0)")
+    r1 = positive("r1_m", r1_m)
+    r2 = positive("r2_m", r2_m)
+    f1 = positive("f1_hz", f1_hz)
+    f2 = positive("f2_hz", f2_hz)
+    mtot = positive("total_mass_kg", total_mass_kg)
+    q1 = positive("q1", q1, allow_inf=True, valid=_UNDAMPED)
+    q2 = positive("q2", q2, allow_inf=True, valid=_UNDAMPED)
+    l = r1 if l_m is None else positive("l_m", l_m)
+    length2 = positive("length2_m", length2_m)
+    g = positive("g_mps2", g_mps2)
+    eps = number("eps", eps, lo=1.0, lo_open=True,
+                 valid="a finite number > 1 (eps = 1 + m1 r1/(m2 l) and m1 > 0)")
     m2 = mtot / (1 + (eps - 1) * l / r1)
     m1 = mtot - m2
     w1, w2 = 2 * math.pi * f1, 2 * math.pi * f2

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rig._check import positive
 from rig.chain import Chain
 from rig.errors import ConfigError
 from rig.solvers import HOLDS, PENDULUM, integrate, names_for, output_rows, solver_named
@@ -37,16 +38,6 @@ _REL = 1e-9  # tolerance for "a whole number of" checks on times
 def _readonly(a: np.ndarray) -> np.ndarray:
     a.setflags(write=False)
     return a
-
-
-def _finite_number(name: str, value, *, positive: bool = True) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{name} = {value!r} is invalid: expected a number") from None
-    if not math.isfinite(v) or (positive and not v > 0):
-        raise ConfigError(f"{name} = {value!r} is invalid: expected a finite number > 0")
-    return v
 
 
 def _whole(name: str, value: float, unit_name: str, unit: float) -> int:
@@ -95,7 +86,7 @@ class BaseInput:
 
     def __post_init__(self):
         set_ = object.__setattr__
-        set_(self, "dt_s", _finite_number("dt_s", self.dt_s))
+        set_(self, "dt_s", positive("dt_s", self.dt_s))
         if self.hold not in HOLDS:
             raise ConfigError(f"hold = {self.hold!r} is invalid: expected one of "
                               f"{', '.join(HOLDS)}")
@@ -468,7 +459,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     """
     if not isinstance(chain, Chain):
         raise ConfigError(f"chain = {chain!r} is invalid: expected a rig.chain.Chain")
-    duration = _finite_number("duration_s", duration_s)
+    duration = positive("duration_s", duration_s)
     if method not in names_for(PENDULUM):
         raise ConfigError(f"method = {method!r} is invalid: expected one of "
                           f"{', '.join(names_for(PENDULUM))}")
@@ -478,16 +469,16 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         rtol_f = float("nan")
     if not 0.0 < rtol_f < 1.0:
         raise ConfigError(f"rtol = {rtol!r} is invalid: expected 0 < rtol < 1")
-    atol_f = _finite_number("atol", atol)
+    atol_f = positive("atol", atol)
     rhs_algorithm(chain, algorithm)  # validate before running
     solver = solver_named(method, rtol=rtol_f, atol=atol_f, algorithm=algorithm)
     if dt_s is not None:
         if solver.adaptive:
             raise ConfigError(f"dt_s = {dt_s!r} is invalid for method {method!r}: it chooses its "
                               "own steps (set rtol, atol), dt_s must be None")
-        dt_s = _finite_number("dt_s", dt_s)
+        dt_s = positive("dt_s", dt_s)
     if output_dt_s is not None:
-        output_dt_s = _finite_number("output_dt_s", output_dt_s)
+        output_dt_s = positive("output_dt_s", output_dt_s)
     if base is not None and not isinstance(base, BaseInput):
         raise ConfigError(f"base = {base!r} is invalid: expected a BaseInput or None")
     n = chain.n

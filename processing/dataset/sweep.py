@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from rig._check import integer, number
 from rig.errors import ConfigError
 
 __all__ = ["Sweep", "Parameter", "RunSpec", "load_sweep", "parse_sweep", "run_seed",
@@ -307,9 +308,8 @@ def parse_sweep(data: dict, *, base_dir: str | Path = ".", source: str = "sweep"
         raise ConfigError(f"random = {_short(rand_raw)} is invalid: expected a table")
     rand_raw = dict(rand_raw)
     count = rand_raw.pop("count", 1)
-    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-        raise ConfigError(f"random.count = {count!r} is invalid: expected an integer >= 1 (runs "
-                          "per grid point)")
+    count = integer("random.count", count, minimum=1,
+                    valid="an integer >= 1 (runs per grid point)")
     random = tuple(_random_parameter(k, v, base) for k, v in _flatten("random", rand_raw).items())
     keys = [p.key for p in grid] + [p.key for p in random]
     dup = sorted({k for k in keys if keys.count(k) > 1})
@@ -382,24 +382,18 @@ def _scene_key(where: str, key: str, base):
     return keys[name]
 
 
-def _number(where: str, v) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ConfigError(f"{where} = {v!r} is invalid: expected a finite number")
-    return float(v)
-
-
 def _check_value(where: str, spec, v) -> Any:
     """One axis value checked like the scene checks its key (:func:`rig.params.check_value`);
     a per-body key (``floats``) takes one number per run."""
     from rig.params import check_value
 
-    return _number(where, v) if spec.type in ("float", "floats") else check_value(where, spec, v)
+    return number(where, v) if spec.type in ("float", "floats") else check_value(where, spec, v)
 
 
 def _pair(where: str, v, *, positive: bool = False, ordered: bool = True) -> tuple:
     if not isinstance(v, list) or len(v) != 2:
         raise ConfigError(f"{where} = {_short(v)} is invalid: expected [low, high]")
-    lo, hi = (_number(where, x) for x in v)
+    lo, hi = (number(where, x) for x in v)
     if positive and not (lo > 0 and hi > 0):
         raise ConfigError(f"{where} = {_short(v)} is invalid: expected two values > 0 (log "
                           "scale)")
@@ -430,8 +424,7 @@ def _grid_parameter(key: str, v, base) -> Parameter:
         raise ConfigError(f"{where} = {_short(v)} is invalid: {kind} makes numbers but {key} "
                           f"is a {spec.type}; give a list of values")
     num = v.get("num")
-    if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-        raise ConfigError(f"{where}.num = {num!r} is invalid: expected an integer >= 1")
+    num = integer(f"{where}.num", num, minimum=1)
     lo, hi = _pair(f"{where}.{kind}", v[kind], positive=kind == "logspace", ordered=False)
     vals = np.linspace(lo, hi, num) if kind == "linspace" else np.geomspace(lo, hi, num)
     return Parameter(key, kind, values=tuple(float(x) for x in vals), args=(lo, hi, num))
@@ -457,7 +450,7 @@ def _random_parameter(key: str, v, base) -> Parameter:
         if not isinstance(v["normal"], list) or len(v["normal"]) != 2:
             raise ConfigError(f"{where}.normal = {_short(v['normal'])} is invalid: expected "
                               "[mean, std]")
-        mu, sigma = (_number(f"{where}.normal", x) for x in v["normal"])
+        mu, sigma = (number(f"{where}.normal", x) for x in v["normal"])
         if not sigma > 0:
             raise ConfigError(f"{where}.normal = {_short(v['normal'])} is invalid: expected a "
                               "std > 0")

@@ -69,6 +69,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from rig._check import number as _number
 from rig.errors import ConfigError
 from rig.params import param
 
@@ -79,21 +80,6 @@ KAISER_BETA = 8.6
 FRAME_FACTOR = 4  # FFT length of one overlap-save frame = FRAME_FACTOR * n_taps
 _DESIGN_OVERSAMPLE = 8
 _REL = 1e-9
-
-
-def _number(where: str, value, *, lo=None, hi=None, lo_open=False, hi_open=False,
-            valid: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}") from None
-    if isinstance(value, bool) or not math.isfinite(v):
-        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}")
-    if lo is not None and (v < lo or (lo_open and v == lo)):
-        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}")
-    if hi is not None and (v > hi or (hi_open and v == hi)):
-        raise ConfigError(f"{where} = {value!r} is invalid: expected {valid}")
-    return v
 
 
 def _whole_samples(where: str, duration_s: float, fs_hz: float) -> int:

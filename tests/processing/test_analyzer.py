@@ -255,8 +255,9 @@ def test_report_and_summary_say_what_was_compared(run):
     (dict(averaging="peak"), r"averaging = 'peak' is invalid for this analysis: peak hold"),
     (dict(lines=800), r"lines = 800, span_hz = None: give both"),
     (dict(lines=800, span_hz=10.0, nperseg=8000), r"nperseg = 8000 and lines = 800 both given"),
-    (dict(overlap=1.0), r"overlap = 1.0 is invalid: expected a finite number with 0.0 <= "
-                        r"overlap < 1.0"),
+    (dict(overlap=1.0), r"overlap = 1.0 is invalid: expected a finite number >= 0 and < 1$"),
+    (dict(span_hz=-1.0, lines=800), r"span_hz = -1.0 is invalid: expected a finite number >= 0$"),
+    (dict(nperseg=True), r"nperseg = True is invalid: expected an integer >= 2$"),
     (dict(fmin_hz=10.0, fmax_hz=1.0), r"fmin_hz = 10.0, fmax_hz = 1.0: expected fmin_hz < "),
     (dict(estimator="h3"), r"estimator = 'h3' is invalid: expected one of h1, h2, hv"),
     (dict(fit_methods=("exact",)), r"fit_methods = \('exact',\) is invalid"),

@@ -121,7 +121,7 @@ def test_windows_are_scipys_periodic_windows(window, n):
 
 
 def test_window_autocorrelation_by_fft_equals_the_direct_sum():
-    from processing.spectra import _autocorrelation
+    from processing.spectral_settings import _autocorrelation
 
     for window in WINDOWS:
         w = SpectralSettings(fs=FS, nperseg=1000, window=window).window_array

@@ -1,30 +1,15 @@
 """Free decay of the paper's pendulum reproduces the linear modes' Q (SPEC section 7, first hard
 case: Q1 ~ 530 over thousands of seconds; the integrator must not change Q)."""
 
-import math
-
 import numpy as np
 import pytest
 
-from rig.chain import G_STANDARD, Chain
 from rig.solvers import SOLVERS
 from rig.simulate import simulate
 
+from chains import paper_pendulum
+
 AMPLITUDE_RAD = 1e-6  # nonlinearity ~ theta^2 ~ 1e-12 relative
-
-
-def paper_pendulum():
-    """Ishizaki et al. (2009) double pendulum, Gamma from Q1 = 530, Q2 = 100 (SPEC section 4)."""
-    g = G_STANDARD
-    m1, m2 = 0.05313525166369857, 0.046864748336301436
-    l1 = r1 = 0.02899
-    r2, l2 = 0.000846, 0.075
-    j1, j2 = 3.320489853900383e-05, 1.4373560955150043e-05
-    i1, i2 = j1 + m1 * r1**2, j2 + m2 * r2**2
-    zeta1, zeta2 = 1 / (2 * 530), 1 / (2 * 100)
-    gamma1 = zeta1 * 2 * math.sqrt((i1 + m2 * l1**2) * (m1 * g * r1 + m2 * g * l1))
-    gamma2 = zeta2 * 2 * math.sqrt(i2 * m2 * g * r2)
-    return Chain((m1, m2), (l1, l2), (r1, r2), (j1, j2), (gamma1, gamma2), "absolute", g)
 
 
 def mode_start(chain, k):

@@ -2,26 +2,12 @@
 steady state under a held sine base acceleration is the FRF of Chain.frf_angles seen through the
 hold (SPEC sections 2 and 8)."""
 
-import math
-
 import numpy as np
 import pytest
 
-from rig.chain import G_STANDARD, Chain
 from rig.simulate import BaseInput, simulate
 
-
-def paper_pendulum():
-    """Ishizaki et al. (2009) double pendulum, Gamma from Q1 = 530, Q2 = 100 (SPEC section 4)."""
-    g = G_STANDARD
-    m1, m2 = 0.05313525166369857, 0.046864748336301436
-    l1 = r1 = 0.02899
-    r2, l2 = 0.000846, 0.075
-    j1, j2 = 3.320489853900383e-05, 1.4373560955150043e-05
-    i1, i2 = j1 + m1 * r1**2, j2 + m2 * r2**2
-    gamma1 = 2 / (2 * 530) * math.sqrt((i1 + m2 * l1**2) * (m1 * g * r1 + m2 * g * l1))
-    gamma2 = 2 / (2 * 100) * math.sqrt(i2 * m2 * g * r2)
-    return Chain((m1, m2), (l1, l2), (r1, r2), (j1, j2), (gamma1, gamma2), "absolute", g)
+from chains import paper_pendulum
 
 
 @pytest.fixture(scope="module")

@@ -7,35 +7,13 @@ import numpy as np
 import pytest
 
 from benchmarks.work_precision import paper_input, rel_rms_error
-from rig.solvers import SOLVERS, integrate, solver_named
+from rig.solvers import SOLVERS
 from rig.solvers._kernels import etd4m_kernel
 from rig.solvers.etd4m import etd4m_coefficients
-from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 
-from chains import blockwise_and_one_shot
-
-
-@pytest.fixture(scope="module")
-def paper():
-    return load_scene("ishizaki2009").chain
-
-
-@pytest.fixture(scope="module")
-def piece(paper):
-    """100 s of the paper's drive and fixed-step DOP853 at 2 steps per sample on it (every
-    0.01 s; within 1e-12 of 4 steps per sample, tests/rig/solvers/test_exponential.py)."""
-    base = paper_input(100.0)
-    ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10,
-                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
-    return base, ref
-
-
-def _run(chain, base, method, m, out_every, y0=(0.0, 0.0, 0.0, 0.0)):
-    return integrate(chain, solver_named(method).init(chain, y0), base.ax_mps2, base.ay_mps2,
-                     hold=base.hold, h_in=base.dt_s, n_intervals=base.n_intervals,
-                     out_every=out_every, solver=solver_named(method, samples_per_step=m))
+from chains import (assert_blocks_reproduce_one_shot, dop853_fixed, multisample_run,
+                    scalar_and_generic_rows, swinging_rods)
 
 
 def test_etd4m_is_registered_as_a_multisample_exponential_method_of_order_4():
@@ -51,8 +29,8 @@ def test_etd4m_error_on_the_papers_drive_is_below_etd3m_at_the_same_step(paper, 
     2.1e-7 at m = 10) and below 1e-7 at m = 10 (the 1e-6 target with a margin of 10 for the
     growth over the 3000 s run, measured 8.2e-8 there)."""
     base, ref = piece
-    e4 = rel_rms_error(_run(paper, base, "etd4m", m, 10).y_out[:, :2], ref[:, :2])
-    e3 = rel_rms_error(_run(paper, base, "etd3m", m, 10).y_out[:, :2], ref[:, :2])
+    e4 = rel_rms_error(multisample_run(paper, base, "etd4m", m, 10).y_out[:, :2], ref[:, :2])
+    e3 = rel_rms_error(multisample_run(paper, base, "etd3m", m, 10).y_out[:, :2], ref[:, :2])
     assert e4 * 4 < e3, (e4, e3)
     if m == 10:
         assert e4 < 1e-7, e4
@@ -64,7 +42,7 @@ def test_etd4m_error_falls_with_the_step_at_order_3_to_5(paper, piece):
     shorter step."""
     base, ref = piece
     ms = np.array([1, 2, 4, 5, 10, 20])
-    errors = np.array([rel_rms_error(_run(paper, base, "etd4m", m, 20).y_out[:, :2],
+    errors = np.array([rel_rms_error(multisample_run(paper, base, "etd4m", m, 20).y_out[:, :2],
                                      ref[::2, :2]) for m in ms])
     slope = np.polyfit(np.log(ms), np.log(errors), 1)[0]
     assert 3.0 <= slope <= 5.0, (errors, slope)
@@ -103,33 +81,24 @@ def test_etd4m_is_the_lifted_linear_method_when_the_motion_is_tiny(paper):
 def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
     """The n = 2 scalar kernel and the any-n kernel agree to round-off (1e-12 of the largest
     angle over 5 s; both holds, with a vertical input, m = 1, 5, 10)."""
-    ax = paper_input(5.001).ax_mps2
-    ay = 0.3 * ax[::-1].copy()
-    n_int, h = 5000, 1e-3
-    y0 = np.array([0.01, -0.02, 0.0, 0.1])
     for m in (1, 5, 10):
         for hold in ("zoh", "linear"):
-            run = integrate(paper, solver_named("etd4m").init(paper, y0), ax, ay, hold=hold, h_in=h,
-                            n_intervals=n_int, out_every=10,
-                            solver=solver_named("etd4m", samples_per_step=m))
-            co = etd4m_coefficients(paper, h, m, hold)
-            y = y0.copy()
-            y_out = np.empty((n_int // 10 + 1, 4))
-            etd4m_kernel(paper.H, paper.S, paper.C, paper.g_mps2, co.p, co.q, co.bw, co.phi,
-                         co.phic, co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, co.widths, ax, ay,
-                         1, m, n_int // m, 10 // m, y, y_out, np.zeros((3, 6)), False)
-            scale = np.abs(y_out[:, :2]).max()
-            np.testing.assert_allclose(run.y_out, y_out, rtol=0, atol=1e-12 * scale)
+            def kernel(ax, ay, h, n_int, y, y_out):
+                co = etd4m_coefficients(paper, h, m, hold)
+                etd4m_kernel(paper.H, paper.S, paper.C, paper.g_mps2, co.p, co.q, co.bw, co.phi,
+                             co.phic, co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, co.widths, ax,
+                             ay, 1, m, n_int // m, 10 // m, y, y_out, np.zeros((3, 6)), False)
+
+            generic, scalar = scalar_and_generic_rows(paper, "etd4m", m, hold, kernel)
+            scale = np.abs(scalar[:, :2]).max()
+            np.testing.assert_allclose(generic, scalar, rtol=0, atol=1e-12 * scale)
 
 
 def test_blockwise_etd4m_runs_reproduce_the_one_shot_run_bit_for_bit():
     """Blocks that end on output rows continue the three-stage predictor from the native
     state."""
-    joined, state, one = blockwise_and_one_shot(
-        [(0, 160), (160, 320), (320, 500)], method="etd4m", dt_s=0.02, output_dt_s=0.04,
-        estimate_error=False)
-    np.testing.assert_array_equal(joined, one.theta_rad)
-    np.testing.assert_array_equal(state.native, one.final_state.native)
+    assert_blocks_reproduce_one_shot([(0, 160), (160, 320), (320, 500)], method="etd4m",
+                                     dt_s=0.02, output_dt_s=0.04, estimate_error=False)
 
 
 def test_strongly_nonlinear_chain_converges_at_order_4_with_the_generic_kernel():
@@ -138,21 +107,10 @@ def test_strongly_nonlinear_chain_converges_at_order_4_with_the_generic_kernel()
     divides the error by 12 to 40 (order 4: 16; measured 25 and 22), and at every m the error is
     below etd3m's by at least 20 times at m = 1 and 2 and 5 times at m = 4 (measured 91, 33,
     9)."""
-    from chains import rod_chain
-
-    chain = rod_chain(3, damping=0.05)
-    rng = np.random.default_rng(4)
-    t = np.arange(2001) * 5e-3
-    ax = 0.5 * np.sin(2 * np.pi * 0.7 * t) + 0.05 * rng.standard_normal(t.size)
-    ay = 0.3 * np.cos(2 * np.pi * 0.4 * t)
-    base = BaseInput(ax, 5e-3, "linear", ay)
-    y0 = (0.3, -0.2, 0.1, 0.0, 0.0, 0.0)
-    ref = integrate(chain, np.array(y0), ax, ay, hold="linear", h_in=5e-3, n_intervals=2000,
-                    out_every=20,
-                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
-    e4 = [rel_rms_error(_run(chain, base, "etd4m", m, 20, y0).y_out[:, :3], ref)
+    chain, base, y0, ref = swinging_rods()
+    e4 = [rel_rms_error(multisample_run(chain, base, "etd4m", m, 20, y0).y_out[:, :3], ref)
           for m in (1, 2, 4)]
-    e3 = [rel_rms_error(_run(chain, base, "etd3m", m, 20, y0).y_out[:, :3], ref)
+    e3 = [rel_rms_error(multisample_run(chain, base, "etd3m", m, 20, y0).y_out[:, :3], ref)
           for m in (1, 2, 4)]
     assert 12 < e4[2] / e4[1] < 40 and 12 < e4[1] / e4[0] < 40, e4
     assert e3[0] > 20 * e4[0] and e3[1] > 20 * e4[1] and e3[2] > 5 * e4[2], (e3, e4)
@@ -166,9 +124,7 @@ def test_one_sample_per_step_estimates_against_a_tight_dop853_run(paper):
     tr = simulate(paper, 2.0, theta0=0.0, base=base, method="etd4m", dt_s=1e-3,
                   output_dt_s=0.01)
     assert "dop853 at rtol = 1e-12" in tr.error_method
-    ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10,
-                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
+    ref = dop853_fixed(paper, base, out_every=10)[:, :2]
     err = np.sqrt(np.mean((tr.theta_rad - ref) ** 2))
     est = np.sqrt(np.mean(tr.error_estimate_rad ** 2))
     assert 1 / 3 < err / est < 3, (err, est)

@@ -11,32 +11,10 @@ from rig.solvers import SOLVERS, integrate, solver_named
 from rig.solvers._kernels import etd3m_kernel
 from rig.solvers.etd3m import etd3m_coefficients
 from rig.solvers.exact import discretise, lift_linear
-from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 
-from chains import blockwise_and_one_shot, rod_chain
-
-
-@pytest.fixture(scope="module")
-def paper():
-    return load_scene("ishizaki2009").chain
-
-
-@pytest.fixture(scope="module")
-def piece(paper):
-    """100 s of the paper's drive and fixed-step DOP853 at 2 steps per sample on it (every
-    0.01 s; within 1e-12 of 4 steps per sample, tests/rig/solvers/test_exponential.py)."""
-    base = paper_input(100.0)
-    ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=10,
-                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out
-    return base, ref
-
-
-def _run(chain, base, m, out_every, y0=(0.0, 0.0, 0.0, 0.0)):
-    return integrate(chain, solver_named("etd3m").init(chain, y0), base.ax_mps2, base.ay_mps2,
-                     hold=base.hold, h_in=base.dt_s, n_intervals=base.n_intervals,
-                     out_every=out_every, solver=solver_named("etd3m", samples_per_step=m))
+from chains import (assert_blocks_reproduce_one_shot, dop853_fixed, multisample_run,
+                    rod_chain, scalar_and_generic_rows, swinging_rods)
 
 
 def test_etd3m_order_from_a_step_halving_sequence(paper):
@@ -45,11 +23,10 @@ def test_etd3m_order_from_a_step_halving_sequence(paper):
     5.6, 4.2, 4.0 while the motion is still building up; on 100 s 3.4, the pairs 3.0, 3.5,
     3.8)."""
     base = paper_input(20.0)
-    ref = integrate(paper, np.zeros(4), base.ax_mps2, None, hold="zoh", h_in=base.dt_s,
-                    n_intervals=base.n_intervals, out_every=16,
-                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :2]
+    ref = dop853_fixed(paper, base, out_every=16)[:, :2]
     ms = np.array([2, 4, 8, 16])
-    errors = np.array([rel_rms_error(_run(paper, base, m, 16).y_out[:, :2], ref) for m in ms])
+    errors = np.array([rel_rms_error(multisample_run(paper, base, "etd3m", m, 16).y_out[:, :2],
+                                     ref) for m in ms])
     slope = np.polyfit(np.log(ms), np.log(errors), 1)[0]
     assert SOLVERS["etd3m"].order == 3
     assert 3.0 <= slope <= 5.0, (errors, slope)
@@ -121,22 +98,17 @@ def test_weights_sum_to_the_lifted_linear_taps(paper):
 def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
     """The n = 2 scalar kernel and the any-n kernel agree to round-off (1e-12 of the largest
     angle over 5 s, both holds, with a vertical input)."""
-    ax = paper_input(5.001).ax_mps2
-    ay = 0.3 * ax[::-1].copy()
-    n_int, m, h = 5000, 5, 1e-3
-    y0 = np.array([0.01, -0.02, 0.0, 0.1])
+    m = 5
     for hold in ("zoh", "linear"):
-        run = integrate(paper, solver_named("etd3m").init(paper, y0), ax, ay, hold=hold, h_in=h,
-                        n_intervals=n_int, out_every=10,
-                        solver=solver_named("etd3m", samples_per_step=m))
-        co = etd3m_coefficients(paper, h, m, hold)
-        y = y0.copy()
-        y_out = np.empty((n_int // 10 + 1, 4))
-        etd3m_kernel(paper.H, paper.S, paper.C, paper.g_mps2, co.p, co.q, co.bw, co.phi,
-                     co.phic, co.wt, co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths, ax, ay, 1,
-                     m, n_int // m, 10 // m, y, y_out, np.zeros((2, 6)), False)
-        scale = np.abs(y_out[:, :2]).max()
-        np.testing.assert_allclose(run.y_out, y_out, rtol=0, atol=1e-12 * scale)
+        def kernel(ax, ay, h, n_int, y, y_out):
+            co = etd3m_coefficients(paper, h, m, hold)
+            etd3m_kernel(paper.H, paper.S, paper.C, paper.g_mps2, co.p, co.q, co.bw, co.phi,
+                         co.phic, co.wt, co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths, ax, ay, 1,
+                         m, n_int // m, 10 // m, y, y_out, np.zeros((2, 6)), False)
+
+        generic, scalar = scalar_and_generic_rows(paper, "etd3m", m, hold, kernel)
+        scale = np.abs(scalar[:, :2]).max()
+        np.testing.assert_allclose(generic, scalar, rtol=0, atol=1e-12 * scale)
 
 
 def test_linear_hold_and_vertical_input_track_etd3_and_converge():
@@ -144,32 +116,21 @@ def test_linear_hold_and_vertical_input_track_etd3_and_converge():
     input at 200 Hz, against fixed-step DOP853: m = 1 has etd3's error to 1 % (measured 5.3e-5;
     this motion is strongly nonlinear), and halving the step from m = 4 to m = 2 and from m = 2
     to m = 1 divides the error by 6 to 20 (order 3: 8; measured 7.0 and 7.9)."""
-    chain = rod_chain(3, damping=0.05)
-    rng = np.random.default_rng(4)
-    t = np.arange(2001) * 5e-3
-    ax = 0.5 * np.sin(2 * np.pi * 0.7 * t) + 0.05 * rng.standard_normal(t.size)
-    ay = 0.3 * np.cos(2 * np.pi * 0.4 * t)
-    base = BaseInput(ax, 5e-3, "linear", ay)
-    y0 = (0.3, -0.2, 0.1, 0.0, 0.0, 0.0)
-    ref = integrate(chain, np.array(y0), ax, ay, hold="linear", h_in=5e-3, n_intervals=2000,
-                    out_every=20,
-                    solver=solver_named("dop853", substeps=2, adaptive_steps=False)).y_out[:, :3]
-    etd = integrate(chain, solver_named("etd3").init(chain, y0), ax, ay, hold="linear", h_in=5e-3,
-                    n_intervals=2000, out_every=20, solver=solver_named("etd3")).y_out[:, :3]
+    chain, base, y0, ref = swinging_rods()
+    etd = integrate(chain, solver_named("etd3").init(chain, y0), base.ax_mps2, base.ay_mps2,
+                    hold="linear", h_in=5e-3, n_intervals=2000, out_every=20,
+                    solver=solver_named("etd3")).y_out[:, :3]
     e_etd = rel_rms_error(etd, ref)
-    e1, e2, e4 = (rel_rms_error(_run(chain, base, m, 20, y0).y_out[:, :3], ref)
-                  for m in (1, 2, 4))
+    e1, e2, e4 = (rel_rms_error(multisample_run(chain, base, "etd3m", m, 20, y0).y_out[:, :3],
+                                ref) for m in (1, 2, 4))
     assert abs(e1 / e_etd - 1) < 0.01, (e1, e_etd)
     assert 6 < e4 / e2 < 20 and 6 < e2 / e1 < 20, (e1, e2, e4)
 
 
 def test_blockwise_etd3m_runs_reproduce_the_one_shot_run_bit_for_bit():
     """Blocks that end on output rows continue the predictor from the native state."""
-    joined, state, one = blockwise_and_one_shot(
-        [(0, 160), (160, 320), (320, 500)], method="etd3m", dt_s=0.02, output_dt_s=0.04,
-        estimate_error=False)
-    np.testing.assert_array_equal(joined, one.theta_rad)
-    np.testing.assert_array_equal(state.native, one.final_state.native)
+    assert_blocks_reproduce_one_shot([(0, 160), (160, 320), (320, 500)], method="etd3m",
+                                     dt_s=0.02, output_dt_s=0.04, estimate_error=False)
 
 
 def test_etd3m_divergence_raises_with_time_and_last_finite_state():

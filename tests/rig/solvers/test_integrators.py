@@ -13,7 +13,7 @@ from rig.solvers.exact import discretise
 from rig.solvers.rhs import rhs
 from rig.simulate import BaseInput, simulate
 
-from chains import random_chain, rod_chain
+from chains import paper_pendulum, random_chain, rod_chain
 
 EPS = np.finfo(float).eps
 
@@ -169,7 +169,7 @@ def test_dop853_estimate_is_honest_when_the_sample_grid_sets_the_step(dt_s):
     rtol = 1e-8, so the steps are set by the sample grid, not by the tolerance; the estimate (which
     also takes >= 2 steps per interval) still matches the true error (against fixed steps of
     dt/8) within a factor 2, instead of reporting zero."""
-    chain = _paper_pendulum()
+    chain = paper_pendulum()
     n = round(20.0 / dt_s)
     base = BaseInput(0.05 * np.random.default_rng(1).standard_normal(n), dt_s)
     tr = simulate(chain, 20.0, theta0=0.0, base=base, method="dop853", rtol=1e-8,
@@ -253,24 +253,12 @@ def test_linear_method_is_exact_for_a_linearly_held_ramp():
     np.testing.assert_allclose(tr.omega_rad_s[:, 0], omega, rtol=0, atol=1e-12 * scale * w0)
 
 
-def _paper_pendulum():
-    g = G_STANDARD
-    m1, m2 = 0.05313525166369857, 0.046864748336301436
-    l1 = r1 = 0.02899
-    r2, l2 = 0.000846, 0.075
-    j1, j2 = 3.320489853900383e-05, 1.4373560955150043e-05
-    i1, i2 = j1 + m1 * r1**2, j2 + m2 * r2**2
-    g1 = 2 / (2 * 530) * math.sqrt((i1 + m2 * l1**2) * (m1 * g * r1 + m2 * g * l1))
-    g2 = 2 / (2 * 100) * math.sqrt(i2 * m2 * g * r2)
-    return Chain((m1, m2), (l1, l2), (r1, r2), (j1, j2), (g1, g2), "absolute", g)
-
-
 @pytest.mark.parametrize("hold", ["zoh", "linear"])
 def test_linear_method_gives_the_same_answer_at_half_the_step(hold):
     """The held input resampled at dt/2 (zoh: each sample twice; linear: midpoints added) is the
     same continuous signal, so the exact method must give the same trajectory at the common
     instants, to round-off (2000 steps: 1e-12 of the largest angle)."""
-    chain = _paper_pendulum()
+    chain = paper_pendulum()
     ax = 0.05 * np.random.default_rng(7).standard_normal(1001)
     dt = 0.01
     if hold == "zoh":
@@ -291,7 +279,7 @@ def test_linear_method_gives_the_same_answer_at_half_the_step(hold):
 def test_van_loan_discretisation_matches_its_integral_definition():
     """Phi = e^{Ah}, Gamma0 = int_0^h e^{Ar} dr B, Gamma1 = int_0^h e^{A(h-r)} B r/h dr, checked by
     Gauss-Legendre quadrature (40 nodes: exact to round-off for these smooth integrands)."""
-    a, b = _paper_pendulum().state_space()
+    a, b = paper_pendulum().state_space()
     h = 0.05
     phi, g0, g1 = discretise(a, b, h, "linear")
     x, w = np.polynomial.legendre.leggauss(40)

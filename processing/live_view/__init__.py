@@ -1,0 +1,71 @@
+"""The live view in rerun: watch the bench while it runs, replay a run file, show free motion.
+
+This is the only package that imports rerun (``rerun-sdk`` 0.41), and nothing imports it unless a
+live option is used. It consumes the acquisition stream (:class:`daq.sinks.Sink`) like a
+plot consumes an analysis, which is why it lives in ``processing``: the analyzer's screen needs
+the running average (:mod:`processing.running_average`), and ``daq`` must not import
+``processing`` (the CLI composes them).
+
+What is shown (:func:`acquisition_blueprint` lays it out)
+--------------------------------------------------------
+- ``/bench``: the bench in a 2D side view [mm], sizes to scale, motions magnified (the factor is
+  written in the view): the stage moving on its rail (``/bench/stage``, a translation), and on
+  it ``pendulum`` (line strips: the bodies, the mirror's face, the laser beam) and ``marks``
+  (points: the pivots, the centres of mass), each styled instance by instance; the laser and the
+  PSD (:mod:`processing.bench_geometry`); about 33 frames per simulated second;
+- ``/psd``: the 12 mm detector to scale with the spot and its last 2 s as a trail;
+- ``/signals``: the channels a, x, y in engineering units (m/s^2, m, rad), one series each, in a
+  20 s window that follows the run, one view per channel showing its series; ``/volts``: the
+  same samples as ADC volts (a tab);
+- ``/analyzer``: after every record, the running averaged H_t and Theta_2 (gain [dB] and phase
+  [deg]) over the exact model stored in the run and the expected estimate E[H1], and the
+  coherences, on a drawn log-frequency axis (:mod:`processing.bode_canvas`);
+- ``/status``: record k of N, clipped and saturated samples, the model in use and why, the seed.
+
+Cost: each entity costs a send and a time column per record, whatever it holds, hence few
+entities (the channels as one entity per unit system, the moving parts as two). With a viewer
+the columns go out once per block and entity; with only a file, the blocks of a record are held
+and drawn at its end, as one (one send per record and entity); the analyzer curves once per
+record. The sends run on a worker thread beside the acquisition. ``BENCHMARKS.md`` has the
+figures.
+
+Sinks: a spawned viewer (``spawn``, with an explicit memory limit), a running viewer
+(``connect``), an ``.rrd`` file (``rrd``), any combination. A viewer that cannot be spawned,
+refuses the connection or goes away gives one warning (:class:`LiveViewWarning`) and the run goes
+on: the file sink, if any, keeps everything. ``.rrd`` files are written under a temporary name
+and renamed when the stream ends (also when interrupted); an existing file is replaced only with
+``force``.
+
+Rooms
+-----
+- ``stream``: the recording stream to its sinks (:class:`ViewerStream`, :class:`ViewerOptions`),
+  the sends in order on a worker thread, the columnar sends;
+- ``drawing``: what is drawn (the entities and colours, the bench, the moving parts, the
+  analyzer's panels);
+- ``sink``: the acquisition stream into rerun (:class:`LiveView`);
+- ``blueprint``: the layout (:func:`acquisition_blueprint`);
+- ``replay``: a run file replayed (:func:`replay`), free motion shown (:func:`show_trajectory`);
+- ``screenshot``: a recording rendered into a PNG without a window (:func:`screenshot`).
+
+Their public names are re-exported here: ``from processing.live_view import LiveView``.
+"""
+
+import os
+
+# rerun's native log lines would repeat what the live view's single warning says
+# (LiveViewWarning); set before any room of this package imports rerun
+os.environ.setdefault("RUST_LOG", "off")
+
+from processing.bench_geometry import MAGNIFICATION, BenchDrawing  # noqa: E402
+from processing.live_view.blueprint import acquisition_blueprint  # noqa: E402
+from processing.live_view.replay import replay, show_trajectory  # noqa: E402
+from processing.live_view.screenshot import (recording_summary, screenshot,  # noqa: E402
+                                             screenshot_command)
+from processing.live_view.sink import LiveView  # noqa: E402
+from processing.live_view.stream import (MEMORY_LIMIT, TIMELINE, LiveViewError,  # noqa: E402
+                                         LiveViewWarning, ViewerOptions, ViewerStream,
+                                         _listening, viewer_executable)
+
+__all__ = ["ViewerOptions", "ViewerStream", "LiveView", "LiveViewWarning", "LiveViewError",
+           "acquisition_blueprint", "replay", "show_trajectory", "screenshot",
+           "screenshot_command", "recording_summary", "viewer_executable"]

@@ -1,0 +1,76 @@
+"""The layout of the live view (rerun blueprints): bench, PSD and status on the left, the
+signals in the middle, the analyzer on the right; the time panel follows the newest data."""
+
+from __future__ import annotations
+
+import rerun as rr
+import rerun.blueprint as rrb
+
+from processing.live_view.drawing import SIGNALS, VOLTS, _bench_bounds
+from processing.live_view.stream import TIMELINE
+
+SIGNAL_WINDOW_S = 20.0
+TRAIL_S = 2.0
+
+
+def _following(seconds: float) -> rrb.VisibleTimeRange:
+    return rrb.VisibleTimeRange(TIMELINE,
+                                start=rrb.TimeRangeBoundary.cursor_relative(seconds=-seconds),
+                                end=rrb.TimeRangeBoundary.cursor_relative())
+
+
+def _series(entity: str, names, header) -> list:
+    """One view per channel of ``entity`` (one series per channel): that channel's series shown,
+    the others hidden; the view's title names it (no legend: it would list the hidden ones)."""
+    views = []
+    for i, c in enumerate(names):
+        ch = header.channel(c)
+        title = (f"{c} [V] (ADC +-{ch.range_v:g} V)" if entity == VOLTS
+                 else f"{c}: {ch.quantity} [{ch.unit}]")
+        shown = rr.SeriesLines.from_fields(visible_series=[j == i for j in range(len(names))])
+        views.append(rrb.TimeSeriesView(origin=entity, name=title, overrides={entity: shown},
+                                        plot_legend=rrb.PlotLegend(visible=False),
+                                        time_ranges=_following(SIGNAL_WINDOW_S)))
+    return views
+
+
+def acquisition_blueprint(view) -> rrb.Blueprint:
+    """The layout of a run (the package docstring) for a started ``view``
+    (:class:`~processing.live_view.sink.LiveView`): bench, PSD and status on the left, the
+    signals in the middle, the analyzer on the right; the time panel follows the newest data."""
+    h = view.header
+    left = [rrb.Spatial2DView(origin="/bench", name="bench (side view, mm)",
+                              visual_bounds=_bench_bounds(view.drawing, True))]
+    if view.has_spot:
+        hh = view.drawing.psd_half_mm * 1.25
+        left.append(rrb.Spatial2DView(origin="/psd", name=f"PSD spot (last {TRAIL_S:g} s)",
+                                      visual_bounds=rrb.VisualBounds2D(
+                                          x_range=(-hh, hh), y_range=(-hh, 1.35 * hh)),
+                                      time_ranges=_following(TRAIL_S)))
+    left.append(rrb.TextDocumentView(origin="/status", name="status"))
+    middle = rrb.Tabs(rrb.Vertical(*_series(SIGNALS, view.names, h),
+                                   name="signals (engineering units)"),
+                      rrb.Vertical(*_series(VOLTS, view.names, h), name="ADC volts"),
+                      active_tab=0)
+    cols = [rrb.Vertical(*left, row_shares=[3, 2, 2][:len(left)]), middle]
+    shares = [1.0, 1.0]
+    if view.panels is not None:
+        w = view.panels["coherence"][0].width
+        bounds = rrb.VisualBounds2D(x_range=(-16, w + 50), y_range=(-4, 124))
+        key_units = {"H_t": "m/(m/s^2)", "Theta_2": "rad/(m/s^2)"}
+        names = {k: f"analyzer: {k} = {'x' if k == 'H_t' else 'y'}/a averaged after each record:"
+                    f" gain [dB re 1 {u}], phase [deg]" for k, u in key_units.items()}
+        cols.append(rrb.Vertical(
+            rrb.Spatial2DView(origin="/analyzer/H_t", name=names["H_t"], visual_bounds=bounds),
+            rrb.Spatial2DView(origin="/analyzer/Theta_2", name=names["Theta_2"],
+                              visual_bounds=bounds),
+            rrb.Spatial2DView(origin="/analyzer/coherence",
+                              name="coherence gamma^2 of x (H_t) and y (Theta_2)",
+                              visual_bounds=rrb.VisualBounds2D(x_range=(-16, w + 50),
+                                                               y_range=(-4, 40))),
+            row_shares=[3, 3, 1.3]))
+        shares.append(1.5)
+    return rrb.Blueprint(rrb.Horizontal(*cols, column_shares=shares),
+                         rrb.TimePanel(timeline=TIMELINE, play_state="following",
+                                       state="collapsed"),
+                         collapse_panels=True)

@@ -1,0 +1,144 @@
+"""What the live view draws: the entities and their colours, the bench's static parts, the
+moving parts (the pendulum as line strips, its pivots and centres of mass as points) and the
+analyzer's panels on a drawn log-frequency axis (:mod:`processing.bode_canvas`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from processing import bode_canvas as bc
+from processing.bench_geometry import BenchDrawing
+from processing.live_view.stream import ViewerStream
+
+#: The channels in engineering units and in ADC volts: one entity each, one series per channel
+SIGNALS, VOLTS = "/signals", "/volts"
+CHANNEL_COLORS = {"a": (230, 159, 0), "x": (86, 180, 233), "y": (0, 158, 115)}
+MEASURED, MODEL, EXPECTED = (255, 200, 60), (90, 160, 255), (200, 120, 255)
+
+_FRAME_COLOR = (150, 150, 150)
+_BODY_COLORS = [(255, 170, 40), (255, 90, 40), (230, 60, 120), (160, 90, 230)]
+
+
+def _bench_layout(d: BenchDrawing) -> dict:
+    """Static positions of the stage frame, rail, laser and PSD in the side view [mm]."""
+    reach = d.reach_mm
+    w = max(40.0, 0.6 * reach)
+    floor = reach + 0.25 * reach + 10.0
+    return {"reach": reach, "half_width": w, "floor": floor,
+            "laser": (w * 0.95, d.reach_mm * 0.25), "psd": (w * 0.95, d.reach_mm * 0.75)}
+
+
+def _log_bench_static(s: ViewerStream, d: BenchDrawing, *, moving_stage: bool,
+                      optics: bool) -> None:
+    lay = _bench_layout(d)
+    w, floor = lay["half_width"], lay["floor"]
+    top = -0.15 * lay["reach"] - 5.0
+    frame = [np.array([[-w, floor], [-w, top], [w, top], [w, floor]]),  # posts and top beam
+             np.array([[-0.2 * w, top], [0, 0], [0.2 * w, top]]),  # hanger to the top pivot
+             np.array([[-w - 8, floor], [w + 8, floor], [w + 8, floor + 6], [-w - 8, floor + 6],
+                       [-w - 8, floor]])]  # the stage's table
+    s.static("/bench/stage/frame", rr.LineStrips2D(frame, colors=_FRAME_COLOR, radii=0.6))
+    rail_y = floor + 9
+    span = w * (2.6 if moving_stage else 1.3)
+    s.static("/bench/rail", rr.LineStrips2D([np.array([[-span, rail_y], [span, rail_y]])],
+                                            colors=(90, 90, 90), radii=1.0))
+    if optics:
+        lx, ly = lay["laser"]
+        px, py = lay["psd"]
+        s.static("/bench/stage/optics", rr.Boxes2D(
+            centers=[(lx, ly), (px, py)], half_sizes=[(4, 3), (2, d.psd_half_mm or 6)],
+            colors=[(220, 50, 50), (120, 200, 120)], labels=["laser", "PSD"],
+            show_labels=True))
+    note = (f"side view, sizes to scale; angles x{d.magnification:g}, stage travel "
+            f"x{d.stage_magnification:g}" if moving_stage else "side view, to scale")
+    s.static("/bench/note", rr.Points2D([(0.0, top - 0.12 * lay["reach"] - 4)], radii=0.0,
+                                        labels=[note], show_labels=True,
+                                        colors=(220, 220, 220)))
+    bar = 10.0 if lay["reach"] < 300 else 10 ** np.floor(np.log10(lay["reach"] / 2))
+    y = floor - 0.15 * lay["reach"]
+    s.static("/bench/scale", rr.LineStrips2D([np.array([[-0.9 * w, y], [-0.9 * w + bar, y]])],
+                                             colors=(220, 220, 220), radii=0.8,
+                                             labels=[f"{bar:g} mm"], show_labels=True))
+
+
+def _bench_bounds(d: BenchDrawing, moving_stage: bool) -> rrb.VisualBounds2D:
+    lay = _bench_layout(d)
+    w, r = lay["half_width"] * (1.7 if moving_stage else 1.2), lay["reach"]
+    return rrb.VisualBounds2D(x_range=(-w, w), y_range=(-0.45 * r - 15, lay["floor"] + 30))
+
+
+# the moving parts go out as two entities, whatever the number of bodies (each entity costs a
+# send and a time column per record): ``pendulum``, line strips [the bodies, the mirror's face,
+# (the laser beam)]; ``marks``, points [the pivots, the centres of mass]. Their colours and
+# radii are logged once, instance by instance (:func:`_log_chain_style`).
+PENDULUM, MARKS = "/bench/stage/pendulum", "/bench/stage/marks"
+_PIVOT_COLOR, _COM_COLOR = (255, 255, 255), (255, 90, 40)
+_MIRROR_COLOR, _BEAM_COLOR = (190, 230, 255), (255, 60, 60)
+
+
+def _chain_frames(d: BenchDrawing, theta: np.ndarray):
+    """The pendulum at frames of the angles ``theta`` (frames, n) [rad], drawn [mm]: the line
+    strips (frames, n + 3, 2) of the bodies (n + 1 joints) and the mirror's face (2 points),
+    their lengths (n + 1, 2), the marks (frames, 2 n, 2): n pivots then n centres of mass, and
+    the mirror's centres (frames, 2)."""
+    joints = d.joints(theta)
+    centre, face = d.mirror(theta, joints, half_mm=max(3.0, 0.12 * d.reach_mm))
+    lines = np.concatenate([joints, face], axis=1)
+    marks = np.concatenate([joints[:, :-1], d.centres_of_mass(theta, joints)], axis=1)
+    return lines, (joints.shape[1], 2), marks, centre
+
+
+def _log_chain_style(s: ViewerStream, n: int, *, body: float = 1.2, pivot: float = 1.4,
+                     com: float = 1.0, mirror: float = 1.5, beam: float = 0.4) -> None:
+    """Colours and radii [mm] of the strips of :data:`PENDULUM` and the points of
+    :data:`MARKS`, per instance (the order of :func:`_chain_frames`)."""
+    s.static(PENDULUM, rr.LineStrips2D.from_fields(
+        colors=[_BODY_COLORS[0], _MIRROR_COLOR, _BEAM_COLOR], radii=[body, mirror, beam]))
+    s.static(MARKS, rr.Points2D.from_fields(colors=[_PIVOT_COLOR] * n + [_COM_COLOR] * n,
+                                            radii=[pivot] * n + [com] * n))
+
+
+def _analyzer_panels(freqs, model_db, expected_db):
+    """The panels of H_t / Theta_2 (gain, phase) and coherence on a common frequency range."""
+    fmin, fmax = float(freqs[0]), float(freqs[-1])
+    out = {}
+    for key in ("H_t", "Theta_2"):
+        lo, hi = bc.db_range(model_db[key], expected_db.get(key, []), step=20.0)
+        lo = max(lo, hi - 120.0)  # an anti-resonance's notch need not set the scale
+        gain = bc.Panel(fmin, fmax, lo, hi, bc.ticks(lo, hi, 20.0), "dB", 0.0, 62.0, "")
+        phase = bc.Panel(fmin, fmax, -180.0, 180.0, bc.ticks(-180, 180, 180), "deg", 74.0,
+                         36.0, "")
+        out[key] = (gain, phase)
+    out["coherence"] = (bc.Panel(fmin, fmax, 0.0, 1.0, bc.ticks(0, 1, 0.5), "", 0.0, 30.0,
+                                 ""),)
+    return out
+
+
+def _db(h) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 20.0 * np.log10(np.abs(h))
+
+
+def _deg(h) -> np.ndarray:
+    return np.degrees(np.angle(h))
+
+
+def _log_panel_static(s: ViewerStream, entity: str, panels) -> None:
+    grid, pos, text = [], [], []
+    for i, p in enumerate(panels):
+        grid += p.grid()
+        q, t = p.labels(decades=i == len(panels) - 1)
+        pos += list(q)
+        text += t
+        if p.title:
+            pos.append((0.0, p.top - 4.0))
+            text.append(p.title)
+    s.static(f"{entity}/grid", rr.LineStrips2D(grid, colors=(70, 70, 70), radii=0.12))
+    s.static(f"{entity}/labels", rr.Points2D(pos, radii=0.0, labels=text, show_labels=True,
+                                             colors=(200, 200, 200)))
+
+
+def _bode_strips(gain: bc.Panel, phase: bc.Panel, f, h) -> list:
+    return gain.curve(f, _db(h)) + phase.curve(f, _deg(h), wrap=360.0)
