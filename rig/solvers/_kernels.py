@@ -2275,7 +2275,7 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     last step's stages, which the native state carries (so a next block with a vertical input
     continues as from :func:`etd4m_kernel2`). Every other number is formed by the same
     operations in the same order, without the terms that are exactly zero there: the result
-    equals :func:`etd4m_kernel2`'s with ``sa`` = 0 (tests/rig/solvers/test_etd4m.py)."""
+    equals :func:`etd4m_kernel2`'s with ``sa`` = 0 (tests/rig/solvers/test_etd4m_horizontal.py)."""
     nw = 8
     acc = np.empty(6 * nw)
     phi3 = phi.reshape((1, 4, 4))
@@ -2315,12 +2315,12 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
                                         d00, d01, d10, d11)
         sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
         sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
-        a00, a01, a10, a11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0, cp0, sp1,
-                                       cp1)
-        b00, b01, b10, b11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0, cq0, sq1,
-                                       cq1)
-        d00, d01, d10, d11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, r0, r1, r2, r3, sr0, cr0, sr1,
-                                       cr1)
+        a00, a01, a10, a11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0, cp0,
+                                             sp1, cp1)
+        b00, b01, b10, b11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0, cq0,
+                                             sq1, cq1)
+        d00, d01, d10, d11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, r0, r1, r2, r3, sr0, cr0,
+                                             sr1, cr1)
         nev += 3
         n0 = ((_etd4m_row2h(phi3, 0, 0, z0, z1, z2, z3, acc, 0, bw0 + a10, bw1 + a11)
                + (wq[0, 0, 0] * a00 + wq[0, 0, 1] * a01))
