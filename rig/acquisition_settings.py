@@ -86,11 +86,11 @@ class AcquisitionSettings:
     model: str = param("auto", "pendulum model simulated: 'auto' picks the cheapest that "
                        "meets error_budget (exact linear where the predicted linearisation error "
                        "is inside it, else nonlinear); 'linear' or 'nonlinear' force one "
-                       "(rig/bench.py)", choices=("auto", "linear", "nonlinear"))
+                       "(rig.bench)", choices=("auto", "linear", "nonlinear"))
     error_budget: float = param(1e-2, "allowed relative RMS error of the simulated angles "
                                 "over the records (max over the bodies), > 0; decides model = "
                                 "'auto' and is checked for a forced model (the paper's default "
-                                "drive: the linear model is predicted 0.5 % off, rig/bench.py)")
+                                "drive: the linear model is predicted 0.5 % off, rig.bench)")
     truth: bool = param(True, "store the ground truth beside the channels")
 
     def __post_init__(self):

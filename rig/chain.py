@@ -28,7 +28,7 @@ import scipy.linalg
 
 from rig.errors import ConfigError
 from rig._jit import njit
-from rig.solvers._kernels import _cholesky_solve
+from rig.solvers._kernels import _cholesky_solve, _rhs_rec
 
 G_STANDARD = 9.80665  # m/s^2
 DAMPING_MODES = ("absolute", "relative")
@@ -179,27 +179,34 @@ class Chain:
             accel_kernel(self.H, self.S, self.C, self.g_mps2, th, om, float(ax), float(ay), out,
                          work)
         elif algorithm == "recursive":
-            accel_recursive_kernel(*self.recursive_arrays(), th, om, float(ax), float(ay), out,
-                                   np.empty((self.n, 8)))
+            out[:] = self._recursive(th, om, ax, ay)[0]
         else:
             raise ConfigError(f"algorithm = {algorithm!r} is invalid: expected 'dense' or "
                               "'recursive'")
         return out
 
-    def recursive_arrays(self) -> tuple:
-        """Arguments of :func:`accel_recursive_kernel` before the state: (mass, length, com,
-        inertia, gamma, relative, g)."""
-        return (np.asarray(self.mass_kg), np.asarray(self.length_m), np.asarray(self.com_m),
-                np.asarray(self.inertia_kgm2), np.asarray(self.damping_nms),
-                self.damping_mode == "relative", self.g_mps2)
+    def body_table(self) -> np.ndarray:
+        """The (6, n) body table of the O(n) recursion (:func:`rig.solvers._kernels._rhs_rec`):
+        rows mass, length, com, inertia, damping and the relative-damping flag (1.0 or 0.0)."""
+        out = np.empty((6, self.n))
+        out[0], out[1], out[2], out[3], out[4] = (self.mass_kg, self.length_m, self.com_m,
+                                                  self.inertia_kgm2, self.damping_nms)
+        out[5] = 1.0 if self.damping_mode == "relative" else 0.0
+        return out
+
+    def _recursive(self, theta, omega, ax, ay) -> tuple[np.ndarray, float]:
+        """(th'', the horizontal force on the base) by the solvers' O(n) recursion."""
+        n = self.n
+        y = np.concatenate([np.asarray(theta, float), np.asarray(omega, float)])
+        f = np.empty((1, 2 * n))
+        force = _rhs_rec(self.body_table(), self.g_mps2, y, float(ax), float(ay), f, 0,
+                         np.empty((n, 6)))
+        return f[0, n:], float(force)
 
     def base_force(self, theta, omega, ax=0.0, ay=0.0) -> float:
         """Horizontal force the chain exerts on its base [N] (the reaction a stage feels), for
         the state and base accelerations given (O(n) recursion)."""
-        out = np.empty(self.n)
-        return accel_recursive_kernel(*self.recursive_arrays(), np.asarray(theta, float),
-                                      np.asarray(omega, float), float(ax), float(ay), out,
-                                      np.empty((self.n, 8)))
+        return self._recursive(theta, omega, ax, ay)[1]
 
     def energy(self, theta, omega) -> np.ndarray:
         """Total mechanical energy in the base frame [J]: 1/2 w^T M w - g sum S_j cos th_j.
@@ -361,83 +368,3 @@ def energy_kernel(hc, s, g, theta, omega, out):
             for k in range(j + 1, n):
                 e += hc[j, k] * math.cos(theta[t, j] - theta[t, k]) * omega[t, j] * omega[t, k]
         out[t] = e
-
-
-@njit(cache=True)
-def accel_recursive_kernel(mass, length, com, inertia, gamma, relative, g, theta, omega, ax, ay,
-                           out, work):
-    """th'' of the nonlinear chain in O(n) operations (articulated-body recursion), into ``out``.
-
-    The same equations as :func:`accel_kernel`, solved by eliminating the joint forces from the tip
-    up. For body j with upper joint P, unit vectors e = (sin th, -cos th) along and
-    n = (cos th, sin th) across it, the force the parent exerts on it at P is
-    ``F = A_j a_P + b_j`` (2x2 articulated inertia A_j, bias b_j), and
-    ``alpha_j = -(w_j . a_P + beta_j) / d_j``; a forward pass from the base (a_P0 = 0 in the base
-    frame, where the base acceleration is a uniform inertial force) gives every alpha_j.
-
-    ``gamma`` are the damping coefficients, ``relative`` selects joint (True) or absolute damping.
-    ``work`` is scratch of shape (n, 8). Also returns the horizontal force the chain exerts on the
-    base [N] (= -F_x at the top joint), for a stage that feels the pendulum's reaction.
-    """
-    n = theta.shape[0]
-    gx = -ax
-    gy = -(g + ay)
-    # backward pass: a11, a12, a22, b1, b2 of the child (articulated inertia, bias)
-    c11 = 0.0
-    c12 = 0.0
-    c22 = 0.0
-    cb1 = 0.0
-    cb2 = 0.0
-    for j in range(n - 1, -1, -1):
-        st = math.sin(theta[j])
-        ct = math.cos(theta[j])
-        ex, ey = st, -ct
-        nx, ny = ct, st
-        m = mass[j]
-        l = length[j]
-        c = com[j]
-        w2 = omega[j] * omega[j]
-        if relative:
-            tau = -gamma[j] * (omega[j] - (omega[j - 1] if j > 0 else 0.0))
-            if j + 1 < n:
-                tau += gamma[j + 1] * (omega[j + 1] - omega[j])
-        else:
-            tau = -gamma[j] * omega[j]
-        # A' n and A' e (A' symmetric)
-        an_x = c11 * nx + c12 * ny
-        an_y = c12 * nx + c22 * ny
-        ae_x = c11 * ex + c12 * ey
-        ae_y = c12 * ex + c22 * ey
-        # biases of the forces at the upper (in) and lower (out) joint, for a_P = 0, alpha = 0
-        bo_x = -l * w2 * ae_x + cb1
-        bo_y = -l * w2 * ae_y + cb2
-        bi_x = -m * c * w2 * ex + bo_x - m * gx
-        bi_y = -m * c * w2 * ey + bo_y - m * gy
-        ux = m * c * nx + l * an_x
-        uy = m * c * ny + l * an_y
-        d = inertia[j] + m * c * c + l * l * (nx * an_x + ny * an_y)
-        beta = c * (nx * bi_x + ny * bi_y) + (l - c) * (nx * bo_x + ny * bo_y) - tau
-        work[j, 0] = ux
-        work[j, 1] = uy
-        work[j, 2] = d
-        work[j, 3] = beta
-        # articulated inertia and bias seen at the upper joint
-        c11 = m + c11 - ux * ux / d
-        c12 = c12 - ux * uy / d
-        c22 = m + c22 - uy * uy / d
-        cb1 = bi_x - ux * beta / d
-        cb2 = bi_y - uy * beta / d
-    force_on_base_x = -cb1  # a_P0 = 0: F_top = b_1
-    # forward pass
-    apx = 0.0
-    apy = 0.0
-    for j in range(n):
-        st = math.sin(theta[j])
-        ct = math.cos(theta[j])
-        alpha = -(work[j, 0] * apx + work[j, 1] * apy + work[j, 3]) / work[j, 2]
-        out[j] = alpha
-        l = length[j]
-        w2 = omega[j] * omega[j]
-        apx += l * (ct * alpha - st * w2)
-        apy += l * (st * alpha + ct * w2)
-    return force_on_base_x

@@ -147,7 +147,7 @@ def coupled_params(chain: Chain, stage: Stage, a: np.ndarray, *, q_idx: int = -1
 
 
 # ================================================================================================
-# the nonlinear accelerations (own copy of the articulated-body recursion of rig.chain)
+# the nonlinear accelerations (the articulated-body recursion with the stage's base-force split)
 # ================================================================================================
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -236,19 +236,17 @@ def _accel(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, re
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
-    """The same as :func:`_accel` for n = 2, from the dense equations (one division)::
+def _dense2_equations(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s1, c1, s2, c2):
+    """The dense n = 2 equations of :func:`_accel2` at state ``z``, given the angles' sines and
+    cosines ``s1, c1, s2, c2``: ``(b0, r0, u1, u2, h11, h12, h22, r1, r2)`` of::
 
-        [[M + m, S1 c1, S2 c2], [S1 c1, H11, H12 c12], [S2 c2, H12 c12, H22]] (x0'', alpha)
-          = (F_ext + S1 s1 w1^2 + S2 s2 w2^2, -H12 s12 w2^2 - g S1 s1 - (C w)_1,
-             H12 s12 w1^2 - g S2 s2 - (C w)_2)
+        b0 x0'' + u1 alpha1 + u2 alpha2 = r0           (reaction on; off: b0 x0'' = r0)
+        u1 x0'' + h11 alpha1 + h12 alpha2 = r1
+        u2 x0'' + h12 alpha1 + h22 alpha2 = r2
 
-    (c_j = cos th_j, s12 = sin(th1 - th2); without the reaction the first row is M x0'' =
-    F_ext), solved for alpha on the Schur complement of the stage entry."""
-    s1 = math.sin(z[th0])
-    c1 = math.cos(z[th0])
-    s2 = math.sin(z[th0 + 1])
-    c2 = math.cos(z[th0 + 1])
+    with ``b0 = M + m, r0 = F_ext + S1 s1 w1^2 + S2 s2 w2^2`` (reaction) or ``b0 = M, r0 = F_ext``.
+    The one set-up of :func:`_accel2` and :func:`_remainder2_fast`, which solve it each their
+    own way."""
     w1 = z[th0 + 2]
     w2 = z[th0 + 3]
     c12 = c1 * c2 + s1 * s2
@@ -260,11 +258,29 @@ def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
     r1 = -hs * w2 * w2 - g * s[0] * s1 - cm[0, 0] * w1 - cm[0, 1] * w2
     r2 = hs * w1 * w1 - g * s[1] * s2 - cm[1, 0] * w1 - cm[1, 1] * w2
     fext = kf * z[0] - k * z[1] - c * z[2]
-    h11 = hc[0, 0]
-    h22 = hc[1, 1]
     if reaction:
         b0 = m_stage + mtot
         r0 = fext + s[0] * s1 * w1 * w1 + s[1] * s2 * w2 * w2
+    else:
+        b0 = m_stage
+        r0 = fext
+    return b0, r0, u1, u2, hc[0, 0], h12, hc[1, 1], r1, r2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
+    """The same as :func:`_accel` for n = 2, from the dense equations (one division)::
+
+        [[M + m, S1 c1, S2 c2], [S1 c1, H11, H12 c12], [S2 c2, H12 c12, H22]] (x0'', alpha)
+          = (F_ext + S1 s1 w1^2 + S2 s2 w2^2, -H12 s12 w2^2 - g S1 s1 - (C w)_1,
+             H12 s12 w1^2 - g S2 s2 - (C w)_2)
+
+    (c_j = cos th_j, s12 = sin(th1 - th2); without the reaction the first row is M x0'' =
+    F_ext), solved for alpha on the Schur complement of the stage entry."""
+    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(
+        g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, math.sin(z[th0]),
+        math.cos(z[th0]), math.sin(z[th0 + 1]), math.cos(z[th0 + 1]))
+    if reaction:
         h11 = h11 - u1 * u1 / b0
         h22 = h22 - u2 * u2 / b0
         h12 = h12 - u1 * u2 / b0
@@ -275,7 +291,7 @@ def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
         a2 = (h11 * r2 - h12 * r1) / det
         ax = (r0 - u1 * a1 - u2 * a2) / b0
     else:
-        ax = fext / m_stage
+        ax = r0 / b0  # F_ext / M
         r1 = r1 - u1 * ax
         r2 = r2 - u2 * ax
         det = h11 * h22 - h12 * h12
@@ -326,10 +342,22 @@ def _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_sta
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
-               m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha, f):
+def _kernel_scratch(mass, rows, z):
+    """``(n, two, nz, nf, work, alpha)``: the kernels' sizes (bodies, n = 2?, states, remainder
+    rows) and the recursion's scratch ``work`` (n, 7) and ``alpha`` (n,)."""
+    n = mass.shape[0]
+    return n, n == 2, z.shape[0], rows.shape[0], np.empty((n, 7)), np.empty(n)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _remainder(two, prm, z, work, alpha, f):
     """The remainder f and the nonlinear x0'': :func:`_remainder2` where ``two`` (n = 2, inlined),
-    else :func:`_remainder_n` (a call)."""
+    else :func:`_remainder_n` (a call). ``prm`` is the kernels' leading arguments as one tuple
+    (:meth:`CoupledParams.args`), which a kernel packs from its own arguments: the kernels keep
+    them as separate arguments (taken out of a tuple *argument* the arrays made etdab's step
+    slower)."""
+    (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
+     reaction, th0, q_idx, wc, rows, a_rows) = prm
     if two:
         return _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
                            a_rows, z, alpha, f)
@@ -358,14 +386,7 @@ def remainder(params: CoupledParams, z) -> np.ndarray:
     p = params
     z = np.ascontiguousarray(z, dtype=float)
     f = np.empty(p.rows.size)
-    alpha = np.empty(p.n)
-    if p.n == 2:
-        _remainder2(p.g, p.hc, p.s, p.cm, p.mtot, p.kf, p.k, p.c, p.m_stage, p.reaction, p.th0,
-                    p.q_idx, p.wc, p.a_rows, z, alpha, f)
-    else:
-        _remainder_n(p.mass, p.length, p.com, p.inertia, p.gamma, p.relative, p.g, p.kf, p.k, p.c,
-                     p.m_stage, p.reaction, p.th0, p.q_idx, p.wc, p.a_rows, z,
-                     np.empty((p.n, 7)), alpha, f)
+    _remainder(p.n == 2, p.args(), z, np.empty((p.n, 7)), np.empty(p.n), f)
     return f
 
 
@@ -397,12 +418,9 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
     z_out[k] = z and ax_out[k] = x0'' at DAC instant k (k < len(v)); ``z`` (in/out) ends at the
     instant len(v). Every row is summed in a fixed order, so block splits reproduce one-shot runs
     bit for bit."""
-    n = mass.shape[0]
-    two = n == 2
-    nz = z.shape[0]
-    nf = rows.shape[0]
-    work = np.empty((n, 7))
-    alpha = np.empty(n)
+    n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
+    prm = (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
+           reaction, th0, q_idx, wc, rows, a_rows)
     f1 = np.empty(nf)
     f2 = np.empty(nf)
     f3 = np.empty(nf)
@@ -415,9 +433,7 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
         for col in range(nz):
             z_out[kk, col] = z[col]
         for sub in range(nsub):
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                            alpha, f1)
+            ax = _remainder(two, prm, z, work, alpha, f1)
             if sub == 0:
                 ax_out[kk] = ax
             for r in range(nz):
@@ -434,26 +450,20 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f1[i]
                 zt[r] = p2[r] + 0.5 * h * acc
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                            alpha, f2)
+            ax = _remainder(two, prm, zt, work, alpha, f2)
             # stage 3
             for r in range(nz):
                 zt[r] = p2[r]
             for i in range(nf):
                 zt[rows[i]] += 0.5 * h * f2[i]
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                            alpha, f3)
+            ax = _remainder(two, prm, zt, work, alpha, f3)
             # stage 4
             for r in range(nz):
                 acc = 0.0
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f3[i]
                 zt[r] = ph[r] + h * acc
-            ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                            mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, zt, work,
-                            alpha, f4)
+            ax = _remainder(two, prm, zt, work, alpha, f4)
             # the step
             for r in range(nz):
                 acc = 0.0
@@ -511,22 +521,9 @@ def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx
         s2, c2 = _sincos_poly(t2)
     else:
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-    w1 = z[th0 + 2]
-    w2 = z[th0 + 3]
-    c12 = c1 * c2 + s1 * s2
-    s12 = s1 * c2 - c1 * s2
-    h12 = hc[0, 1] * c12
-    hs = hc[0, 1] * s12
-    u1 = s[0] * c1
-    u2 = s[1] * c2
-    r1 = -hs * w2 * w2 - g * s[0] * s1 - cm[0, 0] * w1 - cm[0, 1] * w2
-    r2 = hs * w1 * w1 - g * s[1] * s2 - cm[1, 0] * w1 - cm[1, 1] * w2
-    fext = kf * z[0] - k * z[1] - c * z[2]
-    h11 = hc[0, 0]
-    h22 = hc[1, 1]
+    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(
+        g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s1, c1, s2, c2)
     if reaction:
-        b0 = m_stage + mtot
-        r0 = fext + s[0] * s1 * w1 * w1 + s[1] * s2 * w2 * w2
         # the Schur complement of the stage entry, det * b0 * b0 kept as one division
         h11b = h11 * b0 - u1 * u1
         h22b = h22 * b0 - u2 * u2
@@ -540,7 +537,7 @@ def _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx
         a2 = n2 * inv * b0
         ax = (r0 * (h11b * h22b - h12b * h12b) - u1 * n1 - u2 * n2) * inv
     else:
-        ax = fext / m_stage
+        ax = r0 / b0  # F_ext / M
         r1 = r1 - u1 * ax
         r2 = r2 - u2 * ax
         inv = 1.0 / (h11 * h22 - h12 * h12)
@@ -591,15 +588,10 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
     none yet (a start: every entry is taken as f(z_0)). ``z`` (in/out) ends at
     the instant len(v). The rows are summed in a fixed order, so block splits reproduce one-shot
     runs bit for bit."""
-    n = mass.shape[0]
-    two = n == 2
-    nz = z.shape[0]
-    nf = rows.shape[0]
+    n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
     order = w.shape[0]
     nh = hist.shape[0]
     lag = nh - order
-    work = np.empty((n, 7))
-    alpha = np.empty(n)
     f = np.empty(nf)
     zn = np.empty(nz)
     zw = np.empty(nz)
@@ -661,21 +653,16 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     ``sums[b, 2, j] = max |d_theta_j|``; over every sample ``peaks[0, j] = max |theta_j|``,
     ``peaks[1, j] = max |d_theta_j|`` (is the first order valid all along?). ``z``, ``d``
     (in/out) end at the last sample."""
-    n = mass.shape[0]
-    two = n == 2
-    nz = z.shape[0]
-    nf = rows.shape[0]
-    work = np.empty((n, 7))
-    alpha = np.empty(n)
+    n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
+    prm = (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
+           reaction, th0, q_idx, wc, rows, a_rows)
     f = np.empty(nf)
     fn = np.empty(nf)
     zt = np.empty(nz)
     dt = np.empty(nz)
     n_s = v.shape[0]
     n_rec = n_s - k_rec
-    ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                    mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                    alpha, f)
+    ax = _remainder(two, prm, z, work, alpha, f)
     for kk in range(n_s):
         for j in range(n):
             if abs(z[th0 + j]) > peaks[0, j]:
@@ -702,9 +689,7 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
             zt[r] = acc
         for r in range(nz):
             z[r] = zt[r]
-        ax = _remainder(two, mass, length, com, inertia, gamma, relative, g, hc, s, cm,
-                        mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z, work,
-                        alpha, fn)
+        ax = _remainder(two, prm, z, work, alpha, fn)
         for r in range(nz):
             acc = 0.0
             for col in range(nz):

@@ -175,7 +175,7 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
 
     ``acquisition.model = "auto"`` runs :func:`select_model` (or takes ``selection``, its
     result for this scene). ``method`` (default ``"etdab"``), ``oversample``, ``substeps``,
-    ``rtol``, ``atol`` matter for the nonlinear model only (module docstring): ``substeps``
+    ``rtol``, ``atol`` matter for the nonlinear model only (:mod:`rig.bench`): ``substeps``
     Lawson steps per DAC interval, or for the prescribed-stage methods ``oversample`` exact
     stage-acceleration instants per DAC interval (the pendulum sees them linearly interpolated)
     and ``substeps`` integrator steps per sub-interval.

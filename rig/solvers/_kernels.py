@@ -346,12 +346,21 @@ def _sincos(x):
 
 @njit(cache=True, fastmath={"contract"})
 def _rhs_rec(bod, g, y, ax, ay, f, r, w):
-    """f[r] = (omega, th'') for y = (theta, omega), any n, in O(n) operations.
+    """f[r] = (omega, th'') for y = (theta, omega), any n, in O(n) operations; returns the
+    horizontal force the chain exerts on the base [N] (= -F_x at the top joint, the reaction a
+    stage feels).
 
-    The articulated-body recursion of :func:`rig.chain.accel_recursive_kernel` (the same
-    equations, eliminated from the tip up; see its docstring), with each body's sin and cos
-    computed once (kept in w[j, 4:6]). ``bod`` (6, n) holds the rows mass, length, com, inertia,
-    damping and (row 5, any column) 1.0 for relative damping; ``w`` is scratch of shape (n, >= 6).
+    The articulated-body recursion: the same equations as the dense mass-matrix solve
+    (:func:`rig.chain.accel_kernel`), solved by eliminating the joint forces from the tip up. For
+    body j with upper joint P, unit vectors e = (sin th, -cos th) along and n = (cos th, sin th)
+    across it, the force the parent exerts on it at P is ``F = A_j a_P + b_j`` (2x2 articulated
+    inertia A_j, bias b_j), and ``alpha_j = -(w_j . a_P + beta_j) / d_j``; a forward pass from
+    the base (a_P0 = 0 in the base frame, where the base acceleration ``(ax, ay)`` is a uniform
+    inertial force) gives every alpha_j. Each body's sin and cos are computed once (kept in
+    w[j, 4:6]). ``bod`` (6, n) holds the rows mass, length, com, inertia, damping and (row 5,
+    any column) 1.0 for relative damping (:meth:`rig.chain.Chain.body_table`); ``w`` is scratch
+    of shape (n, >= 6). The one pendulum-on-a-given-base recursion: the solvers' kernels and
+    :meth:`rig.chain.Chain.accelerations` (``algorithm="recursive"``) call it.
     """
     n = bod.shape[1]
     relative = bod[5, 0] != 0.0
@@ -414,6 +423,7 @@ def _rhs_rec(bod, g, y, ax, ay, f, r, w):
         ct = w[j, 5]
         apx += l * (ct * alpha - st * w2)
         apy += l * (st * alpha + ct * w2)
+    return -cb1  # a_P0 = 0: F_top = b_1
 
 
 # Right-hand-side algorithms (``alg`` argument of the kernels): the scalar n = 2 code, the dense

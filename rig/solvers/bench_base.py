@@ -9,6 +9,16 @@ steps ``z`` (in place, to the end of the block) over ``len(v)`` DAC intervals an
 ``(z_out, accel, native)``: the states at the DAC instants, the stage acceleration x0'' [m/s^2]
 at them (``None`` for the linear bench: ``z_out @ model.accel_row``) and the method's state for
 the next block (``None`` where it keeps none).
+
+The rest of the :class:`rig.solvers.base.Solver` protocol is shared: the class attributes
+(``order``, ``kind``, ``systems`` = ``(COUPLED_BENCH,)``, ...), ``from_options``, ``on_grid``
+and ``refined`` (the Richardson reference that :func:`rig.bench.model_info` uses). ``init`` /
+``advance`` are not: they step the pendulum's native state through a :class:`rig.solvers.base.
+HeldInput` of base accelerations and return a :class:`rig.solvers.base.Run` of ``(theta,
+omega)`` rows, while a bench solver steps the whole bench state ``z`` through held *voltages*
+and also returns the stage acceleration; one signature for both would fold ``z`` into the
+native state or voltages into the held input, and no caller drives both kinds (``integrate``
+the pendulum solvers, :func:`rig.bench.advance` the bench solvers, told apart by ``systems``).
 """
 
 from __future__ import annotations

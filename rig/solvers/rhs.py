@@ -22,13 +22,9 @@ if TYPE_CHECKING:
 
 
 def bodies_array(chain: Chain) -> np.ndarray:
-    """The (6, n) body table the recursive right-hand side reads: mass, length, com, inertia,
-    damping, relative flag (row 5, 1.0 or 0.0)."""
-    out = np.empty((6, chain.n))
-    out[0], out[1], out[2], out[3], out[4] = (chain.mass_kg, chain.length_m, chain.com_m,
-                                              chain.inertia_kgm2, chain.damping_nms)
-    out[5] = 1.0 if chain.damping_mode == "relative" else 0.0
-    return out
+    """The (6, n) body table the recursive right-hand side reads (:meth:`rig.chain.Chain.
+    body_table`: mass, length, com, inertia, damping, relative flag)."""
+    return chain.body_table()
 
 
 def rhs_algorithm(chain: Chain, algorithm: str = "auto") -> int:
