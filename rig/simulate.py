@@ -375,16 +375,20 @@ def _execute(chain, segs, solvers, native0, t0, h0):
 def _times(segs, t0, duration) -> np.ndarray:
     parts = []
     for k, sg in enumerate(segs):
-        idx = output_rows(sg.n_int, sg.out_every)
         if k == 0:
             k0 = round(t0 / sg.h_in)
             if abs(k0 * sg.h_in - t0) <= _REL * sg.h_in:  # keep times exact multiples of h_in
-                parts.append((k0 + idx) * sg.h_in)
+                # (k0 + row) h_in, the whole numbers added exactly in floats, in place: one
+                # array for a long run's rows, not three
+                t = output_rows(sg.n_int, sg.out_every).astype(float)
+                t += k0
+                t *= sg.h_in
+                parts.append(t)
             else:
-                parts.append(t0 + idx * sg.h_in)
+                parts.append(t0 + output_rows(sg.n_int, sg.out_every) * sg.h_in)
         else:
             parts.append(np.array([t0 + duration]))
-    return np.concatenate(parts)
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,

@@ -37,14 +37,16 @@ def random_chain(rng, n, mode):
                  tuple(rng.uniform(0.0, 0.3, n)), mode)
 
 
-def blockwise_and_one_shot(splits, **kw):
-    """The damped double rod from (1.0, -0.5) rad on 5 s of seeded random base input (horizontal
-    and vertical, 0.01 s samples), run once and in blocks of input samples ``splits`` (each block
-    continuing from the previous one's final state). Returns (theta of the blocks joined, the
-    blocks' final state, the one-shot trajectory)."""
+def blockwise_and_one_shot(splits, *, vertical=True, **kw):
+    """The damped double rod from (1.0, -0.5) rad on 5 s of seeded random base input (horizontal,
+    and vertical unless ``vertical`` is False; 0.01 s samples), run once and in blocks of input
+    samples ``splits`` (each block continuing from the previous one's final state). Returns
+    (theta of the blocks joined, the blocks' final state, the one-shot trajectory)."""
     chain = rod_chain(2, damping=0.02)
     rng = np.random.default_rng(1)
-    base = BaseInput(0.5 * rng.standard_normal(500), 0.01, ay_mps2=0.3 * rng.standard_normal(500))
+    ax = 0.5 * rng.standard_normal(500)
+    ay = 0.3 * rng.standard_normal(500)
+    base = BaseInput(ax, 0.01, ay_mps2=ay if vertical else None)
     one = simulate(chain, 5.0, theta0=(1.0, -0.5), base=base, **kw)
     state, thetas = None, []
     for k0, k1 in splits:

@@ -1329,12 +1329,30 @@ def _sincos4(a, b, c, d):
 def _nsplit2(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
     """(N0, N1, N2) of the n = 2 chain at (theta, omega), as six numbers (N0_0, N0_1, N1_0, ...);
     s0, c0, s1, c1 are sin and cos of th0 and th1."""
+    n00, n01, n10, n11, m01, idet = _nsplit2h(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0,
+                                              s1, c1)
+    n20, n21 = _n2_two(hc, s, s0, s1, m01, idet)
+    return n00, n01, n10, n11, n20, n21
+
+
+@njit(cache=True, inline="always")
+def _mass2(hc, s0, c0, s1, c1):
+    """The n = 2 mass matrix's coupling m01 = H01 cos(th0 - th1), H01 sin(th0 - th1) and
+    1 / det M."""
     h01 = hc[0, 1]
     m01 = h01 * (c0 * c1 + s0 * s1)
     hs = h01 * (s0 * c1 - c0 * s1)
+    idet = 1.0 / (hc[0, 0] * hc[1, 1] - m01 * m01)
+    return m01, hs, idet
+
+
+@njit(cache=True, inline="always")
+def _nsplit2h(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
+    """(N0, N1) of the n = 2 chain at (theta, omega), and m01, 1 / det M for the vertical gain
+    (:func:`_n2_two`); :func:`_nsplit2` without N2."""
+    m01, hs, idet = _mass2(hc, s0, c0, s1, c1)
     h00 = hc[0, 0]
     h11 = hc[1, 1]
-    idet = 1.0 / (h00 * h11 - m01 * m01)
     f0 = -s[0] * g * s0 - cm[0, 0] * w0 - cm[0, 1] * w1 - hs * w1 * w1
     f1 = -s[1] * g * s1 - cm[1, 0] * w0 - cm[1, 1] * w1 + hs * w0 * w0
     lin0 = p[0, 0] * th0 + p[0, 1] * th1 + q[0, 0] * w0 + q[0, 1] * w1
@@ -1345,11 +1363,15 @@ def _nsplit2(hc, s, cm, g, p, q, bw, th0, th1, w0, w1, s0, c0, s1, c1):
     e1 = -s[1] * c1
     n10 = (h11 * e0 - m01 * e1) * idet - bw[0]
     n11 = (h00 * e1 - m01 * e0) * idet - bw[1]
+    return n00, n01, n10, n11, m01, idet
+
+
+@njit(cache=True, inline="always")
+def _n2_two(hc, s, s0, s1, m01, idet):
+    """The vertical gain N2 of the n = 2 chain from sin th0, sin th1, m01 and 1 / det M."""
     e0 = -s[0] * s0
     e1 = -s[1] * s1
-    n20 = (h11 * e0 - m01 * e1) * idet
-    n21 = (h00 * e1 - m01 * e0) * idet
-    return n00, n01, n10, n11, n20, n21
+    return (hc[1, 1] * e0 - m01 * e1) * idet, (hc[0, 0] * e1 - m01 * e0) * idet
 
 
 @njit(cache=True)
@@ -2212,3 +2234,159 @@ def _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b2
         b00, b01, b10, b11, b20, b21)
     hist[2, 0], hist[2, 1], hist[2, 2], hist[2, 3], hist[2, 4], hist[2, 5] = (
         d00, d01, d10, d11, d20, d21)
+
+
+@njit(cache=True, inline="always")
+def _etd4m_row2h(mat, i, r, z0, z1, z2, z3, acc, base, g0, g1):
+    """:func:`_etd4m_row2` without the vertical input: row r of mat[i] @ z + the (4, 2) block at
+    ``base`` of acc @ g (n = 2)."""
+    k = base + 2 * r
+    return (((mat[i, r, 0] * z0 + mat[i, r, 1] * z1) + (mat[i, r, 2] * z2 + mat[i, r, 3] * z3))
+            + (acc[k] * g0 + acc[k + 1] * g1))
+
+
+@njit(cache=True, inline="always")
+def _etd4m_end2h(r, acc, wq, i, e0, e1, g0, g1):
+    """:func:`_etd4m_end2` without the vertical input (n = 2)."""
+    k = 8 * i + 2 * r
+    return (acc[k] * g0 + acc[k + 1] * g1) + (wq[i, r, 0] * e0 + wq[i, r, 1] * e1)
+
+
+@njit(cache=True, inline="always")
+def _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, i, z0, z1, z2, z3, bw0, bw1, a00, a01,
+                   a10, a11, b00, b01, b10, b11, d00, d01, d10, d11):
+    """Stage i of :func:`etd4m_kernel2h` (n = 2): its four numbers."""
+    x0 = xp[i, 0]
+    x1 = xp[i, 1]
+    x2 = xp[i, 2]
+    g0 = bw0 + ((x0 * a10 + x1 * b10) + x2 * d10)
+    g1 = bw1 + ((x0 * a11 + x1 * b11) + x2 * d11)
+    du = ck[i] * (ax[i0 + lohi[i, 1]] - ax[i0 + lohi[i, 0]])
+    base = (5 - i) * 8
+    t0 = (_etd4m_row2h(phic, i, 0, z0, z1, z2, z3, acc, base, g0, g1)
+          + _etd4m_n0_2(pn, i, 0, a00, a01, b00, b01, d00, d01))
+    t1 = (_etd4m_row2h(phic, i, 1, z0, z1, z2, z3, acc, base, g0, g1)
+          + _etd4m_n0_2(pn, i, 1, a00, a01, b00, b01, d00, d01))
+    t2 = (_etd4m_row2h(phic, i, 2, z0, z1, z2, z3, acc, base, g0, g1)
+          + _etd4m_n0_2(pn, i, 2, a00, a01, b00, b01, d00, d01))
+    t3 = (_etd4m_row2h(phic, i, 3, z0, z1, z2, z3, acc, base, g0, g1)
+          + _etd4m_n0_2(pn, i, 3, a00, a01, b00, b01, d00, d01))
+    # (+ 0.0: etd4m_kernel2 adds du g + dv v as one rounded product, not fused with the row)
+    t2 += du * g0 + 0.0
+    t3 += du * g1 + 0.0
+    return t0, t1, t2, t3
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"})
+def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, ax, m, n_steps,
+                   out_steps, y, y_out, hist, have):
+    """:func:`etd4m_kernel2` for a run without a vertical input: neither the vertical gain N2 at
+    the stages nor its products with the (zero) vertical input are formed, except N2 at the
+    last step's stages, which the native state carries (so a next block with a vertical input
+    continues as from :func:`etd4m_kernel2`). Every other number is formed by the same
+    operations in the same order, without the terms that are exactly zero there: the result
+    equals :func:`etd4m_kernel2`'s with ``sa`` = 0 (tests/rig/solvers/test_etd4m_horizontal.py)."""
+    nw = 8
+    acc = np.empty(6 * nw)
+    phi3 = phi.reshape((1, 4, 4))
+    nev = 0
+    z0, z1, z2, z3 = y[0], y[1], y[2], y[3]
+    zero = n_steps - n_steps
+    one = zero + 1
+    if not have:
+        s0, c0, s1, c1 = _sincos_pair(z0, z1)
+        a00, a01, a10, a11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, z0, z1, z2, z3, s0, c0, s1,
+                                             c1)
+        b00, b01, b10, b11 = a00, a01, a10, a11
+        d00, d01, d10, d11 = a00, a01, a10, a11
+        nev += 1
+    else:
+        a00, a01, a10, a11 = hist[0, 0], hist[0, 1], hist[0, 2], hist[0, 3]
+        b00, b01, b10, b11 = hist[1, 0], hist[1, 1], hist[1, 2], hist[1, 3]
+        d00, d01, d10, d11 = hist[2, 0], hist[2, 1], hist[2, 2], hist[2, 3]
+    bw0 = bw[0]
+    bw1 = bw[1]
+    _store(y, y_out, zero)
+    row = one
+    left = out_steps
+    status = OK
+    done = n_steps
+    for k in range(n_steps):
+        i0 = k * m
+        _etd4m_fir48(ax, i0, 1, wt, acc)
+        p0, p1, p2, p3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, zero, z0, z1, z2,
+                                        z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
+                                        d00, d01, d10, d11)
+        q0, q1, q2, q3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, one, z0, z1, z2,
+                                        z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
+                                        d00, d01, d10, d11)
+        r0, r1, r2, r3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, one + one, z0, z1,
+                                        z2, z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
+                                        d00, d01, d10, d11)
+        sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
+        sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
+        a00, a01, a10, a11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0, cp0,
+                                             sp1, cp1)
+        b00, b01, b10, b11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0, cq0,
+                                             sq1, cq1)
+        d00, d01, d10, d11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, r0, r1, r2, r3, sr0, cr0,
+                                             sr1, cr1)
+        nev += 3
+        n0 = ((_etd4m_row2h(phi3, 0, 0, z0, z1, z2, z3, acc, 0, bw0 + a10, bw1 + a11)
+               + (wq[0, 0, 0] * a00 + wq[0, 0, 1] * a01))
+              + _etd4m_end2h(0, acc, wq, 1, b00, b01, bw0 + b10, bw1 + b11)
+              + _etd4m_end2h(0, acc, wq, 2, d00, d01, bw0 + d10, bw1 + d11))
+        n1 = ((_etd4m_row2h(phi3, 0, 1, z0, z1, z2, z3, acc, 0, bw0 + a10, bw1 + a11)
+               + (wq[0, 1, 0] * a00 + wq[0, 1, 1] * a01))
+              + _etd4m_end2h(1, acc, wq, 1, b00, b01, bw0 + b10, bw1 + b11)
+              + _etd4m_end2h(1, acc, wq, 2, d00, d01, bw0 + d10, bw1 + d11))
+        n2 = ((_etd4m_row2h(phi3, 0, 2, z0, z1, z2, z3, acc, 0, bw0 + a10, bw1 + a11)
+               + (wq[0, 2, 0] * a00 + wq[0, 2, 1] * a01))
+              + _etd4m_end2h(2, acc, wq, 1, b00, b01, bw0 + b10, bw1 + b11)
+              + _etd4m_end2h(2, acc, wq, 2, d00, d01, bw0 + d10, bw1 + d11))
+        n3 = ((_etd4m_row2h(phi3, 0, 3, z0, z1, z2, z3, acc, 0, bw0 + a10, bw1 + a11)
+               + (wq[0, 3, 0] * a00 + wq[0, 3, 1] * a01))
+              + _etd4m_end2h(3, acc, wq, 1, b00, b01, bw0 + b10, bw1 + b11)
+              + _etd4m_end2h(3, acc, wq, 2, d00, d01, bw0 + d10, bw1 + d11))
+        z0, z1, z2, z3 = n0, n1, n2, n3
+        left -= 1
+        if left == 0 or k + 1 == n_steps:
+            left = out_steps
+            row += 1
+            if not _store4(y, y_out, row - 1, z0, z1, z2, z3):
+                status = NONFINITE
+                done = k + 1
+                break
+    y[0], y[1], y[2], y[3] = z0, z1, z2, z3
+    # N2 at the last step's stages for the native state (their sines and cosines as the step
+    # formed them); without a step, the history's or the start state's
+    if n_steps > 0:
+        sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
+        sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
+        a20, a21 = _n2_at(hc, s, sp0, cp0, sp1, cp1)
+        b20, b21 = _n2_at(hc, s, sq0, cq0, sq1, cq1)
+        d20, d21 = _n2_at(hc, s, sr0, cr0, sr1, cr1)
+    elif have:
+        a20, a21, b20, b21 = hist[0, 4], hist[0, 5], hist[1, 4], hist[1, 5]
+        d20, d21 = hist[2, 4], hist[2, 5]
+    else:
+        s0, c0, s1, c1 = _sincos_pair(z0, z1)
+        a20, a21 = _n2_at(hc, s, s0, c0, s1, c1)
+        b20, b21, d20, d21 = a20, a21, a20, a21
+    _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
+                 d11, d20, d21)
+    return status, row, done * m, nev
+
+
+@njit(cache=True, inline="always")
+def _n2_at(hc, s, s0, c0, s1, c1):
+    """The vertical gain N2 of the n = 2 chain at the angles with these sines and cosines."""
+    m01, _, idet = _mass2(hc, s0, c0, s1, c1)
+    return _n2_two(hc, s, s0, s1, m01, idet)
+
+
+@njit(cache=True, inline="always")
+def _store4(y, y_out, row, z0, z1, z2, z3):
+    """y = z (n = 2), stored as :func:`_store` does; returns whether it is finite."""
+    y[0], y[1], y[2], y[3] = z0, z1, z2, z3
+    return _store(y, y_out, row)

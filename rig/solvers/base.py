@@ -249,7 +249,7 @@ class PendulumSolver:
     def out_rows(self, chain: Chain, native: np.ndarray, held: HeldInput) -> np.ndarray:
         """The kernel's output array: native rows, or (theta, omega) for history states."""
         width = 2 * chain.n if self.history_rows else native.size
-        return np.empty((held.rows.size, width))
+        return np.empty((output_count(held.n_intervals, held.out_every), width))
 
     def finish(self, chain: Chain, status: int, y, y_out, nrow: int, i_done: int,
                held: HeldInput, *, s_fail: float = 0.0, substeps: int = 1,
@@ -316,6 +316,11 @@ class SubstepSolver(PendulumSolver):
 
     def refined(self) -> Refinement:
         return fixed_step_refinement(self)
+
+
+def output_count(n_intervals: int, out_every: int) -> int:
+    """len(output_rows(n_intervals, out_every)), without forming the rows."""
+    return n_intervals // out_every + 1 + (1 if n_intervals % out_every else 0)
 
 
 def output_rows(n_intervals: int, out_every: int) -> np.ndarray:

@@ -25,7 +25,9 @@ The differences from etd3m, both raising the order in the step:
 
 The stage omegas, where N is evaluated, carry etd3m's correction for the staircase's sawtooth
 (the interpolation then sees each interval's mean). Three remainder evaluations per step; per
-sample a FIR of 6 weight sets (2n x n each), the stage sets skipped past their nodes. The first
+sample a FIR of 6 weight sets (2n x n each), the stage sets skipped past their nodes (for n = 2
+every row in full, which the compiler vectorises; without a vertical input the n = 2 kernel
+forms neither N2 nor its products with the zero input, the same numbers). The first
 step after a (re)start predicts with N(z0) at one more evaluation; the three stages are part of
 the native state (theta, omega, valid flag, step H, then 9n numbers), so blocks that end on output
 rows continue bit for bit.
@@ -46,7 +48,7 @@ import numpy as np
 
 from rig.errors import ConfigError
 
-from rig.solvers._kernels import etd4m_kernel, etd4m_kernel2
+from rig.solvers._kernels import etd4m_kernel, etd4m_kernel2, etd4m_kernel2h
 from rig.solvers.base import HOLDS, Refinement, multisample_refinement
 from rig.solvers.dop853 import Dop853
 from rig.solvers.etd3m import MultiSample, _piece_integral, check_samples_per_step
@@ -65,6 +67,10 @@ def _expm(a):
 _R15 = math.sqrt(15.0)
 ETD4M_NODES = (0.5 - _R15 / 10.0, 0.5, 0.5 + _R15 / 10.0)
 ETD4M_SETS = 6  # weight sets per sample: end nodes 0, 1, 2, then stages 2, 1, 0
+#: n = 2 without a vertical input: the kernel that forms neither N2 nor its zero products
+#: (rig.solvers._kernels.etd4m_kernel2h, the same numbers as etd4m_kernel2); False runs
+#: etd4m_kernel2 there (the path before, for benchmarks/targets.py)
+HORIZONTAL_KERNEL = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,10 +206,16 @@ class Etd4m(MultiSample):
         co = etd4m_coefficients(chain, float(held.h_in), m, held.hold)
         big_h = m * held.h_in
         z, hist, have = self.split_history(chain, y, big_h)
-        status, nrow, i_done, nfev = (etd4m_kernel2 if chain.n == 2 else etd4m_kernel)(
-            chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic, co.wt,
-            co.wq, co.pn, co.xp, co.ck, co.lohi, co.widths, ax, ay, sa, m, held.n_intervals // m,
-            held.out_every // m, z, y_out, hist, have)
+        if chain.n == 2 and not sa and HORIZONTAL_KERNEL:
+            status, nrow, i_done, nfev = etd4m_kernel2h(
+                chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic,
+                co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, ax, m, held.n_intervals // m,
+                held.out_every // m, z, y_out, hist, have)
+        else:
+            status, nrow, i_done, nfev = (etd4m_kernel2 if chain.n == 2 else etd4m_kernel)(
+                chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic,
+                co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, co.widths, ax, ay, sa, m,
+                held.n_intervals // m, held.out_every // m, z, y_out, hist, have)
         y = np.concatenate([z, [1.0, big_h], hist.reshape(-1)])
         return self.finish(chain, status, y, y_out, nrow, i_done, held, n_steps=i_done // m,
                            n_fev=nfev)
