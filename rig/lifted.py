@@ -1,4 +1,4 @@
-"""The linear bench lifted to the output rate, fused with its sensors and the anti-alias filter.
+"""The bench fused with its sensors and the anti-alias filter (the linear one lifted).
 
 What ``acquisition.model = "linear"`` computes per DAC sample (:func:`rig.bench.advance`) is
 ``z_{k+1} = Phi z_k + Gamma V_k`` (the exact zero-order-hold step), then the sensors read the
@@ -43,13 +43,16 @@ that the stable bench and filter do not amplify (the bound and what it was measu
 tests/rig/test_lifted.py); the noise, the geometry and the clipping are the per-sample path's
 own arithmetic. Any split of a run into blocks of whole intervals gives the same bytes (every
 sum runs per interval, in a fixed order). Valid for the linear model only (the nonlinear bench
-has no Phi^q). Cost per interval and channel set: ``nz (nz + q)`` multiply-adds for the state,
-``3 q (nz + q)`` for the readings (vectorised over the intervals), ``q`` spot geometries and
-``3 q`` normal draws, and per channel ``q ns`` (vectorised) plus ``ns (ns + 2) / 2 + ns`` for
-the filter (``ns = 2 x sections``); measured in BENCHMARKS.md.
+has no Phi^q: :func:`advance_decimated_nonlinear` steps it per sample and fuses only what
+follows the bench, the per-sample path's own arithmetic, equal to it bit for bit). Cost per
+interval and channel set: ``nz (nz + q)`` multiply-adds for the state, ``3 q (nz + q)`` for
+the readings (vectorised over the intervals), ``q`` spot geometries and ``3 q`` normal draws,
+and per channel ``q ns`` (vectorised) plus ``ns (ns + 2) / 2 + ns`` for the filter (``ns = 2 x
+sections``); measured in BENCHMARKS.md.
 
 Public API: :class:`Lifted`, :func:`lift`, :func:`lift_sections`, :func:`advance_decimated`,
-:func:`start_decimated`, :class:`DecimatedState`, :data:`PER_SAMPLE`.
+:func:`advance_decimated_nonlinear`, :func:`start_decimated`, :class:`DecimatedState`,
+:data:`PER_SAMPLE`, :data:`PER_SAMPLE_NONLINEAR`.
 """
 
 from __future__ import annotations

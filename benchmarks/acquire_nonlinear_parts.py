@@ -1,0 +1,125 @@
+#!/usr/bin/env python3
+"""Where the nonlinear acquisition's bench CPU goes, each part alone over the paper's whole run
+(3300 s at 1 kHz in 10 s blocks, seed 2009, method etdab), medians of ``--rounds`` interleaved
+rounds of ``time.process_time``:
+
+    .venv/bin/python benchmarks/acquire_nonlinear_parts.py --rounds 5
+
+Parts: ``source`` (the drive's blocks), ``bench`` (``rig.bench.run.bench_states`` on given source
+blocks: the etdab kernel and the per-sample state), ``kinematics`` (the mirror's exact x, z, rot
+from theta, numpy), ``noise`` (three ``standard_normal`` draws per block), ``fused kernel``
+(``rig.lifted._nonlinear_kernel``: sensors, geometry, clipping, flags, anti-alias sections,
+keep), and the two whole paths: ``fused`` (``BenchSimulation.decimated_blocks``) and
+``per-sample`` (``BenchSimulation.blocks`` then daq's filter and decimation).
+"""
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from daq.acquisition import antialias_for  # noqa: E402
+from daq.records import RecordPlan  # noqa: E402
+from rig import lifted as rl  # noqa: E402
+from rig.bench import BenchSimulation  # noqa: E402
+from rig.bench.run import BenchState, _mirror_kinematics, bench_states  # noqa: E402
+from rig.devices.source import generate  # noqa: E402
+from rig.scene import load_scene  # noqa: E402
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rounds", type=int, default=5)
+    args = ap.parse_args(argv)
+    scene = load_scene("ishizaki2009", ["acquisition.model=nonlinear"])
+    plan = RecordPlan.from_acquisition(scene.acquisition)
+    aa = antialias_for(scene.acquisition, plan)
+    sos = np.ascontiguousarray(aa.sos, dtype=float)
+    fs = plan.simulation_rate_hz
+    dur = plan.simulation_samples / fs
+    n = int(round(10.0 * fs))
+    nb = plan.simulation_samples // n
+    model = BenchSimulation(scene, 2009, method="etdab").model
+    m = model.slices
+
+    def source():
+        st = BenchSimulation(scene, 2009, method="etdab").state.source
+        out = []
+        for _ in range(nb):
+            v, st = generate(model.source, st, n)
+            out.append((v, st))
+        return out
+
+    srcs = source()
+    keep = {}
+
+    def bench():
+        state = BenchSimulation(scene, 2009, method="etdab").state
+        for src in srcs:
+            v, s, z_out, z, accel, native, h = bench_states(model, state, n, src)
+            state = BenchState(index=state.index + n, z=z, source=s, rng_states=state.rng_states,
+                               native=native, h_next_s=h)
+        keep["z_out"], keep["accel"] = z_out, accel
+
+    bench()
+    theta = keep["z_out"][:, m["theta_rad"]]
+
+    def kinematics():
+        for _ in range(nb):
+            _mirror_kinematics(scene, theta, exact=True)
+
+    def noise():
+        rng = np.random.default_rng(1)
+        for _ in range(nb):
+            rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
+
+    mx, mz, mrot = (np.ascontiguousarray(a) for a in _mirror_kinematics(scene, theta, True))
+    w = np.random.default_rng(2).standard_normal(n)
+    acc, lever, q = model.accelerometer, model.lever, model.decimation
+    hp = np.zeros(n)
+
+    def kernel():
+        zi = np.zeros((sos.shape[0], 3, 2))
+        carry = np.zeros(3, dtype=np.bool_)
+        volts, sat = np.empty((3, n // q)), np.empty((3, n // q), dtype=np.bool_)
+        for _ in range(nb):
+            rl._nonlinear_kernel(keep["accel"], hp, acc.corner_rad_s, acc.volts_per_mps2, w,
+                                 acc.noise_rms_v(fs), acc.sensitivity_vpmps2 * acc.range_mps2,
+                                 mx, mz, mrot, math.cos(lever.phi_rad), math.sin(lever.phi_rad),
+                                 lever.distance_m, w, w, lever.noise_rms_m(fs),
+                                 lever.half_size_m, lever.sign_x * lever.gain_vpm,
+                                 lever.sign_y * lever.gain_vpm, sos, zi, q, carry, volts, sat)
+
+    def fused():
+        for _ in BenchSimulation(scene, 2009, method="etdab").decimated_blocks(10.0, dur, sos):
+            pass
+
+    def per_sample():
+        st = aa.initial_state(3)
+        for b in BenchSimulation(scene, 2009, method="etdab").blocks(10.0, dur):
+            aa.step(st, np.stack([b.volts[k] for k in "axy"]))
+
+    parts = {"source": source, "bench": bench, "kinematics": kinematics, "noise": noise,
+             "fused kernel": kernel, "fused": fused, "per-sample": per_sample}
+    for f in parts.values():  # warm-up (compiled kernels loaded)
+        f()
+    cpu = {k: [] for k in parts}
+    names = list(parts)
+    for r in range(args.rounds):
+        for k in names[r % len(names):] + names[:r % len(names)]:
+            c = time.process_time()
+            parts[k]()
+            cpu[k].append(time.process_time() - c)
+    print(f"{args.rounds} rounds, {nb} blocks of {n} samples; CPU medians [quartiles] [s]")
+    for k, v in cpu.items():
+        print(f"| {k} | {np.median(v):.3f} [{np.percentile(v, 25):.3f}, "
+              f"{np.percentile(v, 75):.3f}] |")
+
+
+if __name__ == "__main__":
+    main()
