@@ -182,10 +182,7 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
     from rig.bench.run import BenchState, _readonly, _rng, source_samples
 
     q = lifted.q
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < q or n % q:
-        raise ConfigError(f"n_samples = {n!r} is invalid: expected a positive multiple of the "
-                          f"decimation {q}")
-    n = int(n)
+    n = _whole_intervals(n, q)
     fs = model.fs_hz
     v, src = source_samples(model, state, n, source_block)
     v = np.ascontiguousarray(v, dtype=float)
@@ -226,14 +223,29 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
             f"({n} samples); the state at its start was {z_start.tolist()}", t0, z_start)
     truth = {"stage_accel_mps2": accel, "theta_rad": theta, "mirror_x_m": mx,
              "mirror_rot_rad": mrot, "source_v": v[::q].copy()}
-    block = DecimatedBlock(t0_s=t0, fs_hz=fs, decimation=q, samples=n,
-                           volts={"a": volts[0], "x": volts[1], "y": volts[2]}, truth=truth,
-                           saturated={"a": sat[0], "x": sat[1], "y": sat[2]})
-    rng_states = {"accelerometer": rng_a.bit_generator.state,
-                  "psd_x": rng_x.bit_generator.state, "psd_y": rng_y.bit_generator.state}
+    block, rng_states = _kept_block(t0, fs, q, n, volts, truth, sat, (rng_a, rng_x, rng_y))
     new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
                      seed_entropy=state.seed_entropy)
     return block, new, DecimatedState(zi=s_aa, carry=carry, generators=generators)
+
+
+def _whole_intervals(n, q: int) -> int:
+    """``n`` as an int if it is a positive multiple of the decimation ``q``, else ConfigError."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < q or n % q:
+        raise ConfigError(f"n_samples = {n!r} is invalid: expected a positive multiple of the "
+                          f"decimation {q}")
+    return int(n)
+
+
+def _kept_block(t0, fs, q, n, volts, truth, sat, generators):
+    """The :class:`DecimatedBlock` of the kept volts (3, J), truth and flags (3, J), and the
+    noise generators' states after it (accelerometer, psd_x, psd_y)."""
+    block = DecimatedBlock(t0_s=t0, fs_hz=fs, decimation=q, samples=n,
+                           volts={"a": volts[0], "x": volts[1], "y": volts[2]}, truth=truth,
+                           saturated={"a": sat[0], "x": sat[1], "y": sat[2]})
+    rng_states = {k: g.bit_generator.state
+                  for k, g in zip(("accelerometer", "psd_x", "psd_y"), generators)}
+    return block, rng_states
 
 
 def lift_sections(sos: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
@@ -485,10 +497,7 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sos
         raise ConfigError(f"advance_decimated_nonlinear needs the nonlinear model, not "
                           f"{model.model!r}")
     q = model.decimation
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < q or n % q:
-        raise ConfigError(f"n_samples = {n!r} is invalid: expected a positive multiple of the "
-                          f"decimation {q}")
-    n = int(n)
+    n = _whole_intervals(n, q)
     fs = model.fs_hz
     v, src, z_out, z, accel, native, h_next = bench_states(model, state, n, source_block)
     sl = model.slices
@@ -530,11 +539,7 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sos
     truth = {"stage_accel_mps2": accel[::q].copy(), "theta_rad": theta[::q].copy(),
              "mirror_x_m": mx[::q].copy(), "mirror_rot_rad": mrot[::q].copy(),
              "source_v": v[::q].copy()}
-    block = DecimatedBlock(t0_s=t0, fs_hz=fs, decimation=q, samples=n,
-                           volts={"a": volts[0], "x": volts[1], "y": volts[2]}, truth=truth,
-                           saturated={"a": sat[0], "x": sat[1], "y": sat[2]})
-    rng_states = {"accelerometer": rng_a.bit_generator.state,
-                  "psd_x": rng_x.bit_generator.state, "psd_y": rng_y.bit_generator.state}
+    block, rng_states = _kept_block(t0, fs, q, n, volts, truth, sat, (rng_a, rng_x, rng_y))
     new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
                      native=None if native is None else _readonly(np.array(native)),
                      h_next_s=float(h_next), seed_entropy=state.seed_entropy)

@@ -47,11 +47,12 @@ def _scene(name):
     return load_scene(base, ["acquisition.model=linear", *over])
 
 
-def _per_sample(scene, seed, duration_s, block_s=10.0):
-    """The reference: per-sample bench blocks, filtered and decimated like daq's loop."""
+def _per_sample(scene, seed, duration_s, block_s=10.0, **kw):
+    """The reference: per-sample bench blocks, filtered and decimated like daq's loop (``kw``:
+    the simulation's, e.g. ``method``); returns the kept series, the filter, the simulation."""
     acq = scene.acquisition
     aa = antialias_for(acq, RecordPlan.from_acquisition(acq))
-    sim = BenchSimulation(scene, seed)
+    sim = BenchSimulation(scene, seed, **kw)
     st = aa.initial_state(3)
     out = {k: [] for k in ("a", "x", "y", *TRUTH, "sat_a", "sat_x")}
     carry = {"a": False, "x": False}
@@ -66,19 +67,19 @@ def _per_sample(scene, seed, duration_s, block_s=10.0):
         for k, key in (("a", "a_overrange"), ("x", "psd_off_detector")):
             s, carry[k] = _interval_any(b.truth[key], kept, carry[k])
             out["sat_" + k].append(s)
-    return {k: np.concatenate(v) for k, v in out.items()}, aa
+    return {k: np.concatenate(v) for k, v in out.items()}, aa, sim
 
 
-def _lifted(scene, seed, duration_s, aa, block_s=10.0):
-    sim = BenchSimulation(scene, seed)
-    out = {k: [] for k in ("a", "x", "y", *TRUTH, "sat_a", "sat_x")}
+def _lifted(scene, seed, duration_s, aa, block_s=10.0, **kw):
+    """The fused chain's kept series (``BenchSimulation.decimated_blocks``) and the simulation."""
+    sim = BenchSimulation(scene, seed, **kw)
+    out = {k: [] for k in ("a", "x", "y", *TRUTH, "sat_a", "sat_x", "sat_y")}
     for b in sim.decimated_blocks(block_s, duration_s, aa.sos):
         for k in "axy":
             out[k].append(b.volts[k])
+            out["sat_" + k].append(b.saturated[k])
         for k in TRUTH:
             out[k].append(b.truth[k])
-        out["sat_a"].append(b.saturated["a"])
-        out["sat_x"].append(b.saturated["x"])
     return {k: np.concatenate(v) for k, v in out.items()}, sim
 
 
@@ -86,7 +87,7 @@ def _lifted(scene, seed, duration_s, aa, block_s=10.0):
 def test_the_lifted_chain_equals_the_per_sample_path_within_round_off(name):
     scene = _scene(name)
     dur = SCENES[name][2]
-    ref, aa = _per_sample(scene, 11, dur)
+    ref, aa, _ = _per_sample(scene, 11, dur)
     new, sim = _lifted(scene, 11, dur, aa)
     for k, v in ref.items():
         assert new[k].shape == v.shape, k
@@ -172,47 +173,13 @@ def _nl(name):
     return load_scene("ishizaki2009", over), kw, dur
 
 
-def _per_sample_nl(scene, seed, duration_s, kw, block_s=10.0):
-    """The nonlinear reference: per-sample bench blocks, filtered and decimated like daq's."""
-    acq = scene.acquisition
-    aa = antialias_for(acq, RecordPlan.from_acquisition(acq))
-    sim = BenchSimulation(scene, seed, **kw)
-    st = aa.initial_state(3)
-    out = {k: [] for k in ("a", "x", "y", *TRUTH, "sat_a", "sat_x")}
-    carry = {"a": False, "x": False}
-    for b in sim.blocks(block_s, duration_s):
-        x = np.stack([b.volts[k] for k in "axy"])
-        kept = aa.kept(st, x.shape[1])
-        y, st = aa.step(st, x)
-        for i, k in enumerate("axy"):
-            out[k].append(y[i])
-        for k in TRUTH:
-            out[k].append(np.asarray(b.truth[k])[kept])
-        for k, key in (("a", "a_overrange"), ("x", "psd_off_detector")):
-            s, carry[k] = _interval_any(b.truth[key], kept, carry[k])
-            out["sat_" + k].append(s)
-    return {k: np.concatenate(v) for k, v in out.items()}, aa, sim
-
-
-def _fused_nl(scene, seed, duration_s, aa, kw, block_s=10.0):
-    sim = BenchSimulation(scene, seed, **kw)
-    out = {k: [] for k in ("a", "x", "y", *TRUTH, "sat_a", "sat_x", "sat_y")}
-    for b in sim.decimated_blocks(block_s, duration_s, aa.sos):
-        for k in "axy":
-            out[k].append(b.volts[k])
-            out["sat_" + k].append(b.saturated[k])
-        for k in TRUTH:
-            out[k].append(b.truth[k])
-    return {k: np.concatenate(v) for k, v in out.items()}, sim
-
-
 @pytest.mark.parametrize("name", list(NONLINEAR))
 def test_the_fused_nonlinear_chain_equals_the_per_sample_path_bit_for_bit(name):
     # the same arithmetic in the same order (rig.lifted.advance_decimated_nonlinear): no
     # round-off bound is needed, the kept values are the per-sample path's own
     scene, kw, dur = _nl(name)
-    ref, aa, ref_sim = _per_sample_nl(scene, 11, dur, kw)
-    new, sim = _fused_nl(scene, 11, dur, aa, kw)
+    ref, aa, ref_sim = _per_sample(scene, 11, dur, **kw)
+    new, sim = _lifted(scene, 11, dur, aa, **kw)
     assert sim.model.model == "nonlinear"
     for k, v in ref.items():
         assert new[k].dtype == v.dtype and new[k].shape == v.shape, k
@@ -229,9 +196,9 @@ def test_the_fused_nonlinear_chain_equals_the_per_sample_path_bit_for_bit(name):
 def test_fused_nonlinear_blocks_reproduce_a_one_shot_run_bit_for_bit():
     scene, kw, _ = _nl("driven_clipping")
     aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
-    one, _ = _fused_nl(scene, 4, 6.0, aa, kw, block_s=6.0)
+    one, _ = _lifted(scene, 4, 6.0, aa, block_s=6.0, **kw)
     for block_s in (0.01, 0.37, 2.5):
-        split, _ = _fused_nl(scene, 4, 6.0, aa, kw, block_s=block_s)
+        split, _ = _lifted(scene, 4, 6.0, aa, block_s=block_s, **kw)
         for k, v in one.items():
             assert np.array_equal(split[k], v), (block_s, k)
 
@@ -239,9 +206,9 @@ def test_fused_nonlinear_blocks_reproduce_a_one_shot_run_bit_for_bit():
 def test_the_fused_nonlinear_chain_gives_the_same_bytes_for_the_same_seed_only():
     scene, kw, _ = _nl("driven_1v")
     aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
-    a, _ = _fused_nl(scene, 9, 5.0, aa, kw)
-    b, _ = _fused_nl(scene, 9, 5.0, aa, kw)
-    c, _ = _fused_nl(scene, 10, 5.0, aa, kw)
+    a, _ = _lifted(scene, 9, 5.0, aa, **kw)
+    b, _ = _lifted(scene, 9, 5.0, aa, **kw)
+    c, _ = _lifted(scene, 10, 5.0, aa, **kw)
     assert all(np.array_equal(a[k], b[k]) for k in a)
     assert not np.array_equal(a["x"], c["x"])
 
