@@ -1,6 +1,7 @@
-"""The acquisition of a linear run through the bench's fused lifted chain (rig.lifted, the
-default) equals the per-sample path (``rig_bench(lifted=False)``) within round-off, and the run
-file says which parts ran per sample."""
+"""The acquisition through the bench's fused chain (rig.lifted, the default) equals the
+per-sample path (``rig_bench(lifted=False)``): a linear run (lifted) within round-off, a
+nonlinear one (fused after its per-sample bench) bit for bit; the run file says which parts ran
+per sample."""
 
 import functools
 

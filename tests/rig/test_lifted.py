@@ -2,7 +2,9 @@
 per-sample path (rig.bench.advance, then the anti-alias filter and the decimation of
 daq.antialias) within round-off on the paper's scene, a strongly driven scene that clips, a
 near-degenerate design and a long chain; block-wise equal to one-shot; the same seed, the same
-bytes.
+bytes. The nonlinear model's fused chain (per-sample bench, then the fused sensors and filter)
+equals its per-sample path bit for bit (the same arithmetic in the same order), with the same
+block-wise and same-seed checks.
 
 The round-off bound. Both paths compute the same exact linear map; they differ only in the
 order of the sums (Phi^q formed once against q products of Phi, the readings from the lifted
