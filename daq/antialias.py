@@ -65,7 +65,7 @@ import numpy as np
 
 from rig.acquisition_settings import decimation_factor
 from rig.errors import ConfigError
-from rig._jit import njit
+from rig._sosfilt import sosfilt_inplace as _sosfilt_inplace
 
 KINDS = ("elliptic", "none")
 
@@ -221,25 +221,7 @@ class AntiAliasFilter:
                 FilterState(zi=zi, phase=(state.phase - n) % self.decimation))
 
 
-# -- compiled filtering and the design cache ---------------------------------------------------
-
-@njit(cache=True, nogil=True)
-def _sosfilt_inplace(sos, x, zi):
-    """Filter every row of ``x`` (channels, samples) in place through the sections ``sos``
-    (rows ``[b0, b1, b2, 1, a1, a2]``), transposed direct form II, updating ``zi`` (sections,
-    channels, 2): the arithmetic of ``scipy.signal.sosfilt`` in the same order (equal to it bit for
-    bit, tests/test_antialias.py) without importing scipy.signal (~1 s)."""
-    n_sec = sos.shape[0]
-    for c in range(x.shape[0]):
-        for k in range(x.shape[1]):
-            cur = x[c, k]
-            for s in range(n_sec):
-                new = sos[s, 0] * cur + zi[s, c, 0]
-                zi[s, c, 0] = sos[s, 1] * cur - sos[s, 4] * new + zi[s, c, 1]
-                zi[s, c, 1] = sos[s, 2] * cur - sos[s, 5] * new
-                cur = new
-            x[c, k] = cur
-
+# -- the design cache -------------------------------------------------------------------------------
 
 def design_cache_dir() -> Path:
     """Where designed filters are kept: ``$PENDULUM_DAQ_CACHE``, else

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rig._sosfilt import sosfilt_inplace
+
 #: Angles in the bench drawing are multiplied by this by default ...
 MAGNIFICATION = 30.0
 #: ... and the stage's displacement by MAGNIFICATION / STAGE_RATIO.
@@ -153,8 +155,6 @@ class StagePosition:
 
     def __call__(self, accel_mps2: np.ndarray) -> np.ndarray:
         """Positions [m] at the samples of ``accel_mps2`` (the next samples of the run)."""
-        from daq.antialias import _sosfilt_inplace
-
         x = np.array(accel_mps2, dtype=float).reshape(1, -1)
-        _sosfilt_inplace(self.sos, x, self.zi)
+        sosfilt_inplace(self.sos, x, self.zi)
         return x[0]

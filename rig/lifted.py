@@ -285,7 +285,7 @@ def lift_sections(sos: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, np.n
 @njit(cache=True, nogil=True)
 def _sections(sos, zi, ch, cur):
     """One sample through the sections (``sosfilt``'s transposed direct form II, the order of
-    ``daq.antialias._sosfilt_inplace``), updating ``zi[:, ch, :]``."""
+    ``rig._sosfilt.sosfilt_inplace``), updating ``zi[:, ch, :]``."""
     for s in range(sos.shape[0]):
         new = sos[s, 0] * cur + zi[s, ch, 0]
         zi[s, ch, 0] = sos[s, 1] * cur - sos[s, 4] * new + zi[s, ch, 1]

@@ -36,8 +36,6 @@ DAQ_CONTRACT = ("daq", "daq.records", "daq.hdf5", "daq.sinks", "daq.check")
 EXCEPTIONS = {
     ("processing.dataset.task", "daq.acquisition"):
         "the dataset runner acquires its runs: a second composition root beside the CLI",
-    ("processing.bench_geometry", "daq.antialias"):
-        "the live view filters its expected signal with the acquisition's own anti-alias kernel",
 }
 
 #: Cycles inside one package, each with what removes it (a new cycle fails).

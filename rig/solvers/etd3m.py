@@ -124,23 +124,24 @@ def _piece_integral(a: np.ndarray, n: int, t_end: float, s_a: float, s_b: float,
     return _expm(a * (t_end - s_b)) @ acc
 
 
-@functools.lru_cache(maxsize=32)
-def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoefficients:
-    """The matrices of :func:`etd3m_kernel` for ``chain``, input interval ``h_in`` [s], ``m``
-    samples per step and ``hold`` (cached; ~3 m small matrix exponentials)."""
+def check_hold_and_m(hold: str, m) -> None:
+    """ConfigError unless ``hold`` is one of HOLDS and ``m`` (samples per step) is >= 1."""
     if hold not in HOLDS:
         raise ConfigError(f"hold = {hold!r} is invalid: expected one of {', '.join(HOLDS)}")
     if m < 1:
         raise ConfigError(f"m = {m!r} is invalid: expected a whole number of samples >= 1")
-    a, b = chain.state_space()
-    n = chain.n
-    n2 = 2 * n
-    c = ETD3_NODES
-    big_h = m * h_in
-    la = int(hold == "linear")
+
+
+def staircase_weights(a: np.ndarray, n: int, h_in: float, m: int, la: int, nodes, lag
+                      ) -> np.ndarray:
+    """The per-sample weights of a step of ``m`` held samples (``la`` = 1 for the linear hold),
+    (m + la, 2 k, 2n, n) for k = len(nodes): set i < k the integral over the step of
+    e^{A(H - s)} E lag[i](s) times the sample's basis function, set 2k - 1 - i the integral up to
+    node i (c_i H) of e^{A(c_i H - s)} E times it."""
     poly = np.polynomial.Polynomial
-    lag = [poly([-c[1], 1.0 / big_h]) / (c[0] - c[1]), poly([-c[0], 1.0 / big_h]) / (c[1] - c[0])]
-    wt = np.zeros((m + la, ETD3M_BLOCKS, n2, n))
+    k = len(nodes)
+    big_h = m * h_in
+    wt = np.zeros((m + la, 2 * k, 2 * n, n))
     for qq in range(m):
         s_a, s_b = qq * h_in, (qq + 1) * h_in
         # the hold's basis functions on interval qq: (tap, polynomial in s)
@@ -149,36 +150,65 @@ def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoe
         else:
             pieces = [(qq, poly([1.0]))]
         for tap, bas in pieces:
-            for i in range(2):
+            for i in range(k):
                 wt[tap, i] += _piece_integral(a, n, big_h, s_a, s_b, lag[i] * bas)
-                ci = c[i] * big_h
+                ci = nodes[i] * big_h
                 if s_a < ci:
-                    wt[tap, 3 - i] += _piece_integral(a, n, ci, s_a, min(s_b, ci), bas)
-    phic = np.array([_expm(a * (ci * big_h)) for ci in c])
-    nodes = (c[0] - 1.0, c[1] - 1.0)
-    xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
-                    (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
-    ck = np.zeros(2)
-    lohi = np.zeros((2, 2), dtype=np.int64)
+                    wt[tap, 2 * k - 1 - i] += _piece_integral(a, n, ci, s_a, min(s_b, ci), bas)
+    return wt
+
+
+def sawtooth_corrections(nodes, m: int, la: int, h_in: float) -> tuple[np.ndarray, np.ndarray]:
+    """The zero-order hold's sawtooth correction at each node (``ck`` [s], and the samples
+    ``lohi`` its difference spans); zeros for m = 1 or the linear hold."""
+    ck = np.zeros(len(nodes))
+    lohi = np.zeros((len(nodes), 2), dtype=np.int64)
     if m > 1 and not la:
-        for i, ci in enumerate(c):
+        for i, ci in enumerate(nodes):
             x = ci * m
             qq = min(int(math.floor(x)), m - 1)
             f = x - qq
             lo, hi = max(qq - 1, 0), min(qq + 1, m - 1)
             ck[i] = h_in * (1.0 / 12.0 - 0.5 * f * (1.0 - f)) / (hi - lo)
             lohi[i] = lo, hi
+    return ck, lohi
+
+
+def linear_parts(chain: "Chain", b: np.ndarray) -> dict:
+    """``p = H^-1 K``, ``q = H^-1 C`` and the input gain ``bw`` (rows n: of ``b``)."""
+    hinv = np.linalg.inv(chain.H)
+    arr = np.ascontiguousarray
+    return dict(p=arr(hinv @ chain.K), q=arr(hinv @ chain.C), bw=arr(b[chain.n:, 0]))
+
+
+@functools.lru_cache(maxsize=32)
+def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoefficients:
+    """The matrices of :func:`etd3m_kernel` for ``chain``, input interval ``h_in`` [s], ``m``
+    samples per step and ``hold`` (cached; ~3 m small matrix exponentials)."""
+    check_hold_and_m(hold, m)
+    a, b = chain.state_space()
+    n = chain.n
+    n2 = 2 * n
+    c = ETD3_NODES
+    big_h = m * h_in
+    la = int(hold == "linear")
+    poly = np.polynomial.Polynomial
+    lag = [poly([-c[1], 1.0 / big_h]) / (c[0] - c[1]), poly([-c[0], 1.0 / big_h]) / (c[1] - c[0])]
+    wt = staircase_weights(a, n, h_in, m, la, c, lag)
+    phic = np.array([_expm(a * (ci * big_h)) for ci in c])
+    nodes = (c[0] - 1.0, c[1] - 1.0)
+    xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
+                    (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
+    ck, lohi = sawtooth_corrections(c, m, la, h_in)
     # samples [0, e0) carry all four weight sets, [e0, e1) three (stage 0's ended), the rest two
     e0, e1 = (min(int(math.ceil(ci * m * (1.0 + 1e-12) - 1e-12)) + la, m + la) for ci in c)
     widths = np.array([e0, e1, 4 * n2 * n, 3 * n2 * n, 2 * n2 * n], dtype=np.int64)
-    hinv = np.linalg.inv(chain.H)
     arr = np.ascontiguousarray
     return Etd3mCoefficients(
         m=m, phi=arr(_expm(a * big_h)), phic=arr(phic),
         wt=arr(wt.reshape(m + la, ETD3M_BLOCKS * n2 * n)), wq=arr(wt[:, :2].sum(axis=0)),
         pc=arr(wt[:, :1:-1].sum(axis=0)), xp=arr(xp), ck=ck, lohi=lohi, widths=widths,
-        p=arr(hinv @ chain.K),
-        q=arr(hinv @ chain.C), bw=arr(b[n:, 0]))
+        **linear_parts(chain, b))
 
 
 def check_samples_per_step(solver, held) -> int:

@@ -46,12 +46,13 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from rig.errors import ConfigError
 
 from rig.solvers._kernels import etd4m_kernel, etd4m_kernel2, etd4m_kernel2h
-from rig.solvers.base import HOLDS, Refinement, multisample_refinement
+from rig.solvers.base import Refinement, multisample_refinement
 from rig.solvers.dop853 import Dop853
-from rig.solvers.etd3m import MultiSample, _piece_integral, check_samples_per_step
+from rig.solvers.etd3m import (MultiSample, _piece_integral, check_hold_and_m,
+                               check_samples_per_step, linear_parts, sawtooth_corrections,
+                               staircase_weights)
 
 if TYPE_CHECKING:
     from rig.chain import Chain
@@ -124,56 +125,29 @@ def _lagrange(nodes, j, scale):
 def etd4m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd4mCoefficients:
     """The matrices of :func:`etd4m_kernel` for ``chain``, input interval ``h_in`` [s], ``m``
     samples per step and ``hold`` (cached; ~6 m small matrix exponentials)."""
-    if hold not in HOLDS:
-        raise ConfigError(f"hold = {hold!r} is invalid: expected one of {', '.join(HOLDS)}")
-    if m < 1:
-        raise ConfigError(f"m = {m!r} is invalid: expected a whole number of samples >= 1")
+    check_hold_and_m(hold, m)
     a, b = chain.state_space()
     n = chain.n
     n2 = 2 * n
     c = ETD4M_NODES
     big_h = m * h_in
     la = int(hold == "linear")
-    poly = np.polynomial.Polynomial
     lag = [_lagrange(c, i, big_h) for i in range(3)]
-    wt = np.zeros((m + la, ETD4M_SETS, n2, n))
-    for qq in range(m):
-        s_a, s_b = qq * h_in, (qq + 1) * h_in
-        if la:
-            pieces = [(qq, poly([1.0 + qq, -1.0 / h_in])), (qq + 1, poly([-qq, 1.0 / h_in]))]
-        else:
-            pieces = [(qq, poly([1.0]))]
-        for tap, bas in pieces:
-            for i in range(3):
-                wt[tap, i] += _piece_integral(a, n, big_h, s_a, s_b, lag[i] * bas)
-                ci = c[i] * big_h
-                if s_a < ci:
-                    wt[tap, 5 - i] += _piece_integral(a, n, ci, s_a, min(s_b, ci), bas)
+    wt = staircase_weights(a, n, h_in, m, la, c, lag)
     prev = tuple(ci - 1.0 for ci in c)
     lprev = [_lagrange(prev, j, big_h) for j in range(3)]
     pn = np.array([[_piece_integral(a, n, ci * big_h, 0.0, ci * big_h, lprev[j])
                     for j in range(3)] for ci in c])
     xp = np.array([[lprev[j](0.5 * ci * big_h) for j in range(3)] for ci in c])
     phic = np.array([_expm(a * (ci * big_h)) for ci in c])
-    ck = np.zeros(3)
-    lohi = np.zeros((3, 2), dtype=np.int64)
-    if m > 1 and not la:
-        for i, ci in enumerate(c):
-            x = ci * m
-            qq = min(int(math.floor(x)), m - 1)
-            f = x - qq
-            lo, hi = max(qq - 1, 0), min(qq + 1, m - 1)
-            ck[i] = h_in * (1.0 / 12.0 - 0.5 * f * (1.0 - f)) / (hi - lo)
-            lohi[i] = lo, hi
+    ck, lohi = sawtooth_corrections(c, m, la, h_in)
     widths = np.array([min(int(math.ceil(ci * m * (1.0 + 1e-12) - 1e-12)) + la, m + la)
                        for ci in c], dtype=np.int64)
-    hinv = np.linalg.inv(chain.H)
     arr = np.ascontiguousarray
     return Etd4mCoefficients(
         m=m, phi=arr(_expm(a * big_h)), phic=arr(phic),
         wt=arr(wt.reshape(m + la, ETD4M_SETS * n2 * n)), wq=arr(wt[:, :3].sum(axis=0)),
-        pn=arr(pn), xp=arr(xp), ck=ck, lohi=lohi, widths=widths, p=arr(hinv @ chain.K),
-        q=arr(hinv @ chain.C), bw=arr(b[n:, 0]))
+        pn=arr(pn), xp=arr(xp), ck=ck, lohi=lohi, widths=widths, **linear_parts(chain, b))
 
 
 @dataclass(frozen=True)
