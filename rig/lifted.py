@@ -474,7 +474,7 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sos
     (:func:`_nonlinear_kernel`) per sample: the accelerometer (``x0'' - w_c q``, gain, noise,
     clip, flag: :meth:`Accelerometer.sense_and_output`'s arithmetic), the lever
     (:func:`rig.devices.optical_lever._spot`, noise, clip, flag: :meth:`OpticalLever.measure`'s),
-    the sections per sample (``daq.antialias._sosfilt_inplace``'s order), and at the kept
+    the sections per sample (``rig._sosfilt.sosfilt_inplace``'s order), and at the kept
     instants the volts and the interval rule's flags. The noise is drawn in numpy as the
     per-sample path draws it (one ``standard_normal(n)`` per stream and block). So the kept
     values equal :func:`rig.bench.advance` then daq's filter and decimation bit for bit; the
