@@ -122,8 +122,10 @@ def _fixed(text: str, n: int) -> np.bytes_:
     return np.bytes_(text.encode("utf-8")[:n])
 
 
-def _attr(value):
-    """A value h5py and netCDF readers both understand (bools as 0/1, None as "")."""
+def attr_value(value, *, list_dtype=None):
+    """A value h5py and netCDF readers both understand: bools as 0/1, None as "", a list of
+    strings as a string array, another list as an array (of ``list_dtype`` if given), a dict as
+    JSON (numpy values as numbers, paths as text)."""
     if value is None:
         return ""
     if isinstance(value, (bool, np.bool_)):
@@ -131,10 +133,13 @@ def _attr(value):
     if isinstance(value, (list, tuple)):
         if all(isinstance(v, str) for v in value):
             return np.array(value, dtype=_STR)
-        return np.asarray(value)
+        return np.asarray(value, dtype=list_dtype)
     if isinstance(value, dict):
         return json.dumps(value, default=_json_default)
     return value
+
+
+_attr = attr_value
 
 
 def _json_default(o):

@@ -36,12 +36,12 @@ renamed when complete; an existing file is replaced only with ``force``. HDF5 1.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from daq.hdf5 import LIBVER, attr_value
 from rig._io import atomic_output, write_columns_csv
 
 __all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "CSV_COLUMNS", "write_spectra", "write_csv",
@@ -56,22 +56,12 @@ GROUP = "spectra"
 FORMAT = "pendulum-daq spectra"
 #: 1.1: HDF5 1.10 format bounds (daq.hdf5.LIBVER), a fletcher32 checksum on every variable.
 FORMAT_VERSION = "1.1"
-_STR = h5py.string_dtype()
 
 
 def _attr(value):
-    """A value netCDF readers understand: str, number or array (bools as 0/1, None as "")."""
-    if value is None:
-        return ""
-    if isinstance(value, (bool, np.bool_)):
-        return int(value)
-    if isinstance(value, (list, tuple)):
-        if all(isinstance(v, str) for v in value):
-            return np.array(value, dtype=_STR)
-        return np.asarray(value, dtype=float)
-    if isinstance(value, dict):
-        return json.dumps(value)
-    return value
+    """A value netCDF readers understand (:func:`daq.hdf5.attr_value`, numeric lists as
+    float)."""
+    return attr_value(value, list_dtype=float)
 
 
 def _variable(g, name: str, data, scale, *, units: str, long_name: str) -> None:
@@ -105,7 +95,6 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
     Path : ``path``.
     """
     from rig._io import software_version
-    from daq.hdf5 import LIBVER
 
     a = analysis
     path = Path(path)
