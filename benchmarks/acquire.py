@@ -25,10 +25,9 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
 from daq.acquisition import acquire, rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
@@ -53,10 +52,6 @@ def one_run(name, out, extra=()):
     return time.perf_counter() - t, time.process_time() - c, summary
 
 
-def quart(x):
-    return np.percentile(x, 25), np.median(x), np.percentile(x, 75)
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rounds", type=int, default=7)
@@ -73,25 +68,12 @@ def main(argv=None):
             est = info.get("error_estimate", {}).get("relative_rms_theta")
             print(f"warm-up {n}: model {info['model']}, method {info['method'][:60]}..., "
                   f"error estimate {est:.2g}; wall {w:.2f} s, CPU {c:.2f} s", flush=True)
-        walls = {n: [] for n in names}
-        cpus = {n: [] for n in names}
-        for r in range(args.rounds):
-            order = names[r % len(names):] + names[:r % len(names)]
-            for n in order:
-                w, c, _ = one_run(n, out, args.set)
-                walls[n].append(w)
-                cpus[n].append(c)
+        walls, cpus = interleaved(names, args.rounds, lambda n: one_run(n, out, args.set))
     print(f"\n{args.rounds} rounds, interleaved; medians [quartiles]")
     print("| configuration | CPU [s] | wall [s] | CPU / first | wall / first | runs/min on 2 "
           "cores |")
     print("|---|---|---|---|---|---|")
-    c0, w0 = np.array(cpus[names[0]]), np.array(walls[names[0]])
-    for n in names:
-        c, w = np.array(cpus[n]), np.array(walls[n])
-        qc, qw, rc, rw = quart(c), quart(w), quart(c / c0), quart(w / w0)
-        print(f"| {n} | {qc[1]:.2f} [{qc[0]:.2f}, {qc[2]:.2f}] | {qw[1]:.2f} [{qw[0]:.2f}, "
-              f"{qw[2]:.2f}] | {rc[1]:.2f} [{rc[0]:.2f}, {rc[2]:.2f}] | {rw[1]:.2f} "
-              f"[{rw[0]:.2f}, {rw[2]:.2f}] | {120 / qc[1]:.0f} |")
+    print("\n".join(ratio_rows(names, cpus, walls)))
     print(f"load average after: {os.getloadavg()}")
 
 

@@ -35,6 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
 from daq.acquisition import acquire, rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink, read_run  # noqa: E402
 from rig import bench as rb  # noqa: E402
@@ -55,10 +56,6 @@ def one_run(name, out):
     acquire(scene, seed=2009, sinks=[Hdf5Sink(out, force=True)],
             bench=functools.partial(rig_bench, **kw))
     return time.perf_counter() - t, time.process_time() - c
-
-
-def quart(x):
-    return np.percentile(x, 25), np.median(x), np.percentile(x, 75)
 
 
 def compare_files(a, b):
@@ -171,24 +168,13 @@ def main(argv=None):
             w, c = one_run(n, outs[n])
             print(f"warm-up {n}: wall {w:.2f} s, CPU {c:.2f} s", flush=True)
         worst, ndiff, dmax, total, flags = compare_files(outs["per-sample"], outs["lifted"])
-        walls = {n: [] for n in names}
-        cpus = {n: [] for n in names}
-        for r in range(args.rounds):
-            for n in (names if r % 2 == 0 else names[::-1]):
-                w, c = one_run(n, outs[n])
-                walls[n].append(w)
-                cpus[n].append(c)
+        walls, cpus = interleaved(names, args.rounds, lambda n: one_run(n, outs[n]),
+                                  rotate=False)
     print(f"\n{args.rounds} rounds, interleaved; medians [quartiles]")
     print("| path | CPU per run [s] | wall per run [s] | CPU / per-sample | wall / per-sample | "
           "runs/min on 2 cores |")
     print("|---|---|---|---|---|---|")
-    c0, w0 = np.array(cpus[names[0]]), np.array(walls[names[0]])
-    for n in names:
-        c, w = np.array(cpus[n]), np.array(walls[n])
-        qc, qw, rc, rw = quart(c), quart(w), quart(c / c0), quart(w / w0)
-        print(f"| {n} | {qc[1]:.3f} [{qc[0]:.3f}, {qc[2]:.3f}] | {qw[1]:.3f} [{qw[0]:.3f}, "
-              f"{qw[2]:.3f}] | {rc[1]:.3f} [{rc[0]:.3f}, {rc[2]:.3f}] | {rw[1]:.3f} "
-              f"[{rw[0]:.3f}, {rw[2]:.3f}] | {120 / qc[1]:.0f} |")
+    print("\n".join(ratio_rows(names, cpus, walls, digits=3)))
     print(f"\narrays, lifted against per-sample: truth differs by at most {worst:.2g} of a "
           f"series' rms; codes: {ndiff} of {total} samples differ, by at most {dmax} LSB; "
           f"clip and saturation flags {'equal' if flags else 'DIFFER'}")

@@ -22,6 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from benchmarks._interleave import quart, tree_pairs  # noqa: E402
+
 HERE = Path(__file__).resolve().parent.parent
 ROW = re.compile(r"^\| linear \| ([0-9.]+) \[[^]]*\] \| ([0-9.]+) ")
 
@@ -39,10 +42,6 @@ def one_process(tree: Path, rounds: int, extra: list[str]) -> tuple[float, float
     raise RuntimeError(f"no result row in the output of {' '.join(cmd)}:\n{out.stdout}")
 
 
-def quart(x):
-    return np.percentile(x, 25), np.median(x), np.percentile(x, 75)
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--baseline", type=Path, required=True, help="the other source tree")
@@ -52,14 +51,10 @@ def main(argv=None):
     args = ap.parse_args(argv)
     extra = [a for s in args.set for a in ("--set", s)]
     trees = {"this": HERE, "baseline": args.baseline.resolve()}
-    res = {k: [] for k in trees}
     print(f"load average before: {os.getloadavg()}")
-    for p in range(args.pairs):
-        order = ["this", "baseline"] if p % 2 == 0 else ["baseline", "this"]
-        for k in order:
-            res[k].append(one_process(trees[k], args.rounds, extra))
-            print(f"pair {p}: {k} CPU {res[k][-1][0]:.2f} s, wall {res[k][-1][1]:.2f} s",
-                  flush=True)
+    res = tree_pairs(trees, args.pairs, lambda tree: one_process(tree, args.rounds, extra),
+                     lambda p, k, r: print(f"pair {p}: {k} CPU {r[0]:.2f} s, wall {r[1]:.2f} s",
+                                           flush=True))
     print(f"\n{args.pairs} pairs of processes ({args.rounds} timed runs each), interleaved; "
           "medians [quartiles]")
     print("| tree | CPU per run [s] | wall per run [s] | CPU / baseline | wall / baseline |")

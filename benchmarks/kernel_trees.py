@@ -25,6 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from benchmarks._interleave import tree_pairs  # noqa: E402
+
 HERE = Path(__file__).resolve().parent.parent
 
 CHILD = r"""
@@ -87,12 +90,8 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=5, help="timed calls per case and process")
     args = ap.parse_args(argv)
     trees = {"this": HERE, "baseline": args.baseline.resolve()}
-    res = {k: [] for k in trees}
     print(f"load average before: {os.getloadavg()}")
-    for p in range(args.pairs):
-        order = ["this", "baseline"] if p % 2 == 0 else ["baseline", "this"]
-        for k in order:
-            res[k].append(one_process(trees[k], args.repeats))
+    res = tree_pairs(trees, args.pairs, lambda tree: one_process(tree, args.repeats))
     print(f"load average after: {os.getloadavg()}")
     print(f"\n{args.pairs} process pairs, each process the median of {args.repeats} calls per case"
           f" (CPU)\n")
