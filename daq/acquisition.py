@@ -247,8 +247,13 @@ class _RigBench:
         if self._lifted:
             from rig.lifted import PER_SAMPLE, PER_SAMPLE_NONLINEAR
 
-            fused = PER_SAMPLE if self._sim.model.model == "linear" else PER_SAMPLE_NONLINEAR
+            linear = self._sim.model.model == "linear"
+            fused = PER_SAMPLE if linear else PER_SAMPLE_NONLINEAR
             info["per_sample"] = dict(fused, rate_hz=self.fs_hz)
+            step = "compiled loop, one step per DAC sample"
+            if linear and info.get("method", "").endswith(step):  # what the lifted chain runs
+                info["method"] = (info["method"][:-len(step)] + "lifted (rig.lifted): one exact "
+                                  "step Phi^q per output sample, q = the decimation")
         return info
 
 

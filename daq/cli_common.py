@@ -48,6 +48,13 @@ def model_lines(info: dict) -> list[str]:
              f"  error estimate: {fmt(est)}"]
     if info.get("reason"):
         lines.append(f"  why this model: {info['reason']}")
+    per = info.get("per_sample")
+    if isinstance(per, dict) and per.get("what"):
+        rate = per.get("rate_hz")
+        at = f" (at {fmt(rate)} Hz)" if rate else ""
+        lines.append(f"  per DAC sample{at}: {per['what']}")
+        if per.get("why"):
+            lines.append(f"  why: {per['why']}")
     return lines
 
 

@@ -60,3 +60,22 @@ def test_a_fused_nonlinear_run_equals_the_per_sample_run_bit_for_bit(over):
     assert "fused" in info and "lifted" not in info
     assert "fused" not in old_info and "lifted" not in old_info
     assert info["rate_hz"] == old_info["rate_hz"]
+
+
+def test_inspect_says_what_runs_per_dac_sample_and_that_the_linear_bench_is_lifted(tmp_path):
+    from click.testing import CliRunner
+
+    from daq.cli import main
+
+    out = tmp_path / "run.h5"
+    res = CliRunner().invoke(main, ["acquire", "--scene", "ishizaki2009", "--seed", "5",
+                                    "--out", str(out), *(a for s in SHORT for a in ("--set", s)),
+                                    "--set", "acquisition.model=linear", "--allow-over-budget"])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(main, ["inspect", str(out)])
+    assert res.exit_code == 0, res.output
+    method = next(line for line in res.output.splitlines() if line.startswith("  method: "))
+    assert "lifted (rig.lifted): one exact step Phi^q per output sample" in method
+    assert "one step per DAC sample" not in method
+    assert "  per DAC sample (at 1000 Hz): the sensors' three linear readings" in res.output
+    assert "  why: the bench from the DAC to the readings is linear" in res.output
