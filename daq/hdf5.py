@@ -209,6 +209,7 @@ class Hdf5Sink(Sink):
         self._tmp = None
         self._lock = None
         self._n = 0
+        self._rows: dict = {}
 
     # -- stream ---------------------------------------------------------------------------
     def check(self) -> None:
@@ -298,24 +299,40 @@ class Hdf5Sink(Sink):
             raise ValueError(f"record {k} arrives out of order (expected {self._n})")
         for ds in self._grow:
             ds.resize(k + 1, axis=0)
+        put = self._put_row
         for rec in self._record_scales:
-            rec[k] = k
-        self._rec_start[k] = record.t0_s
+            put(rec, k, k)
+        put(self._rec_start, k, record.t0_s)
         names = self._header.names
         saturated = {c: record.saturated.get(c, np.zeros(len(record.codes[c]), bool))
                      for c in names}
         for name in names:
-            self._codes[name][k] = record.codes[name]
-            self._flags[name][k] = record.clipped[name]
-            self._sat_flags[name][k] = saturated[name]
-        self._count[k] = [np.count_nonzero(record.clipped[c]) for c in names]
-        self._sat_count[k] = [np.count_nonzero(saturated[c]) for c in names]
+            put(self._codes[name], k, record.codes[name])
+            put(self._flags[name], k, record.clipped[name])
+            put(self._sat_flags[name], k, saturated[name])
+        put(self._count, k, [np.count_nonzero(record.clipped[c]) for c in names])
+        put(self._sat_count, k, [np.count_nonzero(saturated[c]) for c in names])
         for name, ds in self._truth.items():
-            ds[k] = record.truth[name]
+            put(ds, k, record.truth[name])
         self._f.flush()  # the record (data and metadata) first ...
         self._n = k + 1
         self._records_complete[()] = self._n  # ... then the count a reader trusts
         self._f.flush()
+
+    def _put_row(self, ds, k: int, value) -> None:
+        """``ds[k] = value`` for a dataset growing along axis 0, through HDF5's own write with
+        the row's shape and type known from the layout (h5py's general selection skipped: about
+        half the sink's cost); the same values, the same bytes. TypeError for a row of another
+        shape."""
+        dtype, shape = self._rows.get(ds.id.id) or self._rows.setdefault(
+            ds.id.id, (ds.dtype, (1,) + ds.shape[1:]))
+        arr = np.asarray(value, dtype=dtype)
+        if arr.shape != shape[1:]:
+            raise TypeError(f"{ds.name}: row {k} has the shape {arr.shape}; expected {shape[1:]}")
+        row = np.ascontiguousarray(arr.reshape(shape))
+        space = ds.id.get_space()
+        space.select_hyperslab((k,) + (0,) * (len(shape) - 1), shape)
+        ds.id.write(h5py.h5s.create_simple(shape), space, row)
 
     def stop(self, footer: Footer) -> None:
         if self._f is None:
