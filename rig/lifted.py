@@ -63,6 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rig._jit import njit
+from rig._sosfilt import sos_sample
 from rig.blocks import DecimatedBlock
 from rig.devices.optical_lever import _spot
 from rig.errors import ConfigError, DivergenceError
@@ -254,14 +255,14 @@ def lift_sections(sos: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, np.n
     (``zi`` of every section, ``2 x sections`` states ``s``): ``s_{j+1} = A s_j + M x_j`` over
     an interval's q inputs ``x_j`` and the kept output ``y_j = C s_j + D x_j[0]`` (the filtered
     sample at the interval's first instant). Returns ``(A, M^T, C, D)`` as (ns, ns), (q, ns),
-    (ns,), (1,); built by running the sections (:func:`_sections`) on unit states and inputs,
-    so they are the sections' own linear map."""
+    (ns,), (1,); built by running the sections (:func:`rig._sosfilt.sos_sample`) on unit
+    states and inputs, so they are the sections' own linear map."""
     sos = np.ascontiguousarray(sos, dtype=float).reshape(-1, 6)
     ns = 2 * sos.shape[0]
 
     def run(s0, x):
         zi = s0.reshape(-1, 1, 2).copy()
-        ys = [_sections(sos, zi, 0, xi) for xi in x]
+        ys = [sos_sample(sos, zi, 0, xi) for xi in x]
         return zi.reshape(-1), ys[0]
 
     a, c = np.zeros((ns, ns)), np.zeros(ns)
@@ -280,18 +281,6 @@ def lift_sections(sos: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, np.n
     if np.any(a[band] != 0):  # what the kernel skips: a cascade cannot feed back
         raise ValueError("the lifted sections are not block lower triangular")
     return (np.ascontiguousarray(a), np.ascontiguousarray(m.T), c, d)
-
-
-@njit(cache=True, nogil=True)
-def _sections(sos, zi, ch, cur):
-    """One sample through the sections (``sosfilt``'s transposed direct form II, the order of
-    ``rig._sosfilt.sosfilt_inplace``), updating ``zi[:, ch, :]``."""
-    for s in range(sos.shape[0]):
-        new = sos[s, 0] * cur + zi[s, ch, 0]
-        zi[s, ch, 0] = sos[s, 1] * cur - sos[s, 4] * new + zi[s, ch, 1]
-        zi[s, ch, 1] = sos[s, 2] * cur - sos[s, 5] * new
-        cur = new
-    return cur
 
 
 @njit(cache=True, nogil=True)
@@ -551,8 +540,9 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sos
 def _nonlinear_kernel(accel, hp, wc, gain_a, wa, sd_a, lim_a, mx, mz, mrot, cphi, sphi, dist,
                       wx, wy, sd_p, half, gain_x, gain_y, sos, zi, q, carry, volts, sat):
     """Per DAC sample k: the accelerometer (``_sense_output_kernel``'s arithmetic), the lever
-    (``_measure_kernel``'s), the three channels through the sections (:func:`_sections`; ``zi``
-    (sections, 3, 2) in/out), and at every ``q``-th sample the filtered volts (3, J) and, per
+    (``_measure_kernel``'s), the three channels through the sections
+    (:func:`rig._sosfilt.sos_sample`; ``zi`` (sections, 3, 2) in/out), and at every ``q``-th
+    sample the filtered volts (3, J) and, per
     channel, whether its sensor saturated since the previous kept instant (``sat`` (3, J);
     ``carry`` (3,) in/out: after the last kept instant). ``wa`` / ``wx`` empty: no noise."""
     noisy_a = wa.shape[0] > 0
@@ -572,9 +562,9 @@ def _nonlinear_kernel(accel, hp, wc, gain_a, wa, sd_a, lim_a, mx, mz, mrot, cphi
         f_p = (abs(uk) > half) or (abs(vk) > half)
         xx = gain_x * min(max(uk, -half), half)
         xy = gain_y * min(max(vk, -half), half)
-        ya = _sections(sos, zi, 0, xa)
-        yx = _sections(sos, zi, 1, xx)
-        yy = _sections(sos, zi, 2, xy)
+        ya = sos_sample(sos, zi, 0, xa)
+        yx = sos_sample(sos, zi, 1, xx)
+        yy = sos_sample(sos, zi, 2, xy)
         if k % q == 0:
             j = k // q
             volts[0, j] = ya
