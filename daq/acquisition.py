@@ -245,15 +245,13 @@ class _RigBench:
     def model_info(self) -> dict:
         info = dict(self._sim.model_info())
         if self._lifted:
-            from rig.lifted import PER_SAMPLE, PER_SAMPLE_NONLINEAR
+            from rig.lifted import LIFTED_STEP, PER_SAMPLE, PER_SAMPLE_NONLINEAR
 
             linear = self._sim.model.model == "linear"
-            fused = PER_SAMPLE if linear else PER_SAMPLE_NONLINEAR
-            info["per_sample"] = dict(fused, rate_hz=self.fs_hz)
-            step = "compiled loop, one step per DAC sample"
-            if linear and info.get("method", "").endswith(step):  # what the lifted chain runs
-                info["method"] = (info["method"][:-len(step)] + "lifted (rig.lifted): one exact "
-                                  "step Phi^q per output sample, q = the decimation")
+            info["per_sample"] = dict(PER_SAMPLE if linear else PER_SAMPLE_NONLINEAR,
+                                      rate_hz=self.fs_hz)
+            if linear:  # what the lifted chain runs
+                info["method"] = self._rb.linear_method(self._sim.model, LIFTED_STEP)
         return info
 
 

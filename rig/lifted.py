@@ -83,6 +83,10 @@ PER_SAMPLE = {
 }
 
 
+#: how the lifted chain steps the linear bench (the linear model's ``method`` text ends so)
+LIFTED_STEP = "lifted (rig.lifted): one exact step Phi^q per output sample, q = the decimation"
+
+
 @dataclass(frozen=True, eq=False)
 class Lifted:
     """The lifted matrices of one linear :class:`rig.bench.BenchModel` at decimation ``q``.

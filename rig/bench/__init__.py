@@ -59,10 +59,10 @@ from rig.bench.model import (COUPLED_METHODS, DEFAULT_METHOD, MODELS, NONLINEAR_
 from rig.bench.run import (STREAMS, BenchState, _spawn, advance, stage_fine_kernel, start)
 from rig.bench.response import (BenchResponse, _as_linear, calibrations, expected_response,
                                 signal_to_noise, stationary_levels)
-from rig.bench.estimates import _kernel_theta, model_info, model_seed
+from rig.bench.estimates import _kernel_theta, linear_method, model_info, model_seed
 from rig.bench.simulation import BenchSimulation
 
 __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
-           "model_info", "select_model", "predict_linearisation_error", "MODELS",
+           "model_info", "linear_method", "select_model", "predict_linearisation_error", "MODELS",
            "NONLINEAR_METHODS", "STREAMS"]

@@ -84,6 +84,18 @@ def _rel_rms(diff: np.ndarray, ref: np.ndarray) -> float:
     return float(np.max(r))
 
 
+#: how the linear bench is stepped by the per-sample path (rig.bench.advance)
+PER_SAMPLE_STEP = "compiled loop, one step per DAC sample"
+
+
+def linear_method(model: BenchModel, step: str = PER_SAMPLE_STEP) -> str:
+    """The linear model's ``method`` text: its discretisation, then how it is stepped."""
+    return ("exact discretisation (zero-order hold, matrix exponential) of the coupled linear "
+            "bench: coil, stage, linearised pendulum"
+            + (" with its reaction" if model.stage.reaction else "")
+            + f", accelerometer high-pass; {step}")
+
+
 def _model_info(model: BenchModel, *, probe_s: float, seed, probe_v=None) -> dict:
     scene = model.scene
     acq = scene.acquisition
@@ -140,10 +152,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed, probe_v=None) -> dic
         v, _ = generate(model.source, start_source(model.source, children[0]), n)
     z0 = np.array(start(model, root).z)
     if model.model == "linear":
-        info["method"] = ("exact discretisation (zero-order hold, matrix exponential) of the "
-                          "coupled linear bench: coil, stage, linearised pendulum"
-                          + (" with its reaction" if model.stage.reaction else "")
-                          + ", accelerometer high-pass; compiled loop, one step per DAC sample")
+        info["method"] = linear_method(model)
         theta = _kernel_theta(model, v, z0)
         theta2 = _kernel_theta(_half_step_model(model), v, z0)
         e_disc = float(np.max(np.abs(theta - theta2)))
