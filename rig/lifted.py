@@ -66,6 +66,7 @@ from rig._jit import njit
 from rig._sosfilt import sos_sample
 from rig.blocks import DecimatedBlock
 from rig.devices.optical_lever import _spot
+from rig.devices.source import standard_normals
 from rig.errors import ConfigError, DivergenceError
 
 #: what the fused chain runs at every DAC sample and why (the run file's model info)
@@ -468,10 +469,11 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sos
     clip, flag: :meth:`Accelerometer.sense_and_output`'s arithmetic), the lever
     (:func:`rig.devices.optical_lever._spot`, noise, clip, flag: :meth:`OpticalLever.measure`'s),
     the sections per sample (``rig._sosfilt.sosfilt_inplace``'s order), and at the kept
-    instants the volts and the interval rule's flags. The noise is drawn in numpy as the
-    per-sample path draws it (one ``standard_normal(n)`` per stream and block). So the kept
-    values equal :func:`rig.bench.advance` then daq's filter and decimation bit for bit; the
-    per-sample truth arrays, spot positions and sensed acceleration are never made. Cost: the
+    instants the volts and the interval rule's flags. The noise is the per-sample path's (one
+    ``standard_normal(n)`` per stream and block: the same values and generator states, drawn in
+    compiled code by :func:`rig.devices.source.standard_normals`). So the kept values equal
+    :func:`rig.bench.advance` then daq's filter and decimation bit for bit; the per-sample truth
+    arrays, spot positions and sensed acceleration are never made. Cost: the
     bench's own, plus per sample ``2 nth`` sines and cosines, one spot geometry, three normal
     draws and ``3 x 5 x sections`` multiply-adds of the filter.
 
@@ -503,13 +505,13 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sos
     rng_x = _rng(state.rng_states["psd_x"])
     rng_y = _rng(state.rng_states["psd_y"])
     if acc.noise_mps2_rthz > 0:
-        sd_a, wa = acc.noise_rms_v(fs), rng_a.standard_normal(n)
+        sd_a, wa = acc.noise_rms_v(fs), standard_normals(rng_a, n)
     else:
         sd_a, wa = 0.0, np.zeros(0)
     mx, mz, mrot = _mirror_kinematics(model.scene, theta, exact=True)
     if lever.noise_m_rthz > 0:
         sd_p = lever.noise_rms_m(fs)
-        wx, wy = rng_x.standard_normal(n), rng_y.standard_normal(n)
+        wx, wy = standard_normals(rng_x, n), standard_normals(rng_y, n)
     else:
         sd_p, wx, wy = 0.0, np.zeros(0), np.zeros(0)
     sos = np.ascontiguousarray(sos, dtype=float).reshape(-1, 6)
