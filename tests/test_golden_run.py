@@ -1,5 +1,5 @@
-"""The paper's run, shortened (tests/golden.py), gives exactly the stored arrays: any change of
-the acquisition's output shows here. After an understood change, rewrite the golden files with
+"""The paper's run, shortened (tests/golden.py), gives the stored arrays (codes and flags exactly,
+floats within round-off across CPUs: ROUNDOFF): any change of the acquisition's output shows here. After an understood change, rewrite the golden files with
 ``python -m tests.golden`` in a commit of its own that states the bound of the change."""
 
 import numpy as np
@@ -8,14 +8,32 @@ import pytest
 from tests import golden
 
 
+#: the golden files' floats were written on another CPU: numpy's OpenBLAS picks its kernels by
+#: CPU (DYNAMIC_ARCH), so the matrix products and exponentials behind the truth and the model
+#: response (rig.lifted's Phi^q, scipy's expm, the response's solves) may differ there in the last
+#: bits. Measured between the host that wrote them and an AMD EPYC (2026-12-02): truth at most
+#: 1.3e-14 of a series' largest value, model responses at most 1.8e-14; the bound is about a
+#: hundred times that. Codes and flags must match exactly.
+ROUNDOFF = 1e-12
+#: the ratios whose zero-frequency entry is 0/0 (the stage's acceleration and the accelerometer's
+#: high-passed reading vanish at DC): their value there is round-off of round-off, differing by
+#: tens of percent between CPUs, so it is not compared (the other entries are)
+DC_RATIOS = ("model/h_t", "model/theta_2")
+
+
 @pytest.mark.parametrize("name", list(golden.RUNS))
-def test_a_golden_run_gives_the_stored_arrays_bit_for_bit(name):
+def test_a_golden_run_gives_the_stored_arrays(name):
     stored = golden.load(name)
     fresh = golden.run_arrays(name)
     assert sorted(fresh) == sorted(stored)
     for k, v in stored.items():
         assert fresh[k].dtype == v.dtype and fresh[k].shape == v.shape, k
-        assert np.array_equal(fresh[k], v), k
+        if k.startswith(("codes/", "clipped/", "saturated/")):
+            assert np.array_equal(fresh[k], v), k
+        else:  # truth and model response: relative to the series' largest value
+            a, b = (fresh[k][1:], v[1:]) if k in DC_RATIOS else (fresh[k], v)
+            err = np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300)
+            assert err <= ROUNDOFF, (k, err)
 
 
 def test_golden_runs_are_distinct_runs_of_the_paper_scene():
