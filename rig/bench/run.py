@@ -132,8 +132,11 @@ def _mirror_kinematics(scene: Scene, theta: np.ndarray, exact: bool):
     lengths = np.asarray(chain.length_m)
     if not exact:
         return theta @ scene.mirror_weights(), np.zeros(theta.shape[0]), theta[:, j].copy()
-    x = np.sin(theta[:, :j]) @ lengths[:j] + s * np.sin(theta[:, j])
-    z = (1 - np.cos(theta[:, :j])) @ lengths[:j] + s * (1 - np.cos(theta[:, j]))
+    x = np.sin(theta[:, :j]) @ lengths[:j]
+    z = (1 - np.cos(theta[:, :j])) @ lengths[:j]
+    if s != 0.0:  # the mirror away from its body's pivot (s = 0 adds exact zeros: skipped)
+        x = x + s * np.sin(theta[:, j])
+        z = z + s * (1 - np.cos(theta[:, j]))
     return x, z, theta[:, j].copy()
 
 
