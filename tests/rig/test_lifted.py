@@ -167,6 +167,8 @@ NONLINEAR = {
                         30.0),
     "paper_rk4": (["acquisition.model=nonlinear", "stage.reaction=false"], {"method": "rk4"},
                   20.0),
+    # no anti-alias sections: the kernel keeps every q-th sensor reading as it is
+    "paper_unfiltered": (["acquisition.model=nonlinear", "acquisition.antialias=none"], {}, 20.0),
 }
 
 
