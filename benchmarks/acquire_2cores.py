@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 WORKER = r"""
-import sys, time
+import sys
 sys.path.insert(0, {root!r})
 from daq.acquisition import acquire, rig_bench
 from daq.hdf5 import Hdf5Sink

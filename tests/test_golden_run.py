@@ -1,5 +1,6 @@
 """The paper's run, shortened (tests/golden.py), gives the stored arrays (codes and flags exactly,
-floats within round-off across CPUs: ROUNDOFF): any change of the acquisition's output shows here. After an understood change, rewrite the golden files with
+floats within round-off across CPUs: ROUNDOFF): any change of the acquisition's output beyond
+round-off shows here. After an understood change, rewrite the golden files with
 ``python -m tests.golden`` in a commit of its own that states the bound of the change."""
 
 import numpy as np
