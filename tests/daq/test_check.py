@@ -130,6 +130,34 @@ def test_fewer_rows_than_records_complete_counts_is_named_truncated(sound, tmp_p
     assert fc.valid_records == (0, 1)
 
 
+def _extra_row(p, status):
+    """One dataset one row longer than records_complete (the record being written), the status
+    set as the writer's stop sets it."""
+    with h5py.File(p, "r+") as f:
+        f["entry/data/x"].resize(4, axis=0)
+        st = f["entry/status"]
+        st[()] = np.bytes_(status.encode().ljust(st.dtype.itemsize, b" "))
+
+
+def test_a_failed_run_whose_last_record_could_not_be_trimmed_is_sound(sound, tmp_path):
+    """A full disk: the stop records status 'failed' but cannot shrink the rows of the record it
+    was writing. Readers read records_complete rows only, so the file is sound, noted."""
+    p = _copy(sound, tmp_path)
+    _extra_row(p, "failed")
+    fc = check_file(p)
+    assert fc.ok and fc.status == "failed" and fc.records_valid == 3, fc
+    assert any("unfinished record beyond records_complete = 3" in n for n in fc.notes)
+    np.testing.assert_array_equal(read_run(p).codes["x"], read_run(sound / "run.h5").codes["x"])
+
+
+def test_a_complete_run_with_more_rows_than_records_is_invalid(sound, tmp_path):
+    p = _copy(sound, tmp_path)
+    _extra_row(p, "complete")
+    fc = check_file(p)
+    assert not fc.ok and fc.status == "invalid"
+    assert "entry/data/x holds 4 rows but records_complete = 3" in fc.problems
+
+
 def test_a_plan_or_calibration_that_disagrees_with_the_file_is_invalid(sound, tmp_path):
     p = _copy(sound, tmp_path)
     with h5py.File(p, "r+") as f:

@@ -189,7 +189,7 @@ def test_a_full_disk_ends_the_run_with_one_line_naming_the_partial_file(small_di
     n = fc.records_valid
     assert lines[0].startswith(f"Error: disk full after {n} of 1500 records: {out} holds {n} "
                                "finished records of 1500, each verified (status ")
-    assert fc.ok and fc.status in ("failed", "acquiring") and n >= 2
+    assert fc.ok and fc.status in ("failed", "acquiring") and n >= 2, repr(fc)
     (small_disk / "filler").unlink()
     if not fc.notes or "marked open" not in " ".join(fc.notes):
         with h5py.File(out, "r"):
