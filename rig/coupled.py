@@ -568,7 +568,7 @@ def etd_ab_sparsity(w: np.ndarray, a_rows: np.ndarray) -> tuple[int, int]:
     return int(rows[-1] + 1 if rows.size else 0), int(cols[-1] + 1 if cols.size else 0)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
                   m_stage, reaction, th0, q_idx, wc, rows, a_rows, phi_t, gam, w, w_rows, a_cols,
                   nsub, have, hist, v, z, z_out, ax_out):
@@ -587,7 +587,10 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
     (lag + order, nf) holds f at the last steps (newest first) and is updated; ``have`` False:
     none yet (a start: every entry is taken as f(z_0)). ``z`` (in/out) ends at
     the instant len(v). The rows are summed in a fixed order, so block splits reproduce one-shot
-    runs bit for bit."""
+    runs bit for bit. Compiled with FMA contraction (``fastmath={"contract"}``, no reordering):
+    the acquisition runs the same arithmetic unrolled for the matrices' zero pattern
+    (:func:`rig.unrolled.etdab_kernel`, the same values), this loop is its reference and the
+    path of benches too large to unroll."""
     n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
     order = w.shape[0]
     nh = hist.shape[0]
