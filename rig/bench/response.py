@@ -100,8 +100,10 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
     frequency_response`, :meth:`Accelerometer.frequency_response`, :meth:`OpticalLever.
     frequency_response`) times the DAC hold; ``sampled=True`` the exact discrete-time transfer
     function of the simulated samples (:class:`BenchResponse`). Both use the linear pendulum and
-    the linearised optical lever; both need ``0 <= f < fs / 2``.
-    Memoised per scene and grid (:mod:`rig.scene_memo`).
+    the linearised optical lever; both need ``0 <= f < fs / 2``. At 0 Hz, where the stage's
+    acceleration and the mirror's motion vanish, the ratios (``h_t``, ``theta_2`` and the
+    pendulum's) are their limits: finite for the pendulum, NaN through an accelerometer with a
+    high-pass (:func:`_dc_ratios`). Memoised per scene and grid (:mod:`rig.scene_memo`).
     """
     model = build_model(scene) if scene.acquisition.model == "linear" else \
         build_model(_as_linear(scene))
@@ -137,6 +139,12 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
         stage_disp = st.disp * drive
         theta = st.theta * drive[:, None]
         a = acc.frequency_response(f) * stage_accel
+    dc = f == 0.0
+    if sampled and dc.any():
+        # at 0 Hz the stage rests displaced, the pendulum hangs: the closed form's exact zeros,
+        # where the solve at z = 1 leaves round-off (~1e-16 of the values nearby)
+        for arr in (stage_accel, theta, a):
+            arr[dc] = 0.0
     mirror_x = theta @ scene.mirror_weights()
     mirror_rot = theta[:, scene.mirror.body]
     cal = _calibrations(model)
@@ -148,10 +156,28 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
         theta_2 = (y / cal["y"].volts_per_unit) / a_eng
         h_t_p = mirror_x / stage_accel
         th2_p = mirror_rot / stage_accel
+    if dc.any():
+        h_t_p[dc], th2_p[dc], h_t[dc], theta_2[dc] = _dc_ratios(scene, acc, cal)
     return BenchResponse(freqs_hz=f, a=a, x=x, y=y, stage_accel=stage_accel,
                          stage_disp=stage_disp, theta=theta, mirror_x=mirror_x,
                          mirror_rot=mirror_rot, h_t=h_t, theta_2=theta_2, h_t_pendulum=h_t_p,
                          theta_2_pendulum=th2_p, sampled=bool(sampled))
+
+
+def _dc_ratios(scene: Scene, acc, cal) -> tuple[complex, complex, complex, complex]:
+    """The ratios' values at 0 Hz, where numerator and denominator both vanish (the stage's
+    acceleration, the mirror's motion): their limits. The pendulum alone: its static deflection
+    per unit base acceleration (:meth:`rig.chain.Chain.frf_angles` at 0 Hz, ``-1/g`` per body;
+    a sampled model has the same, as a zero-order hold keeps the DC gain). Through the
+    accelerometer: that over its DC gain in engineering units, which is 0 with its high-pass
+    (the ratio grows without bound: NaN) and 1 without."""
+    theta = scene.chain.frf_angles(0.0)[0]
+    h_t_p = complex(theta @ scene.mirror_weights())
+    th2_p = complex(theta[scene.mirror.body])
+    gain = complex(acc.frequency_response(np.zeros(1))[0]) / cal["a"].volts_per_unit
+    if gain == 0:
+        return h_t_p, th2_p, complex(np.nan, np.nan), complex(np.nan, np.nan)
+    return h_t_p, th2_p, h_t_p / gain, th2_p / gain
 
 
 def _as_linear(scene: Scene) -> Scene:

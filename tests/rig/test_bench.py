@@ -189,6 +189,29 @@ def test_sampled_response_is_the_continuous_one_plus_the_folded_dac_images():
     assert np.all(np.abs(sampled / cont - 1) < 0.05)
 
 
+@pytest.mark.parametrize("sampled", [False, True])
+@pytest.mark.parametrize("highpass", [True, False])
+def test_the_ratios_at_0_hz_are_their_limits(sampled, highpass):
+    """Stage acceleration and mirror motion both vanish at 0 Hz: the ratios take their limits
+    there (the pendulum's static tilt -1/g per m/s^2), not a quotient of round-off; through an
+    accelerometer with a high-pass the limit is unbounded (NaN)."""
+    sc = ishizaki(*([] if highpass else ["accelerometer.highpass_hz=0"]))
+    f = np.array([0.0, 1e-4, 1e-3])
+    r = expected_response(sc, f, sampled=sampled)
+    g = sc.chain.g_mps2
+    assert r.theta_2_pendulum[0] == pytest.approx(-1.0 / g, rel=1e-12)
+    for name in ("h_t_pendulum", "theta_2_pendulum") + (() if highpass else ("h_t", "theta_2")):
+        v = getattr(r, name)
+        # continuous in f: at 1e-3 Hz the ratios have moved by the damping's first-order term
+        # (at most 1.2e-5 of the value here, theta_2's) and the sampled solve near z = 1 by
+        # round-off ~1e-6 (growing as f falls); a quotient of round-off at 0 Hz is off by tens
+        # of percent
+        assert abs(v[2] / v[0] - 1) < 5e-5, (name, v)
+    if highpass:
+        assert np.all(np.isnan(r.h_t[:1])) and np.all(np.isnan(r.theta_2[:1]))
+        assert abs(r.h_t[2]) > 10 * abs(r.h_t_pendulum[2])  # growing toward 0 Hz
+
+
 def test_reconstruction_filter_removes_the_folded_dac_images():
     # 4th-order Butterworth at 100 Hz: the images near 1 kHz are attenuated by (100/990)^4 ~ 1e-4
     # on top of the hold's own ~f/fs, so sampled and continuous responses agree to ~1e-6 relative
