@@ -35,6 +35,9 @@ from rig.scene import load_scene  # noqa: E402
 CONFIGS = {
     "linear": ("acquisition.model=linear", {}),
     "etdab": ("acquisition.model=nonlinear", {"method": "etdab"}),
+    # etdab with the remainder at every step (the default's path before speed round 4's
+    # rig.bench.model.remainder_every: every 5 steps on the paper's drive)
+    "etdab_every1": ("acquisition.model=nonlinear", {"method": "etdab", "every": 1}),
     "lawson4": ("acquisition.model=nonlinear", {"method": "lawson4"}),
     # the unfused paths (rig_bench(lifted=False)): the bench's per-sample blocks, then daq's
     # anti-alias filter and decimation (the "before" of the fused chains)

@@ -39,14 +39,15 @@ def main(argv=None):
     n = int(round(args.seconds * fs))
     v, _ = generate(model.source, sim.state.source, n)
     v = np.ascontiguousarray(v, dtype=float)
-    phi_t, gam, w, w_rows, a_cols = model.etdab
+    sim = BenchSimulation(scene, 2009, method="etdab", every=1)  # the remainder at every step
+    phi_t, gam, w, lagv, w_rows, a_cols = sim.model.etdab
     kern = unrolled.etdab_kernel(phi_t, gam, w, 4, prm.n)
     runs = {}
     for name, weights in (("nonlinear", w), ("linear", np.zeros_like(w))):  # no remainder
         z, hist = np.array(sim.state.z, dtype=float), np.zeros((4, prm.rows.size))
         z_out = np.empty((n, z.size))
-        kern(*prm.args(), phi_t, gam, weights, w_rows, a_cols, 1, False, hist, v, z, z_out,
-             np.empty(n))
+        kern(*prm.args(), phi_t, gam, weights, lagv, w_rows, a_cols, 1, False, hist,
+             np.zeros(1, np.int64), v, z, z_out, np.empty(n))
         runs[name] = z_out
     th = model.slices["theta_rad"]
     nl, lin = runs["nonlinear"][:, th], runs["linear"][:, th]

@@ -60,8 +60,8 @@ The drivers are :mod:`rig.solvers.lawson4` and :mod:`rig.solvers.etdab`.
 
 Public API: :class:`CoupledParams`, :func:`coupled_params`, :func:`accelerations`,
 :func:`remainder`, :func:`lawson_matrices`, :func:`lawson4_kernel`, :func:`etd_ab_weights`,
-:func:`etd_ab_kernel`, :func:`first_order_kernel`,
-:func:`horizontal_momentum`, :func:`energy`.
+:func:`etd_ab_phase_weights`, :func:`etd_ab_sparsity`, :func:`etd_ab_kernel`,
+:func:`first_order_kernel`, :func:`horizontal_momentum`, :func:`energy`.
 """
 
 from __future__ import annotations
@@ -480,12 +480,25 @@ def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mt
 
 def etd_ab_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, lag: int = 0
                    ) -> np.ndarray:
-    """Weights of :func:`etd_ab_kernel`: ``W_j = int_0^h e^{A(h-s)} P L_j(s/h) ds``, (order, nf,
-    nz) (transposed for the kernel's loop), where ``P`` puts the remainder's ``nf`` rows into z
-    and ``L_j`` is the Lagrange polynomial through the past samples ``x = -lag, .., -(lag +
-    order - 1)`` that is 1 at ``x = -(lag + j)``. Read off one matrix exponential of the system
-    augmented by the monomials (Van Loan): block m of its first block row is ``int_0^h
-    e^{A(h-s)} P (s/h)^m ds / m!``."""
+    """Weights of :func:`etd_ab_kernel` with the remainder at every step:
+    ``etd_ab_phase_weights(a, rows, h, order, 1, lag)[0][0]``, (order, nf, nz)."""
+    return etd_ab_phase_weights(a, rows, h, order, 1, lag)[0][0]
+
+
+def etd_ab_phase_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, every: int,
+                         lag: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of :func:`etd_ab_kernel` for a remainder evaluated at every ``every``-th step
+    (its nodes ``H = every h`` apart): ``(w, lagv)``.
+
+    ``w`` (every, order, nf, nz) (transposed for the kernel's loop): for the step that starts
+    ``i`` steps after the newest node, ``W^(i)_j = int_0^h e^{A(h-s)} P L_j((i h + s) / H) ds``,
+    where ``P`` puts the remainder's ``nf`` rows into z and ``L_j`` is the Lagrange polynomial
+    through the nodes ``x = -lag, .., -(lag + order - 1)`` (in units of H) that is 1 at ``x =
+    -(lag + j)``. ``lagv`` (every, order): ``L_j(i / every)``, the remainder at that step's start.
+    Read off one matrix exponential of the system augmented by the monomials (Van Loan): block m
+    of its first block row is ``int_0^h e^{A(h-s)} P (s/h)^m ds / m!``; ``L_j(i / every + u /
+    every)`` is expanded in powers of ``u = s / h`` (``every`` = 1: the powers of ``L_j``'s own
+    coefficients, exactly)."""
     a = np.asarray(a, float)
     nz = a.shape[0]
     nf = rows.size
@@ -499,13 +512,23 @@ def etd_ab_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, lag: i
     e = scipy.linalg.expm(big)
     ks = [math.factorial(m) * e[:nz, nz + m * nf:nz + (m + 1) * nf] for m in range(order)]
     nodes = -(lag + np.arange(order, dtype=float))
-    w = np.zeros((order, nz, nf))
+    poly = np.polynomial.polynomial
+    w = np.zeros((every, order, nz, nf))
+    lagv = np.zeros((every, order))
     for j in range(order):
         others = np.delete(nodes, j)
-        coef = np.polynomial.polynomial.polyfromroots(others) / np.prod(nodes[j] - others)
-        for m in range(order):
-            w[j] += coef[m] * ks[m]
-    return np.ascontiguousarray(w.transpose(0, 2, 1))
+        coef = poly.polyfromroots(others) / np.prod(nodes[j] - others)
+        for i in range(every):
+            if every == 1:
+                comp = coef
+            else:
+                comp = np.zeros(1)
+                for m, cm in enumerate(coef):
+                    comp = poly.polyadd(comp, cm * poly.polypow([i / every, 1.0 / every], m))
+            lagv[i, j] = poly.polyval(i / every, coef)
+            for m in range(min(order, comp.size)):
+                w[i, j] += comp[m] * ks[m]
+    return np.ascontiguousarray(w.transpose(0, 1, 3, 2)), lagv
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -563,62 +586,76 @@ def etd_ab_sparsity(w: np.ndarray, a_rows: np.ndarray) -> tuple[int, int]:
     leaves every sum's value unchanged (finite states); it saves ~5 % of a step (skipping
     Phi's zero blocks by ranges per column cost more than it saved: the loops no longer
     vectorise)."""
-    rows = np.flatnonzero(np.abs(w).sum(axis=(0, 1)))
+    rows = np.flatnonzero(np.abs(w).reshape(-1, w.shape[-1]).sum(axis=0))
     cols = np.flatnonzero(np.abs(a_rows).sum(axis=0))
     return int(rows[-1] + 1 if rows.size else 0), int(cols[-1] + 1 if cols.size else 0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
-                  m_stage, reaction, th0, q_idx, wc, rows, a_rows, phi_t, gam, w, w_rows, a_cols,
-                  nsub, have, hist, v, z, z_out, ax_out):
+                  m_stage, reaction, th0, q_idx, wc, rows, a_rows, phi_t, gam, w, lagv, w_rows,
+                  a_cols, nsub, have, hist, phase, v, z, z_out, ax_out):
     """Exponential Adams-Bashforth over len(v) DAC intervals, ``nsub`` steps of h each::
 
-        z_{k+1} = Phi z_k + Gamma v + sum_j W_j f(z_{k-lag-j}),   j = 0 .. order - 1
+        z_{k+1} = Phi z_k + Gamma v + sum_j W^(i)_j f(z at node n - lag - j),  j = 0 .. order - 1
 
-    (``phi_t`` = Phi transposed and ``gam`` over h, ``w`` from :func:`etd_ab_weights`, lag =
-    len(hist) - order): the linear bench and the held source exactly, the remainder's integral
-    over the step by the polynomial through its values at ``order`` past steps. One evaluation
-    of f per step, at the step's own state, which also gives the nonlinear x0'' stored in
-    ``ax_out[k]`` at DAC instant k; ``z_out[k]`` = z there. With lag >= 1 the step does not wait
-    for the newest evaluation.
+    (``phi_t`` = Phi transposed and ``gam`` over h; ``w``, ``lagv`` from
+    :func:`etd_ab_phase_weights`, ``every`` = len(w), lag = len(hist) - order): the linear
+    bench and the held source exactly, the remainder's integral over the step by the polynomial
+    through its values at ``order`` past nodes, which are every ``every``-th step; ``i`` is the
+    step's place after the newest node (``phase[0]``, in/out: 0 .. every - 1 at the block's
+    start). At a node, one evaluation of f at the step's own state, which also gives the
+    nonlinear x0''; between nodes x0'' is the linear row plus f's first row interpolated
+    (``lagv``). ``ax_out[k]`` = x0'' and ``z_out[k]`` = z at DAC instant k. ``every`` = 1: f at
+    every step (the default; with lag >= 1 the step does not wait for the newest evaluation).
 
     ``w_rows, a_cols`` (:func:`etd_ab_sparsity`) skip exact zeros of the products. ``hist``
-    (lag + order, nf) holds f at the last steps (newest first) and is updated; ``have`` False:
-    none yet (a start: every entry is taken as f(z_0)). ``z`` (in/out) ends at
+    (lag + order, nf) holds f at the last nodes (newest first) and is updated; ``have`` False:
+    none yet (a start, which is a node: every entry is taken as f(z_0)). ``z`` (in/out) ends at
     the instant len(v). The rows are summed in a fixed order, so block splits reproduce one-shot
     runs bit for bit. Compiled with FMA contraction (``fastmath={"contract"}``, no reordering):
     the acquisition runs the same arithmetic unrolled for the matrices' zero pattern
     (:func:`rig.unrolled.etdab_kernel`, the same values), this loop is its reference and the
     path of benches too large to unroll."""
     n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
-    order = w.shape[0]
+    every = w.shape[0]
+    order = w.shape[1]
     nh = hist.shape[0]
     lag = nh - order
     f = np.empty(nf)
     zn = np.empty(nz)
     zw = np.empty(nz)
     first = not have
+    ph = phase[0]
+    ax = 0.0
     for kk in range(v.shape[0]):
         vk = v[kk]
         for sub in range(nsub):
-            if two:
-                ax = _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0,
-                                      q_idx, wc, a_rows, a_cols, z, f)
-            else:
-                ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                  m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha, f)
-            if first:
-                first = False
-                for j in range(nh):
+            if ph == 0:
+                if two:
+                    ax = _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0,
+                                          q_idx, wc, a_rows, a_cols, z, f)
+                else:
+                    ax = _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
+                                      m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha,
+                                      f)
+                if first:
+                    first = False
+                    for j in range(nh):
+                        for i in range(nf):
+                            hist[j, i] = f[i]
+                else:
+                    for j in range(nh - 1, 0, -1):
+                        for i in range(nf):
+                            hist[j, i] = hist[j - 1, i]
                     for i in range(nf):
-                        hist[j, i] = f[i]
-            else:
-                for j in range(nh - 1, 0, -1):
-                    for i in range(nf):
-                        hist[j, i] = hist[j - 1, i]
-                for i in range(nf):
-                    hist[0, i] = f[i]
+                        hist[0, i] = f[i]
+            elif sub == 0:
+                ax = 0.0
+                for col in range(a_cols):
+                    ax += a_rows[0, col] * z[col]
+                for j in range(order):
+                    ax += lagv[ph, j] * hist[lag + j, 0]
             if sub == 0:
                 ax_out[kk] = ax
                 for r in range(nz):
@@ -634,9 +671,13 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
                 for i in range(nf):
                     x = hist[lag + j, i]
                     for r in range(w_rows):
-                        zw[r] += w[j, i, r] * x
+                        zw[r] += w[ph, j, i, r] * x
             for r in range(nz):
                 z[r] = zn[r] + zw[r]
+            ph += 1
+            if ph == every:
+                ph = 0
+    phase[0] = ph
 
 
 # ================================================================================================
@@ -737,6 +778,5 @@ def energy(chain: Chain, stage: Stage, theta, omega, x0, v0, current=None) -> np
 
 
 __all__ = ["CoupledParams", "coupled_params", "accelerations", "remainder", "lawson_matrices",
-           "lawson4_kernel", "etd_ab_weights", "etd_ab_sparsity", "etd_ab_kernel",
-           "first_order_kernel",
-           "horizontal_momentum", "energy"]
+           "lawson4_kernel", "etd_ab_weights", "etd_ab_phase_weights", "etd_ab_sparsity",
+           "etd_ab_kernel", "first_order_kernel", "horizontal_momentum", "energy"]

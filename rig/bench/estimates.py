@@ -37,11 +37,12 @@ from rig.bench.selection import select_model
 
 
 def model_info(scene: Scene, *, seed=0, probe_s: float = 20.0, method: str | None = None,
-               oversample: int = 8, substeps: int = 1) -> dict:
+               oversample: int = 8, substeps: int = 1, every: int | None = None) -> dict:
     """Which model runs, why, how, and its error estimate (measured on a ``probe_s`` run of the
     scene's own drive from rest); see :meth:`BenchSimulation.model_info`."""
     return _model_info(build_model(scene, method=method, oversample=oversample,
-                                   substeps=substeps), probe_s=probe_s, seed=seed)
+                                   substeps=substeps, every=every), probe_s=probe_s,
+                       seed=seed)
 
 
 def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
@@ -64,7 +65,7 @@ def _richardson_estimate(scene, model: BenchModel, v: np.ndarray, z0: np.ndarray
     theta = _kernel_theta(model, v, z0)
     ref = model.solver.refined()
     fine = build_model(scene, method=ref.solver.name, substeps=ref.solver.substeps,
-                       selection=model.selection)
+                       every=model.every, selection=model.selection)
     diff = (theta - _kernel_theta(fine, v, z0)) * ref.scale
     lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
     return {
@@ -178,12 +179,16 @@ def _model_info(model: BenchModel, *, probe_s: float, seed, probe_v=None) -> dic
             "(rig.coupled): the linear bench propagated exactly (matrix exponential, zero-order "
             "hold), the nonlinear remainder by exponential Adams-Bashforth of order "
             f"{ETDAB_ORDER} (its integral over a step from the polynomial through its last "
-            f"{ETDAB_ORDER} values, one evaluation per step), {model.substeps} step(s) per DAC "
-            "sample")
+            f"{ETDAB_ORDER} values, "
+            + ("one evaluation per step" if model.every == 1 else
+               f"evaluated every {model.every} steps and extrapolated between") +
+            f"), {model.substeps} step(s) per DAC sample")
+        info["remainder_every_steps"] = model.every
         info["error_estimate"] = _richardson_estimate(scene, model, v, z0)
         info["error_method"] = (
             f"Richardson on a {probe_s:g} s probe of the scene's drive from rest: |theta - "
-            f"theta(2x steps)| 2^{ETDAB_ORDER}/(2^{ETDAB_ORDER} - 1) (the error is that of the "
+            f"theta(2x steps)| 2^{ETDAB_ORDER}/(2^{ETDAB_ORDER} - 1) (the remainder's nodes "
+            "every the same number of steps, so half as far apart; the error is that of the "
             "small nonlinear remainder: the linear part is exact). "
             "'probe_nonlinear_minus_linear' is the model difference on the probe (the run's is "
             "predicted in 'selection')")

@@ -64,7 +64,8 @@ class BenchModel:
         accelerometer (z_s = (i, x0, v0, q)) stepped exactly at 1 / (fs oversample).
     coupled, lawson : lawson4 and etdab paths: the kernels' parameters (:class:`rig.coupled.
         CoupledParams`); lawson4: (E_h, E_h/2, G_h, G_h/2) at h = 1 / (fs substeps).
-    etdab : etdab path only: (Phi^T, Gamma, W) at h = 1 / (fs substeps)
+    etdab : etdab path only: (Phi^T, Gamma, W, L) at h = 1 / (fs substeps), the remainder
+        every ``every`` steps
         (:func:`rig.coupled.etd_ab_weights`) and their sparsity (:func:`rig.coupled.
         etd_ab_sparsity`): the kernel's arguments after ``coupled``'s.
     """
@@ -80,6 +81,7 @@ class BenchModel:
     method: str
     oversample: int
     substeps: int
+    every: int
     rtol: float
     atol: float
     a: np.ndarray
@@ -109,7 +111,8 @@ class BenchModel:
         ``atol``)."""
         if self.model == "linear":
             return ExactBench()
-        return solver_named(self.method, substeps=self.substeps, rtol=self.rtol, atol=self.atol)
+        return solver_named(self.method, substeps=self.substeps, every=self.every,
+                            rtol=self.rtol, atol=self.atol)
 
     @property
     def n_states(self) -> int:
@@ -168,9 +171,51 @@ def _bench_state_space(stage: Stage, chain: Chain, acc: Accelerometer, with_chai
     return a, b, accel_row, slices
 
 
+#: etdab's remainder nodes at least this many per period of the highest frequency it carries
+NODES_PER_PERIOD = 16
+#: the steps between remainder nodes that :func:`remainder_every` chooses from (10 is not: a
+#: sine at the 2.48 Hz mode, 0.3 V, angles to 0.14 rad, erred by 2.8e-5 there against 1.8e-6 at
+#: 5 and 3.2e-9 at every step)
+EVERY_CHOICES = (5, 2, 1)
+#: nodes further apart only for a weak nonlinearity: the predicted linearisation error's upper
+#: estimate (:func:`select_model`) at most this (the paper's drive: 6.5e-3; a double rod swinging
+#: from 1 rad, whose remainder is as large as the motion and carries its harmonics, erred by
+#: 6e-3 in energy over 10 s with nodes every 5 steps)
+WEAK_NONLINEARITY = 0.1
+
+
+def remainder_every(scene: Scene, fs_hz: float, substeps: int = 1,
+                    selection: dict | None = None) -> int:
+    """etdab's default steps between remainder evaluations for this scene: 1 unless the
+    nonlinearity is weak (:data:`WEAK_NONLINEARITY`, from ``selection`` or
+    :func:`select_model`); then the largest of :data:`EVERY_CHOICES` whose nodes come at least
+    :data:`NODES_PER_PERIOD` times per period of the highest frequency the remainder carries:
+    the drive's (``fmax_hz`` of the noise and chirp types, the sine's ``frequency_hz``; a
+    burst's switching is broadband: every step) or the chain's highest mode. A weak remainder
+    carries those bands (its power above 20 Hz is ~1e-6 of it on the paper's 12.5 Hz noise,
+    benchmarks/remainder_spectrum.py), so its polynomial through nodes that far apart is
+    accurate: on the paper's drive the remainder every 5 steps errs by 3.9e-9 of the angles' rms
+    (6.7e-12 at every step), measured and estimated alike (Richardson, which every run file
+    records; tests/rig/solvers/test_coupled_etdab.py)."""
+    source = scene.source
+    if source.type == "burst-random":
+        return 1
+    if selection is None:
+        selection = select_model(scene)
+    if not selection["predicted_linear_error_upper"] <= WEAK_NONLINEARITY:
+        return 1
+    top = source.frequency_hz if source.type == "sine" else source.fmax_hz
+    top = max(top, float(np.max(scene.chain.modes()[0])))
+    rate = fs_hz * substeps
+    for r in EVERY_CHOICES:
+        if r * NODES_PER_PERIOD * top <= rate:
+            return r
+    return 1
+
+
 def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
-                substeps: int = 1, rtol: float = 1e-10, atol: float = 1e-12,
-                selection: dict | None = None) -> BenchModel:
+                substeps: int = 1, every: int | None = None, rtol: float = 1e-10,
+                atol: float = 1e-12, selection: dict | None = None) -> BenchModel:
     """Validate the scene's bench sections and build the :class:`BenchModel`.
 
     ``acquisition.model = "auto"`` runs :func:`select_model` (or takes ``selection``, its
@@ -178,7 +223,9 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
     ``rtol``, ``atol`` matter for the nonlinear model only (:mod:`rig.bench`): ``substeps``
     Lawson steps per DAC interval, or for the prescribed-stage methods ``oversample`` exact
     stage-acceleration instants per DAC interval (the pendulum sees them linearly interpolated)
-    and ``substeps`` integrator steps per sub-interval.
+    and ``substeps`` integrator steps per sub-interval; ``every``: etdab evaluates its remainder
+    at every ``every``-th step only (:func:`rig.coupled.etd_ab_phase_weights`; 1: every step;
+    None, the default: :func:`remainder_every` for this drive).
 
     Raises
     ------
@@ -197,7 +244,10 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
     if method not in NONLINEAR_METHODS:
         raise ConfigError(f"method = {method!r} is invalid: expected one of "
                           f"{', '.join(NONLINEAR_METHODS)}")
-    for name, v in (("oversample", oversample), ("substeps", substeps)):
+    settings = (("oversample", oversample), ("substeps", substeps), ("every", every))
+    for name, v in settings:
+        if name == "every" and v is None:
+            continue
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
             raise ConfigError(f"{name} = {v!r} is invalid: expected an integer >= 1")
     if model == "auto":
@@ -206,6 +256,9 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
         model = selection["chosen"]
     else:
         selection = None
+    if every is None:
+        every = (remainder_every(scene, fs, substeps, selection)
+                 if model == "nonlinear" and method == "etdab" else 1)
     if model == "nonlinear" and stage.reaction and method in PRESCRIBED_STAGE_METHODS:
         raise ConfigError(
             f"method = {method!r} is not supported with stage.reaction = true: it integrates the "
@@ -228,8 +281,8 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
             hs = h / substeps
             phi_s, g_s, _ = discretise(a, b, hs, "zoh")
             phi_t = np.ascontiguousarray(phi_s.T)
-            w = rcoupled.etd_ab_weights(a, prm.rows, hs, ETDAB_ORDER)
-            kw = dict(coupled=prm, etdab=(phi_t, np.ascontiguousarray(g_s[:, 0]), w)
+            w, lagv = rcoupled.etd_ab_phase_weights(a, prm.rows, hs, ETDAB_ORDER, every)
+            kw = dict(coupled=prm, etdab=(phi_t, np.ascontiguousarray(g_s[:, 0]), w, lagv)
                       + rcoupled.etd_ab_sparsity(w, prm.a_rows))
     elif model == "nonlinear":
         sa, sb, srow, _ = _bench_state_space(stage, chain, acc, with_chain=False, source=source)
@@ -238,7 +291,8 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
                   stage_accel_row=srow)
     return BenchModel(scene=scene, source=source, stage=stage, accelerometer=acc, lever=lever,
                       fs_hz=fs, decimation=decimation, model=model, method=method,
-                      oversample=int(oversample), substeps=int(substeps), rtol=float(rtol),
+                      oversample=int(oversample), substeps=int(substeps), every=int(every),
+                      rtol=float(rtol),
                       atol=float(atol), a=a, b=b, phi=np.ascontiguousarray(phi),
                       gamma=np.ascontiguousarray(g0[:, 0]), accel_row=accel_row, slices=slices,
                       selection=selection, **kw)

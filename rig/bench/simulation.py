@@ -50,7 +50,8 @@ class BenchSimulation:
     scene : the scene (its ``source``, ``stage``, ``accelerometer``, ``psd`` and ``acquisition``
         sections).
     seed : int or SeedSequence for every random stream of the run.
-    method, oversample, substeps, rtol, atol : nonlinear-model settings (:func:`build_model`).
+    method, oversample, substeps, every, rtol, atol : nonlinear-model settings
+        (:func:`build_model`).
 
     ahead : ``(block_s, duration_s)`` of the first :meth:`blocks` call to come: its source is
         made from now on in another thread (the source does not depend on the model; numpy's
@@ -67,8 +68,8 @@ class BenchSimulation:
     AHEAD_BLOCKS = 64
 
     def __init__(self, scene: Scene, seed=0, *, method: str | None = None, oversample: int = 8,
-                 substeps: int = 1, rtol: float = 1e-10, atol: float = 1e-12,
-                 ahead: tuple[float, float] | None = None):
+                 substeps: int = 1, every: int | None = None, rtol: float = 1e-10,
+                 atol: float = 1e-12, ahead: tuple[float, float] | None = None):
         root, children = _spawn(seed)
         self.seed = root  # seed=None draws OS entropy once; root.entropy is then the record
         self._ahead = None
@@ -79,7 +80,7 @@ class BenchSimulation:
                             self.AHEAD_BLOCKS)
             self._ahead = (tuple(ahead), sizes, made)
         self.model = build_model(scene, method=method, oversample=oversample, substeps=substeps,
-                                 rtol=rtol, atol=atol)
+                                 every=every, rtol=rtol, atol=atol)
         self.state = start(self.model, root)
         self._info = None
 
@@ -179,7 +180,8 @@ class BenchSimulation:
         (``acquisition.model``), ``error_budget``, ``reason`` (a sentence: the choice and the
         numbers behind it), ``budget_met`` (the estimated error of the model that runs is within
         the budget), ``selection`` (:func:`select_model`, with the predictor's ``how``),
-        ``method`` (how it is integrated), ``error_estimate`` (``max_abs_theta_rad`` first,
+        ``method`` (how it is integrated; etdab also ``remainder_every_steps``: the steps
+        between its remainder's evaluations), ``error_estimate`` (``max_abs_theta_rad`` first,
         ``relative_rms_theta``: the total relative RMS angle error, and its parts),
         ``error_method``, ``linearity`` (rms angles and the frequency-shift rule of thumb),
         ``states``, ``seed``, ``probe_s``, ``fs_hz``, ``hold``, ``reaction``,

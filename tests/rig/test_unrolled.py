@@ -9,7 +9,7 @@ import pytest
 
 from rig import unrolled
 from rig.bench import build_model
-from rig.coupled import etd_ab_kernel, etd_ab_weights
+from rig.coupled import etd_ab_kernel, etd_ab_phase_weights
 from rig.scene import load_scene
 from rig.solvers.exact import discretise
 
@@ -28,7 +28,7 @@ SCENES = {
 def _model(name):
     base, over, _ = SCENES[name]
     return build_model(load_scene(base, ["acquisition.model=nonlinear", *over]),
-                       method="etdab")
+                       method="etdab", every=1)
 
 
 def _drive(name, n, seed=3):
@@ -36,11 +36,11 @@ def _drive(name, n, seed=3):
     return SCENES[name][2] * 30.0 * np.random.default_rng(seed).standard_normal(n)
 
 
-def _run(kernel, model, v, z, hist, have, nsub=1, mats=None):
-    phi_t, gam, w, w_rows, a_cols = mats or model.etdab
+def _run(kernel, model, v, z, hist, have, nsub=1, mats=None, phase=None):
+    phase = np.zeros(1, np.int64) if phase is None else phase
     z_out = np.empty((v.size, z.size))
     ax = np.empty(v.size)
-    kernel(*model.coupled.args(), phi_t, gam, w, w_rows, a_cols, nsub, have, hist, v, z, z_out,
+    kernel(*model.coupled.args(), *(mats or model.etdab), nsub, have, hist, phase, v, z, z_out,
            ax)
     return z_out, ax
 
@@ -51,7 +51,7 @@ def _both(model, v, *, nsub=1, lag=0, mats=None, z0=None):
     out = []
     for k in ("loop", "unrolled"):
         z = np.zeros(model.a.shape[0]) if z0 is None else z0.copy()
-        hist = np.zeros((mats[2].shape[0] + lag, nf))
+        hist = np.zeros((mats[2].shape[1] + lag, nf))
         kern = (etd_ab_kernel if k == "loop" else
                 unrolled.etdab_kernel(*mats[:3], hist.shape[0], model.coupled.n))
         z_out, ax = _run(kern, model, v, z, hist, False, nsub, mats)
@@ -73,8 +73,8 @@ def test_the_unrolled_step_equals_the_loop_kernel_with_substeps_and_a_lagged_his
     model = _model("driven_3v")
     h = 1.0 / (2 * model.fs_hz)
     phi, g0, _ = discretise(model.a, model.b, h, "zoh")
-    w = etd_ab_weights(model.a, model.coupled.rows, h, 4, lag=1)
-    mats = (np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w) + model.etdab[3:]
+    w, lagv = etd_ab_phase_weights(model.a, model.coupled.rows, h, 4, 1, lag=1)
+    mats = (np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w, lagv) + model.etdab[4:]
     (zl, al, el, hl), (zu, au, eu, hu) = _both(model, _drive("driven_3v", 5000), nsub=2, lag=1,
                                                mats=mats)
     for a, b in ((zl, zu), (al, au), (el, eu), (hl, hu)):
@@ -94,6 +94,37 @@ def test_unrolled_blocks_continue_a_one_shot_run_bit_for_bit():
     assert np.concatenate([p[0] for p in parts]).tobytes() == one[0].tobytes()
     assert np.concatenate([p[1] for p in parts]).tobytes() == one[1].tobytes()
     assert z.tobytes() == one_z.tobytes() and hist.tobytes() == one_h.tobytes()
+
+
+def _every_model(name, every):
+    base, over, _ = SCENES[name]
+    return build_model(load_scene(base, ["acquisition.model=nonlinear", *over]),
+                       method="etdab", every=every)
+
+
+@pytest.mark.parametrize("name", ["paper", "driven_3v", "three_bodies"])
+@pytest.mark.parametrize("every", [2, 5])
+def test_a_remainder_every_few_steps_unrolled_equals_the_loop_kernel_bit_for_bit(name, every):
+    model = _every_model(name, every)
+    assert model.etdab[2].shape[0] == every
+    (zl, al, el, hl), (zu, au, eu, hu) = _both(model, _drive(name, 20_000))
+    for a, b in ((zl, zu), (al, au), (el, eu), (hl, hu)):
+        assert a.tobytes() == b.tobytes()
+
+
+def test_a_remainder_every_five_steps_continues_across_blocks_that_split_its_nodes():
+    model = _every_model("driven_3v", 5)
+    v = _drive("driven_3v", 9000)
+    kern = unrolled.etdab_kernel(*model.etdab[:3], 4, model.coupled.n)
+    nf, nz = model.coupled.rows.size, model.a.shape[0]
+    one_z, one_h, one_p = np.zeros(nz), np.zeros((4, nf)), np.zeros(1, np.int64)
+    one = _run(kern, model, v, one_z, one_h, False, phase=one_p)
+    z, hist, ph, parts = np.zeros(nz), np.zeros((4, nf)), np.zeros(1, np.int64), []
+    for i, (a, b) in enumerate(((0, 1), (1, 4003), (4003, 9000))):  # splits between nodes
+        parts.append(_run(kern, model, v[a:b], z, hist, i > 0, phase=ph))
+    assert np.concatenate([p[0] for p in parts]).tobytes() == one[0].tobytes()
+    assert np.concatenate([p[1] for p in parts]).tobytes() == one[1].tobytes()
+    assert z.tobytes() == one_z.tobytes() and int(ph[0]) == int(one_p[0]) == 9000 % 5
 
 
 def test_each_zero_pattern_has_its_own_kernel_and_a_pattern_is_generated_once():
@@ -121,7 +152,7 @@ def test_the_generated_source_leaves_out_exactly_the_zero_products():
 
 def test_larger_benches_use_the_loop_kernel():
     nz = unrolled.UNROLL_MAX_STATES + 1
-    k = unrolled.etdab_kernel(np.eye(nz), np.ones(nz), np.ones((4, 3, nz)), 4, 7)
+    k = unrolled.etdab_kernel(np.eye(nz), np.ones(nz), np.ones((1, 4, 3, nz)), 4, 7)
     assert k.py_func is etd_ab_kernel.py_func  # (the lazy kernel or its dispatcher)
 
 

@@ -59,12 +59,38 @@ def test_etdab_equals_the_reference_path_within_its_stated_error(name):
     assert measured < 1e-6
 
 
-def test_etdab_at_the_papers_drive_is_within_1e_9_over_300_s():
-    # the paper's scene at its default drive (0.1 V) well into its stationary state (tau = 68 s)
+@pytest.mark.parametrize("name", ["paper", "driven_1v", "near_degenerate"])
+def test_etdab_with_the_remainder_every_five_steps_is_within_its_stated_error(name):
+    """every = 5: the remainder's nodes 5 ms apart, extrapolated between them (its content is
+    the drive's band: benchmarks/remainder_spectrum.py); the Richardson estimate (twice the
+    steps, the nodes half as far apart) still brackets the measured error."""
+    base, over, ref_sub = SCENES[name]
+    sc = load_scene(base, ["acquisition.model=nonlinear", *QUIET, *over])
+    t_s = 20.0
+    sim = BenchSimulation(sc, 5, every=5)
+    assert sim.model.every == 5 and sim.model.etdab[2].shape[0] == 5
+    theta = sim.run(t_s).truth["theta_rad"]
+    ref = BenchSimulation(sc, 5, method="lawson4", substeps=ref_sub).run(t_s).truth["theta_rad"]
+    measured = _rel_rms(theta - ref, ref)
+    info = sim.model_info(probe_s=t_s)
+    est = info["error_estimate"]["relative_rms_theta"]
+    assert "evaluated every 5 steps" in info["method"]
+    assert 0.5 * est <= measured <= 2.0 * est, (measured, est)
+    every1 = _rel_rms(BenchSimulation(sc, 5, every=1).run(t_s).truth["theta_rad"] - ref, ref)
+    assert every1 < measured < 1e-6  # coarser, and within the issue's 1e-6
+
+
+@pytest.mark.parametrize("every, bound", [(None, 1e-7), (1, 1e-9)])
+def test_etdab_at_the_papers_drive_is_within_its_bound_over_300_s(every, bound):
+    # the paper's scene at its default drive (0.1 V) well into its stationary state (tau = 68 s):
+    # by default the remainder every 5 steps (rig.bench.model.remainder_every: 3.9e-9 on a 20 s
+    # probe, measured 2.1e-8 here), at every step within the earlier bound, 1e-9
     sc = load_scene("ishizaki2009", ["acquisition.model=nonlinear", *QUIET])
-    th = BenchSimulation(sc, 2009).run(300.0).truth["theta_rad"]
+    sim = BenchSimulation(sc, 2009, every=every)
+    assert sim.model.every == (5 if every is None else every)
+    th = sim.run(300.0).truth["theta_rad"]
     ref = BenchSimulation(sc, 2009, method="lawson4", substeps=2).run(300.0).truth["theta_rad"]
-    assert _rel_rms(th - ref, ref) < 1e-9
+    assert _rel_rms(th - ref, ref) < bound
 
 
 def test_etdab_at_a_tiny_drive_is_the_exact_linear_bench():
@@ -127,14 +153,15 @@ def test_etdab_skipping_the_exact_zeros_changes_no_bit():
 
     m = build_model(load_scene("ishizaki2009", ["acquisition.model=nonlinear",
                                                 "source.level_vrms=1.0"]))
-    phi_t, gam, w, w_rows, a_cols = m.etdab
+    phi_t, gam, w, lagv, w_rows, a_cols = m.etdab
     assert (w_rows, a_cols) == (8, 8) and m.n_states == 12
     v, _ = generate(m.source, start_source(m.source, np.random.SeedSequence(1)), 5000)
     out = []
     for rows_, cols_ in ((w_rows, a_cols), (m.n_states, m.n_states)):
         z, z_out, ax = np.zeros(m.n_states), np.empty((v.size, m.n_states)), np.empty(v.size)
-        etd_ab_kernel(*m.coupled.args(), phi_t, gam, w, rows_, cols_, 1, False,
-                      np.zeros((w.shape[0], m.coupled.rows.size)), v, z, z_out, ax)
+        etd_ab_kernel(*m.coupled.args(), phi_t, gam, w, lagv, rows_, cols_, 1, False,
+                      np.zeros((w.shape[1], m.coupled.rows.size)), np.zeros(1, np.int64), v, z,
+                      z_out, ax)
         out.append((z_out, ax))
     assert out[0][0].tobytes() == out[1][0].tobytes()
     assert out[0][1].tobytes() == out[1][1].tobytes()
