@@ -269,7 +269,7 @@ class _Checker:
                 grow.append((f"entry/{name}", obj))
 
         e.visititems(visit)
-        unfinished = []
+        unfinished = None  # a dataset with rows beyond records_complete, if any
         for name, ds in grow:
             rows = ds.shape[0]
             if rows < n:
@@ -277,17 +277,17 @@ class _Checker:
                 self.bad.update(range(rows, n))
             elif rows > n and status == "complete":
                 self.problem("invalid", f"{name} holds {rows} rows but records_complete = {n}")
-            elif rows > n and not unfinished:
+            elif rows > n and unfinished is None:
                 # a writer killed mid-record, or one whose stop could not trim the record it
                 # was writing (a full disk): rows readers never read
-                unfinished.append(name)
+                unfinished = name
             if ds.ndim >= 2 and name.rsplit("/", 1)[-1] != "count" and ds.shape[1] != samples:
                 self.problem("invalid", f"{name} has {ds.shape[1]} samples per record, "
                                         f"entry/data/time {samples}")
             self._verify_rows(name, ds, min(rows, n))
-        if unfinished and status != "acquiring":
+        if unfinished is not None and status != "acquiring":
             self.notes.append(f"rows of an unfinished record beyond records_complete = {n} (e.g. "
-                              f"{unfinished[0]}): ignored by readers")
+                              f"{unfinished}): ignored by readers")
         if not grow:
             self.problem("invalid", "no per-record datasets")
         return {name for name, _ in grow}

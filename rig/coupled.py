@@ -607,7 +607,8 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
     start). At a node, one evaluation of f at the step's own state, which also gives the
     nonlinear x0''; between nodes x0'' is the linear row plus f's first row interpolated
     (``lagv``). ``ax_out[k]`` = x0'' and ``z_out[k]`` = z at DAC instant k. ``every`` = 1: f at
-    every step (the default; with lag >= 1 the step does not wait for the newest evaluation).
+    every step (with lag >= 1 the step does not wait for the newest evaluation); the
+    acquisition's default is :func:`rig.bench.model.remainder_every`.
 
     ``w_rows, a_cols`` (:func:`etd_ab_sparsity`) skip exact zeros of the products. ``hist``
     (lag + order, nf) holds f at the last nodes (newest first) and is updated; ``have`` False:

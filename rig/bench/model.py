@@ -65,9 +65,8 @@ class BenchModel:
     coupled, lawson : lawson4 and etdab paths: the kernels' parameters (:class:`rig.coupled.
         CoupledParams`); lawson4: (E_h, E_h/2, G_h, G_h/2) at h = 1 / (fs substeps).
     etdab : etdab path only: (Phi^T, Gamma, W, L) at h = 1 / (fs substeps), the remainder
-        every ``every`` steps
-        (:func:`rig.coupled.etd_ab_weights`) and their sparsity (:func:`rig.coupled.
-        etd_ab_sparsity`): the kernel's arguments after ``coupled``'s.
+        every ``every`` steps (:func:`rig.coupled.etd_ab_phase_weights`), and their sparsity
+        (:func:`rig.coupled.etd_ab_sparsity`): the kernel's arguments after ``coupled``'s.
     """
 
     scene: Scene

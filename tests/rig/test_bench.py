@@ -1,6 +1,7 @@
 """The whole bench (rig.bench): source -> coil -> stage -> pendulum -> sensors, in blocks."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -324,6 +325,13 @@ def test_prescribed_stage_methods_are_refused_with_the_stage_reaction():
         BenchSimulation(ishizaki("acquisition.model=nonlinear"), method="rk4")
     with pytest.raises(ConfigError, match=r"method = 'euler' is invalid: expected one of lawson4"):
         BenchSimulation(ishizaki("acquisition.model=nonlinear"), method="euler")
+
+
+@pytest.mark.parametrize("bad", [0, -5, 2.5, True, "5"])
+def test_a_bad_remainder_spacing_is_refused_naming_the_value(bad):
+    with pytest.raises(ConfigError, match=rf"every = {re.escape(repr(bad))} is invalid: expected "
+                                          r"an integer >= 1"):
+        BenchSimulation(ishizaki("acquisition.model=nonlinear"), every=bad)
 
 
 def test_linear_model_info_reports_round_off_and_the_predicted_linearisation_error():
