@@ -318,14 +318,21 @@ def _fused_kernel(phi_q, gamma_q, readings, accel_row, th0, mirror_w, body, v, z
             g = gamma_q[i, m]
             for j in range(nj):
                 u[m, j] += g * x[nz + i, j]
+    phi_t = phi_q.T.copy()
+    zc = z.copy()  # local: the compiler keeps it apart from x
+    acc = np.empty(nz)
     for j in range(nj):
         for m in range(nz):
-            x[m, j] = z[m]
-        for m in range(nz):  # one register sum per row, the rows independent
-            s = u[m, j]
-            for c in range(nz):
-                s += phi_q[m, c] * x[c, j]
-            z[m] = s
+            x[m, j] = zc[m]
+            acc[m] = u[m, j]
+        for c in range(nz):  # the rows' sums side by side, each over c = 0 .. nz - 1 in order
+            zj = zc[c]
+            for m in range(nz):
+                acc[m] += phi_t[c, m] * zj
+        for m in range(nz):
+            zc[m] = acc[m]
+    for m in range(nz):
+        z[m] = zc[m]
     # the truth at the kept instants
     for j in range(nj):
         s = 0.0

@@ -8,7 +8,7 @@ import scipy.signal
 
 from rig.devices.accelerometer import Accelerometer
 from rig.errors import ConfigError
-from rig.devices.optical_lever import OpticalLever
+from rig.devices.optical_lever import SMALL_ANGLE_RAD, OpticalLever, _cos_sin
 
 FS = 1000.0
 
@@ -141,6 +141,18 @@ def test_spot_position_matches_an_independent_ray_trace():
     ref = np.array([reflect_reference(math.radians(37.0), 0.3, *args) for args in zip(dx, dz, th)])
     np.testing.assert_allclose(u, ref[:, 0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(v, ref[:, 1], rtol=0, atol=1e-15)
+
+
+def test_small_angle_cos_sin_equal_libm_bit_for_bit():
+    # the series' truncation is below 2.4e-25 of the value and its rounding under half an ulp,
+    # so it gives the correctly rounded values that glibc's math.cos and math.sin give
+    rng = np.random.default_rng(5)
+    mag = 10.0 ** rng.uniform(-14, math.log10(SMALL_ANGLE_RAD), 200_000)
+    th = np.concatenate([mag * rng.choice([-1.0, 1.0], mag.size),
+                         [0.0, -0.0, SMALL_ANGLE_RAD, -SMALL_ANGLE_RAD, 0.3, -2.0]])
+    got = np.array([_cos_sin(t) for t in th])
+    want = np.array([(math.cos(t), math.sin(t)) for t in th])
+    assert np.array_equal(got, want)
 
 
 def test_linearised_lever_moves_the_spot_by_2_sin_phi_dx_and_2_d_cos_phi_theta():
