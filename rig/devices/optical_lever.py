@@ -207,10 +207,9 @@ SMALL_ANGLE_RAD = 2.0 ** -6
 def _cos_sin(th):
     """(cos th, sin th). For ``|th| <= SMALL_ANGLE_RAD`` (a mirror's tilt is microradians) the
     Taylor polynomials through th^8 and th^9, Horner's rule, the leading term added last: the
-    first omitted terms are below 2.4e-25 and 3.2e-27 of the value there, far under half an
-    ulp, and the rounding of the sums stays under half an ulp, so the values are libm's
-    correctly rounded ones (tests/rig/test_optical_lever.py compares them with math.cos and
-    math.sin over 200,000 angles) at about a third of the cost of the two calls; beyond, libm."""
+    first omitted terms are below 2.4e-25 and 2.2e-26 of the value there, far under half an
+    ulp, and the values equal libm's (tests/rig/devices/test_sensors.py compares them with
+    math.cos and math.sin over 200,000 angles); beyond, libm."""
     if abs(th) <= SMALL_ANGLE_RAD:
         t2 = th * th
         c = 1.0 + t2 * (-0.5 + t2 * (1.0 / 24.0 + t2 * (-1.0 / 720.0 + t2 * (1.0 / 40320.0))))
