@@ -11,6 +11,14 @@ with this interpreter (the same numpy, numba, h5py). A process is the unit becau
 modules share names. Printed: each tree's per-process medians, their median and quartiles, and
 the median of the per-pair ratios this / baseline with their quartiles (a ratio within one pair
 compares runs made under nearly the same load).
+
+``--baseline-api 2026-12-01``: a baseline tree from before ``benchmarks/acquire.py`` (e.g.
+c5c0225, the code path when issue 13 was filed: ``acquire(scene, seed=..., out=...)``, lawson4 for
+the nonlinear model) runs the same measurement through :data:`OLD_API_WORKER` instead, the same
+warm-up, timed runs and medians.
+
+    git worktree add /tmp/start c5c0225
+    .venv/bin/python benchmarks/acquire_trees.py --baseline /tmp/start --baseline-api 2026-12-01
 """
 
 import argparse
@@ -26,13 +34,37 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks._interleave import quart, tree_pairs  # noqa: E402
 
 HERE = Path(__file__).resolve().parent.parent
+# the paper's acquisition to a run file in a warm process through the API of 2026-12-01
+# (daq.acquisition.acquire(scene, seed=..., out=..., force=...)); argv: rounds, overrides...
+OLD_API_WORKER = r"""
+import statistics, sys, tempfile, time
+from pathlib import Path
+from daq.acquisition import acquire
+from rig.scene import load_scene
+rounds, overrides = int(sys.argv[1]), sys.argv[2:]
+with tempfile.TemporaryDirectory() as tmp:
+    out = Path(tmp) / "paper.h5"
+    def run():
+        scene = load_scene("ishizaki2009", overrides)
+        t, c = time.perf_counter(), time.process_time()
+        acquire(scene, seed=2009, out=out, force=True)
+        return time.process_time() - c, time.perf_counter() - t
+    run()
+    cpu, wall = zip(*[run() for _ in range(rounds)])
+print(f"| linear | {statistics.median(cpu):.4f} [-] | {statistics.median(wall):.4f} [-] |")
+"""
 ROW = re.compile(r"^\| linear \| ([0-9.]+) \[[^]]*\] \| ([0-9.]+) ")
 
 
-def one_process(tree: Path, rounds: int, extra: list[str]) -> tuple[float, float]:
-    """(median CPU, median wall) [s] per run of the linear paper acquisition in ``tree``."""
-    cmd = [sys.executable, str(tree / "benchmarks" / "acquire.py"), "--rounds", str(rounds),
-           "--configs", "linear", *extra]
+def one_process(tree: Path, rounds: int, extra: list[str], old_api: bool = False
+                ) -> tuple[float, float]:
+    """(median CPU, median wall) [s] per run of the paper acquisition in ``tree`` (the linear
+    model unless ``extra`` sets another); ``old_api``: through :data:`OLD_API_WORKER`."""
+    if old_api:
+        cmd = [sys.executable, "-c", OLD_API_WORKER, str(rounds), *extra[1::2]]
+    else:
+        cmd = [sys.executable, str(tree / "benchmarks" / "acquire.py"), "--rounds", str(rounds),
+               "--configs", "linear", *extra]
     env = dict(os.environ, PYTHONPATH=str(tree))
     out = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=True)
     for line in out.stdout.splitlines():
@@ -48,11 +80,15 @@ def main(argv=None):
     ap.add_argument("--pairs", type=int, default=4)
     ap.add_argument("--rounds", type=int, default=3, help="timed runs per process")
     ap.add_argument("--set", action="append", default=[], help="a scene override for every run")
+    ap.add_argument("--baseline-api", choices=("current", "2026-12-01"), default="current",
+                    help="2026-12-01: the baseline predates benchmarks/acquire.py")
     args = ap.parse_args(argv)
     extra = [a for s in args.set for a in ("--set", s)]
     trees = {"this": HERE, "baseline": args.baseline.resolve()}
     print(f"load average before: {os.getloadavg()}")
-    res = tree_pairs(trees, args.pairs, lambda tree: one_process(tree, args.rounds, extra),
+    res = tree_pairs(trees, args.pairs, lambda tree: one_process(tree, args.rounds, extra,
+                                             old_api=args.baseline_api != "current"
+                                             and tree == trees["baseline"]),
                      lambda p, k, r: print(f"pair {p}: {k} CPU {r[0]:.2f} s, wall {r[1]:.2f} s",
                                            flush=True))
     print(f"\n{args.pairs} pairs of processes ({args.rounds} timed runs each), interleaved; "
