@@ -465,12 +465,14 @@ def test_bad_bench_settings_raise_config_error_naming_the_key(override, match):
         BenchSimulation(ishizaki(override))
 
 
-def test_a_non_finite_state_raises_divergence_error_with_time_and_state():
-    model = build_model(ishizaki())
+@pytest.mark.parametrize("model_name", ["linear", "nonlinear"])
+@pytest.mark.parametrize("bad_value", [np.inf, np.nan])
+def test_a_non_finite_state_raises_divergence_error_with_time_and_state(model_name, bad_value):
+    model = build_model(ishizaki(f"acquisition.model={model_name}"))
     st = start(model, 0)
     _, st = advance(model, st, 100)
     z = np.array(st.z)
-    z[3] = np.inf
+    z[3] = bad_value
     import dataclasses
 
     bad = dataclasses.replace(st, z=z)
@@ -478,6 +480,50 @@ def test_a_non_finite_state_raises_divergence_error_with_time_and_state():
                                               r"t = 0\.1 s") as exc:
         advance(model, bad, 10)
     assert exc.value.time_s == pytest.approx(0.1)
+
+
+def test_the_finite_check_passes_huge_finite_states_and_catches_one_bad_element():
+    from rig.bench.run import _check_finite
+
+    model = build_model(ishizaki())
+    st = start(model, 0)
+    huge = np.full((1000, 12), 1e308)  # finite, but their sum overflows to inf
+    _check_finite(model, st, huge, huge[0], 0.0, 1000)
+    for bad_value in (np.nan, np.inf, -np.inf):
+        z_out = np.zeros((1000, 12))
+        z_out[517, 7] = bad_value
+        with pytest.raises(DivergenceError, match="non-finite state"):
+            _check_finite(model, st, z_out, z_out[0], 0.0, 1000)
+    with pytest.raises(DivergenceError, match="non-finite state"):
+        _check_finite(model, st, np.zeros((3, 12)), np.array([0.0, np.nan]), 0.0, 3)
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1e-2, 0.5])
+def test_mirror_kinematics_equal_numpy_geometry(scale):
+    # the compiled kernel against the numpy expression it replaced: the same bytes with one
+    # term in the sum (the mirror on the second body), round-off (the sum's order) with more
+    from rig.bench.run import mirror_kinematics_kernel
+
+    rng = np.random.default_rng(11)
+    theta = rng.standard_normal((50_000, 12))[:, 3:7] * scale  # a strided view, as in z_out
+    lengths = np.array([0.12, 0.07, 0.05, 0.03])
+    for j in range(4):
+        for s in (0.0, 0.013):
+            x_np = np.sin(theta[:, :j]) @ lengths[:j]
+            z_np = (1 - np.cos(theta[:, :j])) @ lengths[:j]
+            if s != 0.0:
+                x_np = x_np + s * np.sin(theta[:, j])
+                z_np = z_np + s * (1 - np.cos(theta[:, j]))
+            n = theta.shape[0]
+            x, z, rot = np.empty(n), np.empty(n), np.empty(n)
+            mirror_kinematics_kernel(theta, lengths, j, s, x, z, rot)
+            assert rot.tobytes() == theta[:, j].tobytes()
+            if j <= 1 and np.array_equal(np.sin(theta), np.vectorize(math.sin)(theta)):
+                assert x.tobytes() == x_np.tobytes() and z.tobytes() == z_np.tobytes()
+            # a sum of j + 1 positive-weighted terms: relative rounding <= (j + 1) eps
+            tol = (j + 2) * np.finfo(float).eps
+            np.testing.assert_allclose(x, x_np, rtol=0, atol=tol * np.max(np.abs(x_np) + 1e-300))
+            np.testing.assert_allclose(z, z_np, rtol=0, atol=tol * np.max(np.abs(z_np) + 1e-300))
 
 
 def test_every_name_the_repository_takes_from_rig_bench_is_in_the_package():
