@@ -207,9 +207,12 @@ SMALL_ANGLE_RAD = 2.0 ** -6
 def _cos_sin(th):
     """(cos th, sin th). For ``|th| <= SMALL_ANGLE_RAD`` (a mirror's tilt is microradians) the
     Taylor polynomials through th^8 and th^9, Horner's rule, the leading term added last: the
-    first omitted terms are below 2.4e-25 and 2.2e-26 of the value there, far under half an
-    ulp, and the values equal libm's (tests/rig/devices/test_sensors.py compares them with
-    math.cos and math.sin over 200,000 angles); beyond, libm."""
+    first omitted terms are below 2.4e-25 and 2.2e-26 of the value there. The polynomial part's
+    own rounding (below ~2^-53 th^2 of the value's ulp) adds to the final one, so where the
+    exact value lies that close to a tie between two doubles the result is libm's neighbour, 1
+    ulp away, both then within 0.5001 ulp: at most one value in 1 / th^2 (none at a mirror's
+    tilts; tests/rig/devices/test_sensors.py compares them with math.cos and math.sin below
+    1e-4 rad and near the threshold); beyond, libm."""
     if abs(th) <= SMALL_ANGLE_RAD:
         t2 = th * th
         c = 1.0 + t2 * (-0.5 + t2 * (1.0 / 24.0 + t2 * (-1.0 / 720.0 + t2 * (1.0 / 40320.0))))
