@@ -433,6 +433,9 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
         # the bench filters and decimates itself (no simulation-rate arrays)
         blocks = fused(np.zeros((0, 6)) if aa.kind == "none" else aa.sos, aa.decimation)
     blocks = iter(the_bench.blocks() if blocks is None else blocks)
+    # before the first block: the model's error probe takes its source samples from the blocks
+    # made ahead, which the run then consumes (after it they would be made a second time)
+    model_info = the_bench.model_info()
     first = next(blocks, None)
     if first is None:
         raise StreamError("the bench yielded no block")
@@ -440,7 +443,7 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
     truth = tuple(TruthField.from_array(k, np.asarray(first.truth[k])) for k in keys
                   if k in first.truth) if acq.truth else ()
     header = Header(scene=scene, seed=seed, plan=plan, channels=channels, antialias=aa,
-                    truth=truth, model_info=the_bench.model_info(), response=response,
+                    truth=truth, model_info=model_info, response=response,
                     software_version=software_version(), start_time=utc_now_iso())
 
     fan = Fanout(sinks)
