@@ -79,3 +79,17 @@ def test_inspect_says_what_runs_per_dac_sample_and_that_the_linear_bench_is_lift
     assert "one step per DAC sample" not in method
     assert "  per DAC sample (at 1000 Hz): the sensors' three linear readings" in res.output
     assert "  why: the bench from the DAC to the readings is linear" in res.output
+
+
+@pytest.mark.parametrize("model", ["linear", "nonlinear"])
+def test_the_model_probe_takes_its_source_from_the_run_not_a_second_generation(model,
+                                                                              monkeypatch):
+    import rig.bench.estimates as est
+
+    calls = []
+    real = est.generate
+    monkeypatch.setattr(est, "generate", lambda *a, **k: calls.append(a) or real(*a, **k))
+    rec = _run([f"acquisition.model={model}", "acquisition.settle_s=30"])
+    assert calls == []  # the probe's 20 s came from the blocks made ahead
+    assert rec.header.model_info["probe_s"] == 20.0
+    assert np.isfinite(rec.header.model_info["error_estimate"]["relative_rms_theta"])
