@@ -33,6 +33,7 @@ from click.testing import CliRunner
 from daq.acquisition import AcquisitionInterrupted, acquire
 from daq.cli import main
 from daq.hdf5 import Hdf5Sink, read_run
+from daq.sinks import Sink
 from processing.analyzer import analyze
 from processing.writers import CSV_COLUMNS
 from rig.scene import load_scene
@@ -196,12 +197,13 @@ def test_an_interrupted_run_is_analysed_with_its_finished_records(runner, tmp_pa
     sc = load_scene("ishizaki2009", ["acquisition.records=5", "acquisition.record_s=20.0",
                                      "acquisition.settle_s=60.0"])
 
-    def stop(done_s, total_s):  # Ctrl-C during the fourth record
-        if done_s > 60.0 + 3 * 20.0 + 5.0:
-            raise KeyboardInterrupt
+    class CtrlC(Sink):  # Ctrl-C as the fourth record's first samples arrive, whatever the
+        def block(self, block):  # bench's block length
+            if block.record == 3:
+                raise KeyboardInterrupt
 
     with pytest.raises(AcquisitionInterrupted):
-        acquire(sc, seed=2, sinks=[Hdf5Sink(out)], progress=stop)
+        acquire(sc, seed=2, sinks=[Hdf5Sink(out), CtrlC()])
     assert read_run(out).status == "interrupted"
     csv_path = tmp_path / "frf.csv"
     res = runner.invoke(main, ["analyze", str(out), "--csv", str(csv_path)])
