@@ -152,8 +152,9 @@ class FunctionBench:
 
 def rig_bench(scene: Scene, seed: int, **bench_kw) -> Bench:
     """The emulated rig of ``scene`` (:class:`rig.bench.BenchSimulation`) as a :class:`Bench`;
-    ``bench_kw`` (e.g. ``method="lawson4"``) go to the simulation (``functools.partial`` of this
-    is an ``acquire(bench=...)``)."""
+    ``bench_kw`` (e.g. ``method="lawson4"``) go to the simulation, except ``lifted`` (the fused
+    chain, default True) and ``block_s`` (its block length [s], default :data:`BLOCK_S`; the
+    same samples whatever it is) (``functools.partial`` of this is an ``acquire(bench=...)``)."""
     from rig import bench as rb
 
     return _RigBench(rb, scene, seed, **bench_kw)
@@ -206,10 +207,15 @@ class _RigBench:
     truth_keys = RIG_TRUTH
     saturation_keys = {"a": "a_overrange", "x": "psd_off_detector", "y": "psd_off_detector"}
 
-    def __init__(self, rb, scene: Scene, seed: int, *, lifted: bool = True, **bench_kw):
+    def __init__(self, rb, scene: Scene, seed: int, *, lifted: bool = True,
+                 block_s: float = BLOCK_S, **bench_kw):
         self._rb, self._scene = rb, scene
         acq = scene.acquisition
-        n = min(round(BLOCK_S * acq.rate_hz), round(acq.record_s * acq.rate_hz))
+        if isinstance(block_s, bool) or not isinstance(block_s, (int, float)) or not (
+                math.isfinite(block_s) and block_s > 0):
+            raise ConfigError(f"block_s = {block_s!r} is invalid: expected a bench block length "
+                              f"> 0 s (default {BLOCK_S:g} s)")
+        n = min(round(block_s * acq.rate_hz), round(acq.record_s * acq.rate_hz))
         self._block_s = max(1, n) / acq.rate_hz  # a whole number of ADC samples
         # exactly what the run consumes (nothing simulated beyond it, even when prefetching)
         plan = RecordPlan.from_acquisition(acq)

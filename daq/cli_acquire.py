@@ -114,11 +114,15 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     sc = load_scene(scene_name, [*overrides, *extra])
     if seed is None:
         seed = secrets.randbits(63)
-    pacer = None
+    pacer = paced_bench = None
     if realtime:
-        from daq.pacing import Pacer
+        import functools
+
+        from daq.acquisition import rig_bench
+        from daq.pacing import PACED_BLOCK_S, Pacer
 
         pacer = Pacer(1.0 if speed is None else speed)
+        paced_bench = functools.partial(rig_bench, block_s=PACED_BLOCK_S)
     sinks = live_sinks(live, connect, rrd, force, magnify, pacer)
     if pacer is not None and not sinks:
         from daq.pacing import PacingSink
@@ -130,7 +134,8 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     try:
         with stop_signals_interrupt():  # SIGTERM, SIGHUP end the run like Ctrl-C
             files = [] if out is None else [Hdf5Sink(out, force=force)]  # the file first
-            summary = run_acquisition(sc, seed=seed, progress=bar, sinks=[*files, *sinks])
+            summary = run_acquisition(sc, seed=seed, progress=bar, sinks=[*files, *sinks],
+                                      bench=paced_bench)
     except AcquisitionInterrupted as exc:
         if bar is not None:
             bar.close()

@@ -44,6 +44,12 @@ class Pacer:
             self._sleep(due - now)
 
 
+#: bench block length [s] of a paced run (``daq acquire --realtime``): the progress and the
+#: pacing step once a block, so a paced run uses blocks of a second, like an instrument's
+#: display (the cost of small blocks is nothing beside the waiting; the same samples)
+PACED_BLOCK_S = 1.0
+
+
 class PacingSink(Sink):
     """Waits in each block until its end is due (a non-critical sink: it never fails a run)."""
 

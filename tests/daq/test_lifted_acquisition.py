@@ -93,3 +93,28 @@ def test_the_model_probe_takes_its_source_from_the_run_not_a_second_generation(m
     assert calls == []  # the probe's 20 s came from the blocks made ahead
     assert rec.header.model_info["probe_s"] == 20.0
     assert np.isfinite(rec.header.model_info["error_estimate"]["relative_rms_theta"])
+
+
+def test_a_paced_run_s_one_second_blocks_give_the_same_records_and_progress_each_second():
+    from daq.pacing import PACED_BLOCK_S
+
+    calls = []
+    mem = MemorySink()
+    acquire(load_scene("ishizaki2009", SHORT), seed=21, sinks=[mem],
+            progress=lambda done, total: calls.append(done),
+            bench=functools.partial(rig_bench, block_s=PACED_BLOCK_S))
+    ref = _run([])
+    for k in ref.codes:
+        assert np.array_equal(mem.recording.codes[k], ref.codes[k]), k
+    for k in ref.truth:
+        assert np.array_equal(mem.recording.truth[k], ref.truth[k]), k
+    np.testing.assert_allclose(calls, np.arange(1, 19) * PACED_BLOCK_S, rtol=1e-12)  # 10 + 2 x 4 s
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), True, "10"])
+def test_a_bad_block_length_is_refused_naming_the_value(bad):
+    from rig.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"block_s = .* is invalid: expected a bench block "
+                                          r"length > 0 s"):
+        rig_bench(load_scene("ishizaki2009", SHORT), 1, block_s=bad)
