@@ -518,7 +518,8 @@ def test_mirror_kinematics_equal_numpy_geometry(scale):
             x, z, rot = np.empty(n), np.empty(n), np.empty(n)
             mirror_kinematics_kernel(theta, lengths, j, s, x, z, rot)
             assert rot.tobytes() == theta[:, j].tobytes()
-            if j <= 1 and np.array_equal(np.sin(theta), np.vectorize(math.sin)(theta)):
+            if j <= 1 and np.array_equal(np.sin(theta), np.vectorize(math.sin)(theta)) and \
+                    np.array_equal(np.cos(theta), np.vectorize(math.cos)(theta)):
                 assert x.tobytes() == x_np.tobytes() and z.tobytes() == z_np.tobytes()
             # a sum of j + 1 positive-weighted terms: relative rounding <= (j + 1) eps
             tol = (j + 2) * np.finfo(float).eps
