@@ -20,6 +20,7 @@ The bench is anything with the :class:`Bench` interface; the default is the emul
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import signal
 import threading
@@ -37,6 +38,7 @@ from daq.channels import channels_for
 from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan,
                          Recording, TruthField)
 from daq.sinks import Fanout, Sink
+from rig._check import positive
 from rig._io import software_version
 from rig._threads import prefetch, single_threaded_blas
 from rig.acquisition_settings import AcquisitionSettings
@@ -211,10 +213,8 @@ class _RigBench:
                  block_s: float = BLOCK_S, **bench_kw):
         self._rb, self._scene = rb, scene
         acq = scene.acquisition
-        if isinstance(block_s, bool) or not isinstance(block_s, (int, float)) or not (
-                math.isfinite(block_s) and block_s > 0):
-            raise ConfigError(f"block_s = {block_s!r} is invalid: expected a bench block length "
-                              f"> 0 s (default {BLOCK_S:g} s)")
+        block_s = positive("block_s", block_s, valid=f"a bench block length > 0 s (default "
+                                                     f"{BLOCK_S:g} s)")
         n = min(round(block_s * acq.rate_hz), round(acq.record_s * acq.rate_hz))
         self._block_s = max(1, n) / acq.rate_hz  # a whole number of ADC samples
         # exactly what the run consumes (nothing simulated beyond it, even when prefetching)
@@ -385,7 +385,8 @@ def acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
         Each sink's ``check()`` runs before anything is simulated; the free space is checked
         beside the first sink's ``target`` file.
     progress : called as ``progress(simulated_s, total_s)`` after every bench block.
-    bench : ``bench(scene, seed) -> Bench``; default :func:`rig_bench`.
+    bench : ``bench(scene, seed) -> Bench``; default :func:`rig_bench`, in blocks of
+        :data:`BLOCK_S` or the shortest any sink asks for (its ``block_s``: a paced sink's).
 
     Returns
     -------
@@ -427,7 +428,10 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
     file_sink = next((s for s in sinks if getattr(s, "target", None) is not None), None)
     # file size and memory, before anything is simulated
     preflight(plan, scene, None if file_sink is None else file_sink.target)
-    the_bench = (bench or rig_bench)(scene, seed)
+    if bench is None:
+        wanted = [s.block_s for s in sinks if getattr(s, "block_s", None) is not None]
+        bench = functools.partial(rig_bench, block_s=min(wanted)) if wanted else rig_bench
+    the_bench = bench(scene, seed)
     if not math.isclose(the_bench.fs_hz, plan.simulation_rate_hz, rel_tol=1e-12):
         raise ConfigError(f"the bench runs at {the_bench.fs_hz:g} Hz but acquisition."
                           f"simulation_rate_hz = {plan.simulation_rate_hz:g} Hz")

@@ -114,15 +114,11 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     sc = load_scene(scene_name, [*overrides, *extra])
     if seed is None:
         seed = secrets.randbits(63)
-    pacer = paced_bench = None
+    pacer = None
     if realtime:
-        import functools
-
-        from daq.acquisition import rig_bench
-        from daq.pacing import PACED_BLOCK_S, Pacer
+        from daq.pacing import Pacer
 
         pacer = Pacer(1.0 if speed is None else speed)
-        paced_bench = functools.partial(rig_bench, block_s=PACED_BLOCK_S)
     sinks = live_sinks(live, connect, rrd, force, magnify, pacer)
     if pacer is not None and not sinks:
         from daq.pacing import PacingSink
@@ -134,8 +130,7 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     try:
         with stop_signals_interrupt():  # SIGTERM, SIGHUP end the run like Ctrl-C
             files = [] if out is None else [Hdf5Sink(out, force=force)]  # the file first
-            summary = run_acquisition(sc, seed=seed, progress=bar, sinks=[*files, *sinks],
-                                      bench=paced_bench)
+            summary = run_acquisition(sc, seed=seed, progress=bar, sinks=[*files, *sinks])
     except AcquisitionInterrupted as exc:
         if bar is not None:
             bar.close()

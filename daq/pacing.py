@@ -16,8 +16,18 @@ from daq.sinks import Sink
 from rig.errors import ConfigError
 
 
+#: bench block length [s] a paced sink asks for (:attr:`daq.sinks.Sink.block_s`; ``daq acquire
+#: --realtime``): the progress and the pacing step once a block, so a paced run uses blocks of a
+#: second, like an instrument's display (the cost of small blocks is nothing beside the
+#: waiting; the same samples)
+PACED_BLOCK_S = 1.0
+
+
 class Pacer:
-    """Wall-clock pacing at ``speed`` times real time (1: real time)."""
+    """Wall-clock pacing at ``speed`` times real time (1: real time); ``block_s``: the bench
+    block a sink paced by it asks for (:data:`PACED_BLOCK_S`)."""
+
+    block_s = PACED_BLOCK_S
 
     def __init__(self, speed: float = 1.0, *, clock=time.monotonic, sleep=time.sleep):
         if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not (
@@ -44,12 +54,6 @@ class Pacer:
             self._sleep(due - now)
 
 
-#: bench block length [s] of a paced run (``daq acquire --realtime``): the progress and the
-#: pacing step once a block, so a paced run uses blocks of a second, like an instrument's
-#: display (the cost of small blocks is nothing beside the waiting; the same samples)
-PACED_BLOCK_S = 1.0
-
-
 class PacingSink(Sink):
     """Waits in each block until its end is due (a non-critical sink: it never fails a run)."""
 
@@ -57,6 +61,7 @@ class PacingSink(Sink):
 
     def __init__(self, pacer: Pacer):
         self.pacer = pacer
+        self.block_s = pacer.block_s
         self._rate = None
 
     def start(self, header) -> None:

@@ -36,11 +36,15 @@ class Sink:
         the free space beside it before the run.
     path : after :meth:`stop`, the file that holds the run (None if none was kept); the run's
         summary reports the first sink's with a ``target``.
+    block_s : the longest bench block [s] this sink wants (None: any). A paced sink steps once
+        a block, so it asks for short ones; :func:`daq.acquisition.acquire` runs its default
+        bench in blocks no longer than any sink's (the same samples whatever the length).
     """
 
     critical = True
     target: Path | None = None
     path: Path | None = None
+    block_s: float | None = None
 
     def check(self) -> None:
         """Refuse (a ``ConfigError``) what would make the sink fail, before the run starts."""

@@ -41,6 +41,8 @@ class LiveView(Sink):
     def __init__(self, stream: ViewerStream, *, magnification: float = MAGNIFICATION,
                  pacer=None, settings=None):
         self.stream, self.pacer, self.settings = stream, pacer, settings
+        if pacer is not None:  # paced: the run in the pacer's short blocks (Sink.block_s)
+            self.block_s = pacer.block_s
         self.magnification = magnification
         self.footer = None
         # blocks held to be drawn at their record's end (only a file listens, no pacing): then

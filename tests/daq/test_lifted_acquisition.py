@@ -96,13 +96,15 @@ def test_the_model_probe_takes_its_source_from_the_run_not_a_second_generation(m
 
 
 def test_a_paced_run_s_one_second_blocks_give_the_same_records_and_progress_each_second():
-    from daq.pacing import PACED_BLOCK_S
+    # a paced sink asks for short blocks (Sink.block_s); the default bench runs in them
+    from daq.pacing import PACED_BLOCK_S, Pacer, PacingSink
 
+    now = [0.0]
+    pacer = Pacer(1e6, clock=lambda: now[0], sleep=lambda s: now.__setitem__(0, now[0] + s))
     calls = []
     mem = MemorySink()
-    acquire(load_scene("ishizaki2009", SHORT), seed=21, sinks=[mem],
-            progress=lambda done, total: calls.append(done),
-            bench=functools.partial(rig_bench, block_s=PACED_BLOCK_S))
+    acquire(load_scene("ishizaki2009", SHORT), seed=21, sinks=[mem, PacingSink(pacer)],
+            progress=lambda done, total: calls.append(done))
     ref = _run([])
     for k in ref.codes:
         assert np.array_equal(mem.recording.codes[k], ref.codes[k]), k

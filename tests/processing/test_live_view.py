@@ -471,6 +471,10 @@ def test_realtime_live_view_sends_the_run_paced_and_unchanged(tmp_path):
     rrd = tmp_path / "paced.rrd"
     view = lv.LiveView(lv.ViewerStream(lv.ViewerOptions(rrd=rrd)),
                        pacer=Pacer(50.0, clock=lambda: now[0], sleep=sleep))
+    from daq.pacing import PACED_BLOCK_S
+
+    assert view.block_s == PACED_BLOCK_S  # paced: the run in short blocks
+    assert lv.LiveView(lv.ViewerStream(lv.ViewerOptions(rrd=rrd))).block_s is None
     acquire(short_scene(), seed=SEED, sinks=[Hdf5Sink(tmp_path / "run.h5"), view])
     rec = read_run(tmp_path / "run.h5")
     # the records' 15 s, from the first sample to the last, at 50 x real time, in 0.1 s steps
