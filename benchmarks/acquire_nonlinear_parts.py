@@ -1,15 +1,16 @@
 #!/usr/bin/env python3
 """Where the nonlinear acquisition's bench CPU goes, each part alone over the paper's whole run
-(3300 s at 1 kHz in 10 s blocks, seed 2009, method etdab), medians of ``--rounds`` interleaved
-rounds of ``time.process_time``:
+(3300 s at 1 kHz in the run's blocks, ``daq.acquisition.BLOCK_S``, or ``--block-s``; seed 2009,
+method etdab), medians of ``--rounds`` interleaved rounds of ``time.process_time``:
 
     .venv/bin/python benchmarks/acquire_nonlinear_parts.py --rounds 5
+    .venv/bin/python benchmarks/acquire_nonlinear_parts.py --rounds 5 --block-s 10
 
 Parts: ``source`` (the drive's blocks), ``bench`` (``rig.bench.run.bench_states`` on given source
 blocks: the etdab kernel and the per-sample state), ``kinematics`` (the mirror's exact x, z, rot
 from theta, numpy), ``noise`` (three ``standard_normal`` draws per block), ``fused kernel``
-(``rig.lifted._nonlinear_kernel``: sensors, geometry, clipping, flags, anti-alias sections,
-keep), and the two whole paths: ``fused`` (``BenchSimulation.decimated_blocks``) and
+(``rig.lifted._nonlinear_kernel``: sensors, geometry, clipping, flags, the lifted anti-alias
+filter, keep), and the two whole paths: ``fused`` (``BenchSimulation.decimated_blocks``) and
 ``per-sample`` (``BenchSimulation.blocks`` then daq's filter and decimation).
 """
 
@@ -23,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from daq.acquisition import antialias_for  # noqa: E402
+from daq.acquisition import BLOCK_S, antialias_for  # noqa: E402
 from daq.records import RecordPlan  # noqa: E402
 from rig import lifted as rl  # noqa: E402
 from rig.bench import BenchSimulation  # noqa: E402
@@ -35,6 +36,7 @@ from rig.scene import load_scene  # noqa: E402
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--block-s", type=float, default=BLOCK_S, help="bench block [s]")
     args = ap.parse_args(argv)
     scene = load_scene("ishizaki2009", ["acquisition.model=nonlinear"])
     plan = RecordPlan.from_acquisition(scene.acquisition)
@@ -42,7 +44,7 @@ def main(argv=None):
     sos = np.ascontiguousarray(aa.sos, dtype=float)
     fs = plan.simulation_rate_hz
     dur = plan.simulation_samples / fs
-    n = int(round(10.0 * fs))
+    n = int(round(args.block_s * fs))
     nb = plan.simulation_samples // n
     model = BenchSimulation(scene, 2009, method="etdab").model
     m = model.slices
@@ -83,8 +85,10 @@ def main(argv=None):
     acc, lever, q = model.accelerometer, model.lever, model.decimation
     hp = np.zeros(n)
 
+    sections = rl.lift_sections(sos, q)
+
     def kernel():
-        zi = np.zeros((sos.shape[0], 3, 2))
+        s_aa = np.zeros((3, 2 * sos.shape[0]))
         carry = np.zeros(3, dtype=np.bool_)
         volts, sat = np.empty((3, n // q)), np.empty((3, n // q), dtype=np.bool_)
         for _ in range(nb):
@@ -93,15 +97,17 @@ def main(argv=None):
                                  mx, mz, mrot, math.cos(lever.phi_rad), math.sin(lever.phi_rad),
                                  lever.distance_m, w, w, lever.noise_rms_m(fs),
                                  lever.half_size_m, lever.sign_x * lever.gain_vpm,
-                                 lever.sign_y * lever.gain_vpm, sos, zi, q, carry, volts, sat)
+                                 lever.sign_y * lever.gain_vpm, *sections, s_aa, q, carry,
+                                 volts, sat, rl.CHUNK_INTERVALS)
 
     def fused():
-        for _ in BenchSimulation(scene, 2009, method="etdab").decimated_blocks(10.0, dur, sos):
+        sim = BenchSimulation(scene, 2009, method="etdab")
+        for _ in sim.decimated_blocks(args.block_s, dur, sos):
             pass
 
     def per_sample():
         st = aa.initial_state(3)
-        for b in BenchSimulation(scene, 2009, method="etdab").blocks(10.0, dur):
+        for b in BenchSimulation(scene, 2009, method="etdab").blocks(args.block_s, dur):
             aa.step(st, np.stack([b.volts[k] for k in "axy"]))
 
     parts = {"source": source, "bench": bench, "kinematics": kinematics, "noise": noise,

@@ -121,9 +121,9 @@ class BenchSimulation:
                          ) -> Iterator[DecimatedBlock]:
         """Like :meth:`blocks`, but through the anti-alias sections ``sos`` (rows ``[b0, b1,
         b2, 1, a1, a2]``, (0, 6) for none) and kept at every ``decimation``-th sample, by the
-        fused chain (:mod:`rig.lifted`): the linear model lifted (equal to :meth:`blocks`
-        filtered and decimated up to round-off), the nonlinear one stepped per sample and fused
-        after the bench (equal bit for bit). Starts at a kept instant."""
+        fused chain (:mod:`rig.lifted`): the linear model lifted, the nonlinear one stepped per
+        sample and fused after the bench, the filter lifted in both (each equal to
+        :meth:`blocks` filtered and decimated up to round-off). Starts at a kept instant."""
         from rig import lifted as rl
 
         q = self.model.decimation
@@ -131,16 +131,17 @@ class BenchSimulation:
             raise ConfigError(f"decimated_blocks must start at a kept instant (sample "
                               f"{self.state.index} is not a multiple of {q})")
         chain = rl.start_decimated(sos)
+        sections = rl.lift_sections(sos, q)
         if self.model.model == "linear":
-            lifted, sections = rl.lift(self.model, q), rl.lift_sections(sos, q)
+            lifted = rl.lift(self.model, q)
 
             def step(k, src, chain):
                 return rl.advance_decimated(self.model, lifted, self.state, chain, k, sections,
                                             src)
         else:
             def step(k, src, chain):
-                return rl.advance_decimated_nonlinear(self.model, self.state, chain, k, sos,
-                                                      src)
+                return rl.advance_decimated_nonlinear(self.model, self.state, chain, k,
+                                                      sections, src)
         sizes, made = self._sources(block_s, duration_s)
         try:
             for k, src in zip(sizes, made):

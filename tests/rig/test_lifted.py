@@ -2,9 +2,10 @@
 per-sample path (rig.bench.advance, then the anti-alias filter and the decimation of
 daq.antialias) within round-off on the paper's scene, a strongly driven scene that clips, a
 near-degenerate design and a long chain; block-wise equal to one-shot; the same seed, the same
-bytes. The nonlinear model's fused chain (per-sample bench, then the fused sensors and filter)
-equals its per-sample path bit for bit (the same arithmetic in the same order), with the same
-block-wise and same-seed checks.
+bytes. The nonlinear model's fused chain (per-sample bench, then the fused sensors and the
+lifted filter) equals its per-sample path bit for bit up to the filter (the same arithmetic in
+the same order) and within the same round-off bound after it, with the same block-wise and
+same-seed checks.
 
 The round-off bound. Both paths compute the same exact linear map; they differ only in the
 order of the sums (Phi^q formed once against q products of Phi, the readings from the lifted
@@ -119,6 +120,21 @@ def test_lifted_blocks_reproduce_a_one_shot_run_bit_for_bit():
             assert np.array_equal(split[k], v), (block_s, k)
 
 
+def test_the_fused_kernel_gives_the_same_bytes_whatever_intervals_it_takes_at_a_time(
+        monkeypatch):
+    import rig.lifted as rl
+
+    scene = _scene("driven_clipping")
+    aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
+    one, _ = _lifted(scene, 4, 6.0, aa, block_s=6.0)  # 600 intervals: 3 chunks of 256
+    assert rl.CHUNK_INTERVALS < 600
+    for chunk in (1, 7, 600, 10**6):
+        monkeypatch.setattr(rl, "CHUNK_INTERVALS", chunk)
+        split, _ = _lifted(scene, 4, 6.0, aa, block_s=6.0)
+        for k, v in one.items():
+            assert np.array_equal(split[k], v), (chunk, k)
+
+
 def test_the_lifted_chain_gives_the_same_bytes_for_the_same_seed_and_others_for_another():
     scene = _scene("paper")
     aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
@@ -155,7 +171,7 @@ def test_the_model_info_probe_reuses_the_run_s_source_made_ahead_without_changin
         assert all(np.array_equal(a.volts[k], b.volts[k]) for k in a.volts)
 
 
-# -- the nonlinear model: per-sample bench, fused sensors and filter (bit for bit) ------------
+# -- the nonlinear model: per-sample bench, fused sensors, lifted filter ------------------------
 
 #: the nonlinear scenes: the paper's, ten times its drive, and a clipping one, by the coupled
 #: integrator (etdab, the default) and the pendulum on the exactly stepped stage (rk4, which
@@ -178,16 +194,26 @@ def _nl(name):
 
 
 @pytest.mark.parametrize("name", list(NONLINEAR))
-def test_the_fused_nonlinear_chain_equals_the_per_sample_path_bit_for_bit(name):
-    # the same arithmetic in the same order (rig.lifted.advance_decimated_nonlinear): no
-    # round-off bound is needed, the kept values are the per-sample path's own
+def test_the_fused_nonlinear_chain_equals_the_per_sample_path_up_to_the_filter_s_round_off(
+        name):
+    # up to the filter the same arithmetic in the same order (rig.lifted.
+    # advance_decimated_nonlinear): the truth, the flags, the bench and the noise streams are
+    # the per-sample path's own; the kept volts come from the filter lifted to the interval
+    # (its sums in another order): within ROUND_OFF of each series' rms, the bound of the lifted
+    # bench (module docstring; measured here 7e-14 .. 1.5e-13: the elliptic sections' sharp
+    # poles carry each interval's rounding for a while)
     scene, kw, dur = _nl(name)
     ref, aa, ref_sim = _per_sample(scene, 11, dur, **kw)
     new, sim = _lifted(scene, 11, dur, aa, **kw)
     assert sim.model.model == "nonlinear"
     for k, v in ref.items():
         assert new[k].dtype == v.dtype and new[k].shape == v.shape, k
-        assert np.array_equal(new[k], v), (k, np.max(np.abs(new[k] - v)))
+        if k in "axy" and aa.sos.shape[0]:
+            scale = np.sqrt(np.mean(v**2))
+            err = np.max(np.abs(new[k] - v))
+            assert err <= ROUND_OFF * scale, (k, err / scale)
+        else:
+            assert np.array_equal(new[k], v), (k, np.max(np.abs(new[k] - v)))
     assert np.array_equal(new["sat_y"], new["sat_x"])
     if name == "driven_clipping":  # the flags were exercised, and agree
         assert 0 < ref["sat_x"].sum() < ref["sat_x"].size
@@ -219,16 +245,18 @@ def test_the_fused_nonlinear_chain_gives_the_same_bytes_for_the_same_seed_only()
 
 def test_the_fused_nonlinear_chain_refuses_a_linear_model_and_a_block_off_the_decimation():
     from rig.errors import ConfigError
-    from rig.lifted import advance_decimated_nonlinear, start_decimated
+    from rig.lifted import advance_decimated_nonlinear, lift_sections, start_decimated
 
     lin = BenchSimulation(_scene("paper"), 1)
     aa = antialias_for(lin.model.scene.acquisition,
                        RecordPlan.from_acquisition(lin.model.scene.acquisition))
     with pytest.raises(ConfigError, match="nonlinear model"):
-        advance_decimated_nonlinear(lin.model, lin.state, start_decimated(aa.sos), 10, aa.sos)
+        advance_decimated_nonlinear(lin.model, lin.state, start_decimated(aa.sos), 10,
+                                    lift_sections(aa.sos, 10))
     sim = BenchSimulation(_nl("paper")[0], 1)
     with pytest.raises(ConfigError, match="multiple of the decimation 10"):
-        advance_decimated_nonlinear(sim.model, sim.state, start_decimated(aa.sos), 15, aa.sos)
+        advance_decimated_nonlinear(sim.model, sim.state, start_decimated(aa.sos), 15,
+                                    lift_sections(aa.sos, 10))
     sim.next_block(3)
     with pytest.raises(ConfigError, match="kept instant"):
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
