@@ -337,10 +337,14 @@ def test_a_record_cut_short_by_an_error_is_dropped_from_the_file(tmp_path):
 
 
 def test_rows_written_through_hdf5_directly_give_the_bytes_of_h5pys_own_assignment(tmp_path):
-    """Hdf5Sink writes each record's rows with HDF5's write call (its fast path); a sink that
-    assigns them the ordinary h5py way writes a file equal byte for byte (apart from the start
-    time, which names the moment of the run)."""
+    """Hdf5Sink grows its datasets and writes each record's rows with HDF5's own calls (its
+    fast path); a sink that resizes and assigns them the ordinary h5py way writes a file equal
+    byte for byte (apart from the start time, which names the moment of the run)."""
     class AssigningSink(Hdf5Sink):
+        def _extend(self, rows):
+            for ds in self._grow:
+                ds.resize(rows, axis=0)
+
         def _put_row(self, ds, k, value):
             ds[k] = value
 
@@ -356,3 +360,18 @@ def test_rows_written_through_hdf5_directly_give_the_bytes_of_h5pys_own_assignme
     a, b = (files[k].read_bytes() for k in ("direct", "assigned"))
     ta, tb = start_time(files["direct"]), start_time(files["assigned"])
     assert a.count(ta) == 1 and a.replace(ta, tb) == b
+
+
+def test_a_sink_used_for_a_second_run_writes_the_file_a_fresh_one_writes(tmp_path):
+    """What a sink keeps between records (its datasets' row shapes and memory spaces, keyed by
+    HDF5 ids that a new file may reuse) is made anew by each start."""
+    reused, fresh = Hdf5Sink(tmp_path / "reused.h5", force=True), tmp_path / "fresh.h5"
+    acquire(scene(records=2), seed=5, sinks=[reused], bench=bench())
+    acquire(scene(), seed=3, sinks=[reused], bench=bench())
+    acquire(scene(), seed=3, sinks=[Hdf5Sink(fresh)], bench=bench())
+    a, b = read_run(tmp_path / "reused.h5"), read_run(fresh)
+    assert a.header.plan.records == b.header.plan.records == 3
+    for k in b.codes:
+        np.testing.assert_array_equal(a.codes[k], b.codes[k])
+    for k in b.truth:
+        np.testing.assert_array_equal(a.truth[k], b.truth[k])
