@@ -1,11 +1,18 @@
 #!/usr/bin/env python3
 """The run file's cost in the paper's linear acquisition: the same run, in one warm process,
-written by the HDF5 sink (rows through HDF5's write call), by a sink that assigns the rows the
-ordinary h5py way (the path before), and to memory only; interleaved rounds, CPU medians, the
-per-round ratio of the two sinks' own cost (each minus the memory run), and whether the two files
-are equal byte for byte apart from their start time.
+written by the HDF5 sink (datasets grown and rows written through HDF5's own calls), by a sink
+that resizes and assigns them the ordinary h5py way (the path before), and to memory only;
+interleaved rounds, CPU medians, the per-round ratio of the two sinks' own cost (each minus the
+memory run), and whether the two files are equal byte for byte apart from their start time.
 
     .venv/bin/python benchmarks/run_file_sink.py --rounds 15
+    .venv/bin/python benchmarks/run_file_sink.py --replay 21
+
+``--replay N``: the sinks alone, without the acquisition's noise around them: the paper's run
+acquired once to memory, then its header and 30 records written N times by each sink
+(interleaved), CPU per file (start, records, stop), medians and quartiles; a third sink,
+``resized``, writes the rows through HDF5 but grows the datasets with h5py's ``resize`` (the
+path of speed round 5).
 """
 
 import argparse
@@ -27,16 +34,65 @@ from rig.scene import load_scene  # noqa: E402
 
 
 class AssigningSink(Hdf5Sink):
-    """The rows assigned with ``ds[k] = value`` (h5py's general selection)."""
+    """The datasets grown with h5py's ``resize`` and the rows assigned with ``ds[k] = value``
+    (h5py's general selection)."""
+
+    def _extend(self, rows):
+        for ds in self._grow:
+            ds.resize(rows, axis=0)
 
     def _put_row(self, ds, k, value):
         ds[k] = value
 
 
+class ResizingSink(Hdf5Sink):
+    """The rows through HDF5's write call, the datasets grown with h5py's ``resize`` (the path
+    of speed round 5)."""
+
+    _extend = AssigningSink._extend
+
+
+def replay(n):
+    """The sinks alone on the paper's recorded run (module docstring)."""
+    sc = load_scene("ishizaki2009", ["acquisition.model=linear"])
+    mem = MemorySink()
+    acquire(sc, seed=2009, sinks=[mem])
+    h, recs, footer = mem.header, mem._records, mem.footer
+    kinds = {"direct": Hdf5Sink, "resized": ResizingSink, "assigned": AssigningSink}
+    res = {k: [] for k in kinds}
+    with tempfile.TemporaryDirectory() as d:
+        for i in range(n + 1):
+            for k in (list(kinds) if i % 2 == 0 else list(kinds)[::-1]):
+                p = os.path.join(d, f"{k}.h5")
+                t = time.process_time()
+                s = kinds[k](p, force=True)
+                s.start(h)
+                for r in recs:
+                    s.record(r)
+                s.stop(footer)
+                if i:  # the first round warms up
+                    res[k].append(time.process_time() - t)
+        same = len({Path(d, f"{k}.h5").read_bytes() for k in kinds}) == 1
+    for k, v in res.items():
+        q = statistics.quantiles(v, n=4)
+        print(f"{k}: CPU per file {statistics.median(v) * 1e3:.1f} ms [{q[0] * 1e3:.1f}, "
+              f"{q[2] * 1e3:.1f}]")
+    for other in ("resized", "assigned"):
+        ratio = [a / b for a, b in zip(res["direct"], res[other])]
+        print(f"direct / {other} per round: median {statistics.median(ratio):.3f}")
+    print(f"files equal byte for byte: {same} (the same header: the same start time)")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--replay", type=int, default=0, help="rounds of the sinks alone (0: skip)")
     args = ap.parse_args(argv)
+    if args.replay:
+        print(f"load average before: {os.getloadavg()}")
+        replay(args.replay)
+        print(f"load average after: {os.getloadavg()}")
+        return
     sc = load_scene("ishizaki2009", ["acquisition.model=linear"])
     sinks = {"direct": lambda p: [Hdf5Sink(p)], "assigned": lambda p: [AssigningSink(p)],
              "memory": lambda p: [MemorySink()]}
