@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
-from daq.acquisition import acquire, rig_bench  # noqa: E402
+from daq.acquisition import BLOCK_S, acquire, rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink, read_run  # noqa: E402
 from rig import bench as rb  # noqa: E402
 from rig import lifted as rl  # noqa: E402
@@ -102,8 +102,9 @@ def lsim_peer(seconds):
 
 def parts(rounds):
     """CPU of the lifted run's parts, each alone and in sequence (no threads), medians: the
-    source, the fused kernel, the model information (its probe), and whole acquisitions
-    without a sink and with the run file."""
+    source, the fused kernel (in the run's blocks, :data:`daq.acquisition.BLOCK_S`; also with
+    the whole block as one chunk, the kernel of speed round 5), the model information (its
+    probe), and whole acquisitions without a sink and with the run file."""
     from daq.acquisition import antialias_for
     from daq.records import RecordPlan
 
@@ -113,8 +114,9 @@ def parts(rounds):
     aa = antialias_for(acq, plan)
     model = rb.build_model(scene)
     lifted, sections = rl.lift(model, model.decimation), rl.lift_sections(aa.sos, model.decimation)
-    n_all, blk = plan.simulation_samples, 10_000
-    out = {k: [] for k in ("source", "fused kernel", "model info", "acquire, no sink",
+    n_all, blk = plan.simulation_samples, int(round(BLOCK_S * plan.simulation_rate_hz))
+    whole = "fused kernel, one chunk per block (round 5)"
+    out = {k: [] for k in ("source", "fused kernel", whole, "model info", "acquire, no sink",
                            "acquire, run file")}
 
     def cpu(f):
@@ -141,6 +143,9 @@ def parts(rounds):
                     _, st, ch = rl.advance_decimated(model, lifted, st, ch, v.size, sections,
                                                      (v, s))
             out["fused kernel"].append(cpu(fused)[0])
+            chunk, rl.CHUNK_INTERVALS = rl.CHUNK_INTERVALS, n_all  # the same bytes
+            out[whole].append(cpu(fused)[0])
+            rl.CHUNK_INTERVALS = chunk
             out["model info"].append(cpu(lambda: rb.model_info(scene, seed=1))[0])
             out["acquire, no sink"].append(cpu(lambda: acquire(scene, seed=2009))[0])
             out["acquire, run file"].append(cpu(lambda: acquire(
