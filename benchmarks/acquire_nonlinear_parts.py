@@ -9,8 +9,9 @@ method etdab), medians of ``--rounds`` interleaved rounds of ``time.process_time
 Parts: ``source`` (the drive's blocks), ``bench`` (``rig.bench.run.bench_states`` on given source
 blocks: the etdab kernel and the per-sample state), ``kinematics`` (the mirror's exact x, z, rot
 from theta, numpy), ``noise`` (three ``standard_normal`` draws per block), ``fused kernel``
-(``rig.lifted._nonlinear_kernel``: sensors, geometry, clipping, flags, the lifted anti-alias
-filter, keep), and the two whole paths: ``fused`` (``BenchSimulation.decimated_blocks``) and
+(``rig.lifted._nonlinear_kernel``: the mirror's kinematics, the sensors' noise draws, the
+sensors, geometry, clipping, flags, the lifted anti-alias filter, keep; ``kinematics`` and
+``noise`` time what it includes, done apart), and the two whole paths: ``fused`` (``BenchSimulation.decimated_blocks``) and
 ``per-sample`` (``BenchSimulation.blocks`` then daq's filter and decimation).
 """
 
@@ -80,25 +81,27 @@ def main(argv=None):
         for _ in range(nb):
             rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
 
-    mx, mz, mrot = (np.ascontiguousarray(a) for a in _mirror_kinematics(scene, theta, True))
-    w = np.random.default_rng(2).standard_normal(n)
     acc, lever, q = model.accelerometer, model.lever, model.decimation
-    hp = np.zeros(n)
-
     sections = rl.lift_sections(sos, q)
+    hp_col = m["accel_highpass_q_mps"].start if acc.n_states else -1
+    lengths = np.asarray(scene.chain.length_m, dtype=float)
 
     def kernel():
         s_aa = np.zeros((3, 2 * sos.shape[0]))
         carry = np.zeros(3, dtype=np.bool_)
         volts, sat = np.empty((3, n // q)), np.empty((3, n // q), dtype=np.bool_)
+        mx, mrot = np.empty(n // q), np.empty(n // q)
+        rngs = [np.random.default_rng(k) for k in range(3)]
         for _ in range(nb):
-            rl._nonlinear_kernel(keep["accel"], hp, acc.corner_rad_s, acc.volts_per_mps2, w,
+            rl._nonlinear_kernel(keep["z_out"], keep["accel"], m["theta_rad"].start, hp_col,
+                                 acc.corner_rad_s, acc.volts_per_mps2, rngs[0],
                                  acc.noise_rms_v(fs), acc.sensitivity_vpmps2 * acc.range_mps2,
-                                 mx, mz, mrot, math.cos(lever.phi_rad), math.sin(lever.phi_rad),
-                                 lever.distance_m, w, w, lever.noise_rms_m(fs),
+                                 lengths, scene.mirror.body, float(scene.mirror.position_m),
+                                 math.cos(lever.phi_rad), math.sin(lever.phi_rad),
+                                 lever.distance_m, rngs[1], rngs[2], lever.noise_rms_m(fs),
                                  lever.half_size_m, lever.sign_x * lever.gain_vpm,
                                  lever.sign_y * lever.gain_vpm, *sections, s_aa, q, carry,
-                                 volts, sat, rl.CHUNK_INTERVALS)
+                                 volts, sat, mx, mrot, rl.CHUNK_INTERVALS)
 
     def fused():
         sim = BenchSimulation(scene, 2009, method="etdab")

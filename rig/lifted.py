@@ -67,8 +67,8 @@ import numpy as np
 from rig._jit import njit
 from rig._sosfilt import sos_sample
 from rig.blocks import DecimatedBlock
+from rig.bench.run import mirror_point
 from rig.devices.optical_lever import _spot
-from rig.devices.source import standard_normals
 from rig.errors import ConfigError, DivergenceError
 
 #: what the fused chain runs at every DAC sample and why (the run file's model info)
@@ -490,13 +490,15 @@ PER_SAMPLE_NONLINEAR = {
     "what": "the whole bench state (the nonlinear bench integrated at every DAC sample), the "
             "mirror's exact kinematics, the optical lever's exact geometry, the sensors' white "
             "noise (one draw per sample and channel), the clipping at the detector edge and the "
-            "accelerometer's range with their flags, and the anti-alias filter's sections",
+            "accelerometer's range with their flags, into the anti-alias filter (itself lifted "
+            "to the output rate)",
     "why": "not linear, so not lifted to the output rate (no Phi^q): the pendulum's large-angle "
            "terms and the lever's second-order geometry (~0.4 % of the spot's rms in u, far "
            "above round-off) act on each sample, clipping and flags too, and the filter's "
            "input is the sum of those and the noise",
-    "fused": "the sensors, noise, clipping and flags in one compiled pass (the per-sample "
-             "path's own arithmetic), then the anti-alias filter lifted to the output rate "
+    "fused": "the mirror's kinematics, the sensors, noise, clipping and flags in one compiled "
+             "pass (the per-sample path's own arithmetic), then the anti-alias filter lifted to "
+             "the output rate "
              "(its sections' exact linear map over each interval, computing only the kept "
              "instants; equal to filtering every sample up to round-off) (rig.lifted)",
 }
@@ -510,22 +512,23 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
     of its ``sos`` (as :func:`advance_decimated` takes it).
 
     The bench state at every DAC sample is :func:`rig.bench.run.bench_states` (what
-    :func:`rig.bench.advance` steps), the mirror's exact kinematics
-    (``_mirror_kinematics(exact=True)``, compiled); then one compiled kernel
-    (:func:`_nonlinear_kernel`): per sample the accelerometer (``x0'' - w_c q``, gain, noise,
-    clip, flag: :meth:`Accelerometer.sense_and_output`'s arithmetic), the lever
+    :func:`rig.bench.advance` steps); then one compiled kernel (:func:`_nonlinear_kernel`),
+    :data:`CHUNK_INTERVALS` intervals at a time: per sample the mirror's exact kinematics
+    (:func:`rig.bench.run.mirror_point`, what ``_mirror_kinematics(exact=True)`` computes), the
+    accelerometer (``x0'' - w_c q``, gain, noise, clip, flag:
+    :meth:`Accelerometer.sense_and_output`'s arithmetic), the lever
     (:func:`rig.devices.optical_lever._spot`, noise, clip, flag: :meth:`OpticalLever.measure`'s)
     and the interval rule's flags, then the filter lifted to the interval
-    (:func:`_lifted_sections_pass`, the linear chain's step 4), :data:`CHUNK_INTERVALS`
-    intervals at a time. The noise is the per-sample path's (one ``standard_normal(n)`` per
-    stream and block: the same values and generator states, drawn in compiled code by
-    :func:`rig.devices.source.standard_normals`). So the filter's inputs (and the flags) equal
-    the per-sample path's bit for bit, and the kept volts equal :func:`rig.bench.advance` then
-    daq's filter and decimation up to the lifted filter's round-off (its sums in another order;
-    the bound: tests/rig/test_lifted.py); the per-sample truth arrays, spot positions and
-    sensed acceleration are never made. Cost: the bench's own, plus per sample ``2 nth`` sines
-    and cosines, one spot geometry and three normal draws, and per interval and channel the
-    lifted filter's ``q ns`` (vectorised) plus ``ns (ns + 2) / 2 + ns`` multiply-adds.
+    (:func:`_lifted_sections_pass`, the linear chain's step 4). The noise is the per-sample
+    path's (each stream's ``standard_normal`` draws in sample order, from numpy's generators in
+    compiled code: the same values and generator states as one ``standard_normal(n)`` per stream
+    and block). So the filter's inputs, the flags and the truth equal the per-sample path's bit
+    for bit, and the kept volts equal :func:`rig.bench.advance` then daq's filter and
+    decimation up to the lifted filter's round-off (its sums in another order; the bound:
+    tests/rig/test_lifted.py); the per-sample kinematics, noise, spot positions and sensed
+    acceleration are never stored. Cost: the bench's own, plus per sample ``2 nth`` sines and
+    cosines, one spot geometry and three normal draws, and per interval and channel the lifted
+    filter's ``q ns`` (vectorised) plus ``ns (ns + 2) / 2 + ns`` multiply-adds.
 
     Returns (:class:`rig.blocks.DecimatedBlock`, the bench state after it, the chain state).
     ``chain.zi`` (3, 2 x sections): the sections' state per channel, as
@@ -536,7 +539,7 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
     ConfigError : ``n`` not a positive multiple of the decimation, or a linear model.
     DivergenceError : a non-finite state in the block.
     """
-    from rig.bench.run import BenchState, _mirror_kinematics, _readonly, _rng, bench_states
+    from rig.bench.run import BenchState, _readonly, _rng, bench_states
 
     if model.model != "nonlinear":
         raise ConfigError(f"advance_decimated_nonlinear needs the nonlinear model, not "
@@ -546,42 +549,34 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
     fs = model.fs_hz
     v, src, z_out, z, accel, native, h_next = bench_states(model, state, n, source_block)
     sl = model.slices
-    theta = z_out[:, sl["theta_rad"]]
+    th = sl["theta_rad"]
     acc, lever = model.accelerometer, model.lever
-    hp = (np.ascontiguousarray(z_out[:, sl["accel_highpass_q_mps"]][:, 0]) if acc.n_states
-          else np.zeros(n))
+    hp_col = sl["accel_highpass_q_mps"].start if acc.n_states else -1
     accel = np.ascontiguousarray(accel, dtype=float)
     rng_a = _rng(state.rng_states["accelerometer"])
     rng_x = _rng(state.rng_states["psd_x"])
     rng_y = _rng(state.rng_states["psd_y"])
-    if acc.noise_mps2_rthz > 0:
-        sd_a, wa = acc.noise_rms_v(fs), standard_normals(rng_a, n)
-    else:
-        sd_a, wa = 0.0, np.zeros(0)
-    mx, mz, mrot = _mirror_kinematics(model.scene, theta, exact=True)
-    if lever.noise_m_rthz > 0:
-        sd_p = lever.noise_rms_m(fs)
-        wx, wy = standard_normals(rng_x, n), standard_normals(rng_y, n)
-    else:
-        sd_p, wx, wy = 0.0, np.zeros(0), np.zeros(0)
+    sd_a = acc.noise_rms_v(fs) if acc.noise_mps2_rthz > 0 else 0.0
+    sd_p = lever.noise_rms_m(fs) if lever.noise_m_rthz > 0 else 0.0
+    scene = model.scene
     s_aa = np.array(chain.zi, dtype=float)
     carry = np.array(chain.carry, dtype=np.bool_)
     j = n // q
     volts = np.empty((3, j))
     sat = np.empty((3, j), dtype=np.bool_)
+    mx, mrot = np.empty(j), np.empty(j)
     phi_rad = lever.phi_rad
     aa, am_t, ac, ad = sections
-    _nonlinear_kernel(accel, hp, acc.corner_rad_s, acc.volts_per_mps2, wa, sd_a,
-                      acc.sensitivity_vpmps2 * acc.range_mps2,
-                      np.ascontiguousarray(mx), np.ascontiguousarray(mz),
-                      np.ascontiguousarray(mrot), math.cos(phi_rad), math.sin(phi_rad),
-                      lever.distance_m, wx, wy, sd_p, lever.half_size_m,
+    _nonlinear_kernel(z_out, accel, th.start, hp_col, acc.corner_rad_s, acc.volts_per_mps2,
+                      rng_a, sd_a, acc.sensitivity_vpmps2 * acc.range_mps2,
+                      np.asarray(scene.chain.length_m, dtype=float), scene.mirror.body,
+                      float(scene.mirror.position_m), math.cos(phi_rad), math.sin(phi_rad),
+                      lever.distance_m, rng_x, rng_y, sd_p, lever.half_size_m,
                       lever.sign_x * lever.gain_vpm, lever.sign_y * lever.gain_vpm,
-                      aa, am_t, ac, ad, s_aa, q, carry, volts, sat, CHUNK_INTERVALS)
+                      aa, am_t, ac, ad, s_aa, q, carry, volts, sat, mx, mrot, CHUNK_INTERVALS)
     t0 = state.index / fs
-    truth = {"stage_accel_mps2": accel[::q].copy(), "theta_rad": theta[::q].copy(),
-             "mirror_x_m": mx[::q].copy(), "mirror_rot_rad": mrot[::q].copy(),
-             "source_v": v[::q].copy()}
+    truth = {"stage_accel_mps2": accel[::q].copy(), "theta_rad": z_out[::q, th].copy(),
+             "mirror_x_m": mx, "mirror_rot_rad": mrot, "source_v": v[::q].copy()}
     block, rng_states = _kept_block(t0, fs, q, n, volts, truth, sat, (rng_a, rng_x, rng_y))
     new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
                      native=None if native is None else _readonly(np.array(native)),
@@ -590,40 +585,56 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
 
 
 @njit(cache=True, nogil=True)
-def _nonlinear_kernel(accel, hp, wc, gain_a, wa, sd_a, lim_a, mx, mz, mrot, cphi, sphi, dist,
-                      wx, wy, sd_p, half, gain_x, gain_y, aa, am_t, ac, ad, s_aa, q, carry,
-                      volts, sat, chunk):
-    """Per DAC sample k: the accelerometer (``_sense_output_kernel``'s arithmetic) and the lever
-    (``_measure_kernel``'s) into the filter inputs of ``chunk`` intervals at a time (3, q,
-    chunk), and per channel whether its sensor saturated since the previous kept instant
-    (``sat`` (3, J); ``carry`` (3,) in/out: after the last kept instant); then those inputs
-    through the lifted sections (:func:`_lifted_sections_pass`; ``s_aa`` (3, ns) in/out), which
-    write the kept volts (3, J). ``wa`` / ``wx`` empty: no noise. Measured against filtering
-    each channel's row per sample (``sosfilt``'s arithmetic): BENCHMARKS.md."""
-    noisy_a = wa.shape[0] > 0
-    noisy_p = wx.shape[0] > 0
+def _nonlinear_kernel(z_out, accel, th0, hp_col, wc, gain_a, rng_a, sd_a, lim_a, lengths, body,
+                      s_m, cphi, sphi, dist, rng_x, rng_y, sd_p, half, gain_x, gain_y, aa, am_t,
+                      ac, ad, s_aa, q, carry, volts, sat, mx, mrot, chunk):
+    """Per DAC sample k of the bench states ``z_out`` (n, nz) (angles from column ``th0``, the
+    accelerometer's high-pass state at ``hp_col``, -1: none) and ``accel`` (n,): the mirror's
+    kinematics (:func:`rig.bench.run.mirror_point`), the accelerometer
+    (``_sense_output_kernel``'s arithmetic) and the lever (``_measure_kernel``'s) into the filter
+    inputs of ``chunk`` intervals at a time (3, q, chunk), with each chunk's noise drawn first
+    in sample order per stream (``sd_a`` / ``sd_p`` = 0: none drawn), and per channel whether
+    its sensor saturated since the previous kept instant (``sat`` (3, J); ``carry`` (3,) in/out:
+    after the last kept instant); then those inputs through the lifted sections
+    (:func:`_lifted_sections_pass`; ``s_aa`` (3, ns) in/out), which write the kept volts (3, J).
+    Writes the mirror's translation and rotation at the kept instants (``mx``, ``mrot``, (J,)).
+    Measured against the path with the kinematics, noise and filter apart: BENCHMARKS.md."""
     c_a = carry[0]
     c_p = carry[1]
     nj = accel.shape[0] // q
     for j0 in range(0, nj, chunk):
         nc = min(chunk, nj - j0)
+        m = nc * q
+        wa = np.empty(m if sd_a > 0.0 else 0)
+        wx = np.empty(m if sd_p > 0.0 else 0)
+        wy = np.empty(wx.shape[0])
+        for k in range(wa.shape[0]):
+            wa[k] = rng_a.standard_normal()
+        for k in range(wx.shape[0]):
+            wx[k] = rng_x.standard_normal()
+        for k in range(wy.shape[0]):
+            wy[k] = rng_y.standard_normal()
         xin = np.empty((3, q, nc))
         for j in range(nc):
             for i in range(q):
                 k = (j0 + j) * q + i
-                va = gain_a * (accel[k] - wc * hp[k])
-                if noisy_a:
-                    va = va + sd_a * wa[k]
+                h = z_out[k, hp_col] if hp_col >= 0 else 0.0
+                va = gain_a * (accel[k] - wc * h)
+                if wa.shape[0]:
+                    va = va + sd_a * wa[j * q + i]
                 f_a = abs(va) > lim_a
                 xin[0, i, j] = min(max(va, -lim_a), lim_a)
-                uk, vk = _spot(mx[k], mz[k], mrot[k], cphi, sphi, dist)
-                if noisy_p:
-                    uk = uk + sd_p * wx[k]
-                    vk = vk + sd_p * wy[k]
+                xk, zk, rk = mirror_point(z_out, k, th0, lengths, body, s_m)
+                uk, vk = _spot(xk, zk, rk, cphi, sphi, dist)
+                if wx.shape[0]:
+                    uk = uk + sd_p * wx[j * q + i]
+                    vk = vk + sd_p * wy[j * q + i]
                 f_p = (abs(uk) > half) or (abs(vk) > half)
                 xin[1, i, j] = gain_x * min(max(uk, -half), half)
                 xin[2, i, j] = gain_y * min(max(vk, -half), half)
                 if i == 0:
+                    mx[j0 + j] = xk
+                    mrot[j0 + j] = rk
                     sat[0, j0 + j] = c_a or f_a
                     sat[1, j0 + j] = c_p or f_p
                     sat[2, j0 + j] = sat[1, j0 + j]

@@ -145,29 +145,34 @@ def mirror_kinematics_kernel(theta, lengths, j, s, x, z, rot):
     """Per sample k: ``x = sum_{b<j} l_b sin th_b + s sin th_j``, ``z = sum_{b<j} l_b (1 -
     cos th_b) + s (1 - cos th_j)`` (the terms added in that order, no fused multiply-add; ``s =
     0``: the mirror at its body's pivot, no such term) and ``rot = th_j``, with libm's cos and
-    sin, in one pass without temporaries: the values of the numpy expression it replaced
-    (``np.sin(theta[:, :j]) @ l[:j]`` ...) where numpy's sin and cos are libm's and the sum has
-    one term (the mirror on the second body), else equal up to the order of the sum's rounding
-    (tests/rig/test_bench.py)."""
+    sin, in one pass without temporaries (:func:`mirror_point`): the values of the numpy
+    expression it replaced (``np.sin(theta[:, :j]) @ l[:j]`` ...) where numpy's sin and cos
+    are libm's and the sum has one term (the mirror on the second body), else equal up to the
+    order of the sum's rounding (tests/rig/test_bench.py)."""
     for k in range(theta.shape[0]):
-        xk = 0.0
-        zk = 0.0
-        for b in range(j):
-            c, sn = math.cos(theta[k, b]), math.sin(theta[k, b])
-            if b == 0:
-                xk = lengths[b] * sn
-                zk = lengths[b] * (1.0 - c)
-            else:
-                xk += lengths[b] * sn
-                zk += lengths[b] * (1.0 - c)
-        th = theta[k, j]
-        if s != 0.0:
-            c, sn = math.cos(th), math.sin(th)
-            xk = xk + s * sn
-            zk = zk + s * (1.0 - c)
-        x[k] = xk
-        z[k] = zk
-        rot[k] = th
+        x[k], z[k], rot[k] = mirror_point(theta, k, 0, lengths, j, s)
+
+
+@njit(cache=True, inline="always")
+def mirror_point(theta, k, th0, lengths, j, s):
+    """:func:`mirror_kinematics_kernel` at sample ``k``, the angles at ``theta[k, th0 + b]``
+    (a bench state row, or a row of angles with ``th0`` = 0): ``(x, z, rot)``."""
+    xk = 0.0
+    zk = 0.0
+    for b in range(j):
+        c, sn = math.cos(theta[k, th0 + b]), math.sin(theta[k, th0 + b])
+        if b == 0:
+            xk = lengths[b] * sn
+            zk = lengths[b] * (1.0 - c)
+        else:
+            xk += lengths[b] * sn
+            zk += lengths[b] * (1.0 - c)
+    th = theta[k, th0 + j]
+    if s != 0.0:
+        c, sn = math.cos(th), math.sin(th)
+        xk = xk + s * sn
+        zk = zk + s * (1.0 - c)
+    return xk, zk, th
 
 
 def _check_finite(model, state, z_out, z, t0, n):

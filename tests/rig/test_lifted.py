@@ -223,6 +223,21 @@ def test_the_fused_nonlinear_chain_equals_the_per_sample_path_up_to_the_filter_s
     assert np.array_equal(sim.state.z, ref_sim.state.z)
 
 
+def test_the_fused_nonlinear_kernel_gives_the_same_bytes_whatever_intervals_it_takes_at_a_time(
+        monkeypatch):
+    import rig.lifted as rl
+
+    scene, kw, _ = _nl("driven_clipping")
+    aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
+    one, sim = _lifted(scene, 4, 6.0, aa, block_s=6.0, **kw)  # 600 intervals: 3 chunks of 256
+    for chunk in (1, 7, 10**6):
+        monkeypatch.setattr(rl, "CHUNK_INTERVALS", chunk)
+        split, other = _lifted(scene, 4, 6.0, aa, block_s=6.0, **kw)
+        for k, v in one.items():
+            assert np.array_equal(split[k], v), (chunk, k)
+        assert other.state.rng_states == sim.state.rng_states
+
+
 def test_fused_nonlinear_blocks_reproduce_a_one_shot_run_bit_for_bit():
     scene, kw, _ = _nl("driven_clipping")
     aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
