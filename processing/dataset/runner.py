@@ -276,14 +276,25 @@ def _clean_partials(runs_dir: Path) -> None:
             h, pid = parts[-5], int(parts[-4])
         except (IndexError, ValueError):
             continue
-        if h != host:
-            continue
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
+        if h == host and not _writer_alive(pid):
             p.unlink(missing_ok=True)
-        except PermissionError:
-            pass
+
+
+def _writer_alive(pid: int) -> bool:
+    """Whether process ``pid`` may still write: it exists and is not a zombie (a killed worker
+    stays one until its new parent reaps it, which a container's init may do late; it writes
+    nothing more)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:  # gone meanwhile, or no /proc (not Linux: it exists, so it may write)
+        return not Path("/proc").is_dir()
+    return stat[stat.rindex(")") + 2:].split()[0] != "Z"  # "pid (comm) state ..."
 
 
 # -- running ---------------------------------------------------------------------------------

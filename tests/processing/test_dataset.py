@@ -336,6 +336,30 @@ def test_sigkill_of_the_parent_then_the_same_command_completes_every_run_exactly
         assert check_run_file(out / "runs" / r["file"], sha256=r["sha256"]).ok
 
 
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs Linux's /proc to see a zombie")
+def test_a_killed_writer_s_partial_file_is_removed_even_before_its_zombie_is_reaped(tmp_path):
+    """A worker killed with its sweep stays a zombie until its new parent reaps it (a
+    container's init may do so late): it writes nothing more, so the next run of the command
+    removes its temporary file; a live writer's stays."""
+    import socket
+
+    from processing.dataset.runner import _clean_partials
+
+    z = subprocess.Popen([sys.executable, "-c", "pass"])
+    _wait_for(lambda: Path(f"/proc/{z.pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+              == "Z", 30)  # exited, not reaped
+    host = socket.gethostname().replace(".", "-")
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    dead = runs / f".run_000001.h5.{host}.{z.pid}.0123abcd.partial.h5"
+    live = runs / f".run_000002.h5.{host}.{os.getpid()}.0123abcd.partial.h5"
+    dead.write_bytes(b"")
+    live.write_bytes(b"")
+    _clean_partials(runs)
+    z.wait()
+    assert not dead.exists() and live.exists()
+
+
 def test_ctrl_c_stops_cleanly_keeping_finished_runs_and_the_manifest_says_what_is_missing(
         tmp_path):
     path = sweep_file(tmp_path, '[random]\ncount = 6\n"pendulum.q2" = { uniform = [80.0, 120.0] }')
