@@ -69,6 +69,7 @@ from rig._sosfilt import sos_sample
 from rig.blocks import DecimatedBlock
 from rig.bench.run import mirror_point
 from rig.devices.optical_lever import _spot
+from rig.devices.source import _fill_standard_normal
 from rig.errors import ConfigError, DivergenceError
 
 #: what the fused chain runs at every DAC sample and why (the run file's model info)
@@ -608,12 +609,9 @@ def _nonlinear_kernel(z_out, accel, th0, hp_col, wc, gain_a, rng_a, sd_a, lim_a,
         wa = np.empty(m if sd_a > 0.0 else 0)
         wx = np.empty(m if sd_p > 0.0 else 0)
         wy = np.empty(wx.shape[0])
-        for k in range(wa.shape[0]):
-            wa[k] = rng_a.standard_normal()
-        for k in range(wx.shape[0]):
-            wx[k] = rng_x.standard_normal()
-        for k in range(wy.shape[0]):
-            wy[k] = rng_y.standard_normal()
+        _fill_standard_normal(rng_a, wa)
+        _fill_standard_normal(rng_x, wx)
+        _fill_standard_normal(rng_y, wy)
         xin = np.empty((3, q, nc))
         for j in range(nc):
             for i in range(q):
