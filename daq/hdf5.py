@@ -225,7 +225,9 @@ class Hdf5Sink(Sink):
     def start(self, header: Header) -> None:
         self.check()
         target = self.target
-        self._tmp, self._n = None, 0  # a sink may write another run (with force)
+        # a sink may write another run (with force): the per-run state anew, the row shapes
+        # keyed by HDF5 ids that the new file may reuse
+        self._tmp, self._n, self._extents, self._rows = None, 0, None, {}
         if target.exists():
             self._hold_target(target)
             fd, tmp = tempfile.mkstemp(prefix=f"{target.stem}.partial-", suffix=target.suffix,
@@ -403,7 +405,6 @@ class Hdf5Sink(Sink):
                                              dtype=f"S{_MESSAGE_LEN}", track_times=False)
         self._message.attrs["long_name"] = "why the run stopped early"
         self._grow, self._record_scales = [], []
-        self._extents, self._rows = None, {}
 
         # raw channels
         data = _group(entry, "data", "NXdata", signal=h.names[0],
