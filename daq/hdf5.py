@@ -323,8 +323,8 @@ class Hdf5Sink(Sink):
         self._f.flush()
 
     def _extend(self, rows: int) -> None:
-        """Every growing dataset to ``rows`` rows, through HDF5's own call (h5py's ``resize``
-        measured 7x the cost); the same file."""
+        """Every growing dataset to ``rows`` rows, through HDF5's own call (cheaper than h5py's
+        ``resize``: benchmarks/run_file_sink.py --replay); the same file."""
         if self._extents is None:  # each growing dataset's id and row shape, once
             self._extents = [(ds.id, ds.shape[1:]) for ds in self._grow]
         for dsid, tail in self._extents:

@@ -217,7 +217,7 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
     s_aa = np.array(chain.zi, dtype=float)
     carry = np.array(chain.carry, dtype=np.bool_)
     phi_rad = lever.phi_rad
-    aa, am_t, ac, ad = sections
+    aa, am_t, ac, ad = _checked_sections(sections, q)
     _fused_kernel(lifted.phi_q, lifted.gamma_q, lifted.readings, lifted.accel_row,
                   lifted.theta[0], lifted.mirror_w, lifted.mirror_body, v, z,
                   rng_a, rng_x, rng_y, sd_a, sd_p,
@@ -237,6 +237,23 @@ def advance_decimated(model, lifted: Lifted, state, chain: DecimatedState, n: in
     new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
                      seed_entropy=state.seed_entropy)
     return block, new, DecimatedState(zi=s_aa, carry=carry, generators=generators)
+
+
+def _checked_sections(sections, q: int) -> tuple:
+    """``sections`` as :func:`lift_sections` makes them for decimation ``q`` (A, M^T, C, D), or
+    ConfigError naming what was given (e.g. the ``sos`` rows themselves)."""
+    ok = isinstance(sections, tuple) and len(sections) == 4
+    if ok:
+        aa, am_t, ac, ad = (np.asarray(a) for a in sections)
+        ns = aa.shape[0] if aa.ndim == 2 else -1
+        ok = (aa.shape == (ns, ns) and am_t.shape == (q, ns) and ac.shape == (ns,)
+              and ad.shape == (1,))
+    if not ok:
+        got = (f"a tuple of {len(sections)}" if isinstance(sections, tuple) else
+               f"{type(sections).__name__} of shape {np.shape(sections)}")
+        raise ConfigError(f"sections = {got} is invalid: expected lift_sections(sos, {q}), "
+                          f"the filter lifted to the decimation (A, M^T, C, D)")
+    return sections
 
 
 def _whole_intervals(n, q: int) -> int:
@@ -567,7 +584,7 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
     sat = np.empty((3, j), dtype=np.bool_)
     mx, mrot = np.empty(j), np.empty(j)
     phi_rad = lever.phi_rad
-    aa, am_t, ac, ad = sections
+    aa, am_t, ac, ad = _checked_sections(sections, q)
     _nonlinear_kernel(z_out, accel, th.start, hp_col, acc.corner_rad_s, acc.volts_per_mps2,
                       rng_a, sd_a, acc.sensitivity_vpmps2 * acc.range_mps2,
                       np.asarray(scene.chain.length_m, dtype=float), scene.mirror.body,

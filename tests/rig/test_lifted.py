@@ -145,15 +145,19 @@ def test_the_lifted_chain_gives_the_same_bytes_for_the_same_seed_and_others_for_
     assert not np.array_equal(a["x"], c["x"])
 
 
-def test_the_lifted_chain_refuses_a_nonlinear_model_and_a_block_off_the_decimation():
+def test_the_lifted_chain_refuses_a_nonlinear_model_unlifted_sections_and_a_mid_interval_start():
     from rig.errors import ConfigError
-    from rig.lifted import lift
+    from rig.lifted import advance_decimated, lift, start_decimated
 
     scene = load_scene("ishizaki2009", ["acquisition.model=nonlinear"])
     with pytest.raises(ConfigError, match="linear model"):
         lift(BenchSimulation(scene, 1).model, 10)
     aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
     sim = BenchSimulation(_scene("paper"), 1)
+    with pytest.raises(ConfigError, match=r"sections = ndarray of shape \(\d+, 6\) is invalid: "
+                                          r"expected lift_sections\(sos, 10\)"):
+        advance_decimated(sim.model, lift(sim.model, 10), sim.state, start_decimated(aa.sos), 10,
+                          aa.sos)
     sim.next_block(3)
     with pytest.raises(ConfigError, match="kept instant"):
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
@@ -258,7 +262,7 @@ def test_the_fused_nonlinear_chain_gives_the_same_bytes_for_the_same_seed_only()
     assert not np.array_equal(a["x"], c["x"])
 
 
-def test_the_fused_nonlinear_chain_refuses_a_linear_model_and_a_block_off_the_decimation():
+def test_the_fused_nonlinear_chain_refuses_a_linear_model_an_odd_block_and_unlifted_sections():
     from rig.errors import ConfigError
     from rig.lifted import advance_decimated_nonlinear, lift_sections, start_decimated
 
@@ -272,6 +276,9 @@ def test_the_fused_nonlinear_chain_refuses_a_linear_model_and_a_block_off_the_de
     with pytest.raises(ConfigError, match="multiple of the decimation 10"):
         advance_decimated_nonlinear(sim.model, sim.state, start_decimated(aa.sos), 15,
                                     lift_sections(aa.sos, 10))
+    with pytest.raises(ConfigError, match=r"sections = ndarray of shape \(\d+, 6\) is invalid: "
+                                          r"expected lift_sections\(sos, 10\)"):
+        advance_decimated_nonlinear(sim.model, sim.state, start_decimated(aa.sos), 10, aa.sos)
     sim.next_block(3)
     with pytest.raises(ConfigError, match="kept instant"):
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
