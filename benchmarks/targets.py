@@ -26,7 +26,8 @@
 ``--etd4m`` compares etd4m (three Gauss nodes, quadratic stage prediction) with etd3m: etd3m at
 m = 5 (the best within 1e-6 before etd4m) and 10, etd4m at m = 10 along the path before its
 n = 2 kernel without vertical input (etd4m_kernel2, and simulate's warnings reducing the strided
-rows) and now, and at m = 20 (50 Hz output), timed in interleaved rounds (one run of each per
+rows), with that kernel's input FIR in its loop (``FIR_CHUNK_STEPS = 0``, the path of speed
+round 6) and now (the FIR as BLAS products of 512 steps), and at m = 20 (50 Hz output), timed in interleaved rounds (one run of each per
 round; medians and quartiles of wall and CPU), and ``solve_ivp`` RK45 restarted at every held
 sample (the cheapest ``solve_ivp`` configuration within 1e-6, ``benchmarks/run.py --full``) on
 the first 5 s, extrapolated to 3000 s.
@@ -183,8 +184,8 @@ def etd4m_rounds(chain, base, ref, rounds):
     from benchmarks.work_precision import _ivp_per_sample
 
     configs = [("etd3m", 5, 0.01, False), ("etd3m", 10, 0.01, False),
-               ("etd4m", 10, 0.01, True), ("etd4m", 10, 0.01, False),
-               ("etd4m", 20, 0.02, False)]
+               ("etd4m", 10, 0.01, True), ("etd4m", 10, 0.01, "fir-loop"),
+               ("etd4m", 10, 0.01, False), ("etd4m", 20, 0.02, False)]
 
     def run(c):
         with _path_before(c[3]):
@@ -206,13 +207,15 @@ def etd4m_rounds(chain, base, ref, rounds):
     for c in configs:
         w, u = np.array(walls[c]), np.array(cpus[c])
         q = lambda a: f"{np.median(a):.4f} [{np.quantile(a, 0.25):.4f}, {np.quantile(a, 0.75):.4f}]"
-        name = c[0] + (" (the path before)" if c[3] else "")
+        name = c[0] + {True: " (the path before)", "fir-loop": " (the FIR in the loop)",
+                       False: ""}[c[3]]
         print(f"| {name} | {c[1]} ({c[1]} ms) | {c[2]:g} s | {q(w)} | {q(u)} | {errs[c]:.2g} | "
               f"{3000 / np.median(u):,.0f} |", flush=True)
-    before, now = np.array(cpus[configs[2]]), np.array(cpus[configs[3]])
-    ratio = now / before
-    print(f"etd4m m = 10, now / before, per round: CPU {np.median(ratio):.3f} "
-          f"[{np.quantile(ratio, 0.25):.3f}, {np.quantile(ratio, 0.75):.3f}]")
+    now = np.array(cpus[configs[4]])
+    for k, what in ((2, "the path before"), (3, "the FIR in the loop")):
+        ratio = now / np.array(cpus[configs[k]])
+        print(f"etd4m m = 10, now / {what}, per round: CPU {np.median(ratio):.3f} "
+              f"[{np.quantile(ratio, 0.25):.3f}, {np.quantile(ratio, 0.75):.3f}]")
     piece = 5000
     rows, wall, _, cpu = _ivp_per_sample(chain, base.ax_mps2, base.dt_s, piece, 10, np.zeros(4),
                                          "RK45", dict(rtol=1e-6, atol=1e-9))
@@ -223,16 +226,19 @@ def etd4m_rounds(chain, base, ref, rounds):
     print(f"solve_ivp / etd4m m = 10 (CPU medians): {cpu * 600 / np.median(now):,.0f}")
 
 
-def _path_before(before: bool):
-    """The path before etd4m_kernel2h and the warnings' contiguous reduction (for the
+def _path_before(before):
+    """``True``: the path before etd4m_kernel2h and the warnings' contiguous reduction (for the
     comparison): etd4m_kernel2 for n = 2 without a vertical input, and simulate's warnings
     taking the motion's peak to peak along the run's strided rows, as they did. (The two
     smaller savings of that change, the output times in place and the output array's size
-    without its rows, stay: the path before is slightly flattered.)"""
+    without its rows, stay: the path before is slightly flattered.) ``"fir-loop"``:
+    etd4m_kernel2h with its input FIR in the loop (``FIR_CHUNK_STEPS = 0``, speed round 6)."""
     import contextlib
 
     if not before:
         return contextlib.nullcontext()
+    if before == "fir-loop":
+        return mock.patch("rig.solvers.etd4m.FIR_CHUNK_STEPS", 0)
     import rig.sim_checks
 
     checks = rig.sim_checks.simulation_warnings

@@ -2279,15 +2279,31 @@ def _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, i, z0, z1, z2, z3, bw0, 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
 def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, ax, m, n_steps,
-                   out_steps, y, y_out, hist, have):
+                   out_steps, y, y_out, hist, have, fir_chunk):
     """:func:`etd4m_kernel2` for a run without a vertical input: neither the vertical gain N2 at
     the stages nor its products with the (zero) vertical input are formed, except N2 at the
     last step's stages, which the native state carries (so a next block with a vertical input
     continues as from :func:`etd4m_kernel2`). Every other number is formed by the same
     operations in the same order, without the terms that are exactly zero there: the result
-    equals :func:`etd4m_kernel2`'s with ``sa`` = 0 (tests/rig/solvers/test_etd4m_horizontal.py)."""
+    equals :func:`etd4m_kernel2`'s with ``sa`` = 0 (tests/rig/solvers/test_etd4m_horizontal.py).
+
+    ``fir_chunk`` > 0: the input FIR (each step's 48 sums over its samples, which no state
+    enters) is formed ``fir_chunk`` steps at a time, as one matrix product of the steps' input
+    windows by ``wt`` (BLAS ``dgemm`` through numba's ``np.dot``; the last chunk padded with
+    zero windows, so every product has the same shape), before the serial chain reads it: BLAS
+    keeps the sums in registers, where the loop (``fir_chunk`` = 0, the path before) carries 48
+    of them through memory sample by sample. BLAS may order or fuse a sum's terms otherwise
+    than the loop (it does for two samples a step), so the sums, and the run, equal the loop's
+    within round-off (the bound and what it measured: tests/rig/solvers/
+    test_etd4m_horizontal.py); for one chunk size every step's sums are formed by the same
+    arithmetic wherever the step falls, so blocks continue a run bit for bit (measured in
+    BENCHMARKS.md, speed round 7)."""
     nw = 8
     acc = np.empty(6 * nw)
+    nq = wt.shape[0]
+    kc = max(fir_chunk, 1)
+    accs = np.empty((kc if fir_chunk > 0 else 0, 6 * nw))
+    win = np.empty((accs.shape[0], nq))
     phi3 = phi.reshape((1, 4, 4))
     nev = 0
     z0, z1, z2, z3 = y[0], y[1], y[2], y[3]
@@ -2313,7 +2329,23 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     done = n_steps
     for k in range(n_steps):
         i0 = k * m
-        _etd4m_fir48(ax, i0, 1, wt, acc)
+        if fir_chunk > 0:
+            kk = k % kc
+            if kk == 0:  # the next chunk's windows (rows of nq samples, m apart) times wt
+                kn = min(kc, n_steps - k)
+                if nq == m and kn == kc:  # zero-order hold: the windows tile the input
+                    np.dot(ax[i0:i0 + kc * m].reshape((kc, m)), wt, accs)
+                else:
+                    for c in range(kn):
+                        for qq in range(nq):
+                            win[c, qq] = ax[i0 + c * m + qq]
+                    for c in range(kn, kc):  # zero windows: the product's shape never changes
+                        for qq in range(nq):
+                            win[c, qq] = 0.0
+                    np.dot(win, wt, accs)
+            acc = accs[kk]
+        else:
+            _etd4m_fir48(ax, i0, 1, wt, acc)
         p0, p1, p2, p3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, zero, z0, z1, z2,
                                         z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
                                         d00, d01, d10, d11)

@@ -27,7 +27,9 @@ The stage omegas, where N is evaluated, carry etd3m's correction for the stairca
 (the interpolation then sees each interval's mean). Three remainder evaluations per step; per
 sample a FIR of 6 weight sets (2n x n each), the stage sets skipped past their nodes (for n = 2
 every row in full, which the compiler vectorises; without a vertical input the n = 2 kernel
-forms neither N2 nor its products with the zero input, the same numbers). The first
+forms neither N2 nor its products with the zero input, the same numbers, and forms the FIR, which
+no state enters, as BLAS products of :data:`FIR_CHUNK_STEPS` steps' input windows ahead of its
+serial chain: the same sums within round-off; BENCHMARKS.md, speed round 7). The first
 step after a (re)start predicts with N(z0) at one more evaluation; the three stages are part of
 the native state (theta, omega, valid flag, step H, then 9n numbers), so blocks that end on output
 rows continue bit for bit.
@@ -72,6 +74,25 @@ ETD4M_SETS = 6  # weight sets per sample: end nodes 0, 1, 2, then stages 2, 1, 0
 #: (rig.solvers._kernels.etd4m_kernel2h, the same numbers as etd4m_kernel2); False runs
 #: etd4m_kernel2 there (the path before, for benchmarks/targets.py)
 HORIZONTAL_KERNEL = True
+#: steps whose input FIR etd4m_kernel2h forms as one BLAS product before its serial chain reads
+#: it (the same sums within round-off; 0: the FIR in the loop, step by step, the path before,
+#: for benchmarks/targets.py), at most what keeps the product in one BLAS thread
+#: (:func:`fir_chunk_steps`)
+FIR_CHUNK_STEPS = 256
+#: OpenBLAS computes a product of m n k <= 65536 x GEMM_MULTITHREAD_THRESHOLD (4 by default)
+#: multiply-adds in the calling thread (interface/gemm.c); above, it wakes its threads, whose
+#: start and spinning cost more CPU than such a product
+BLAS_ONE_THREAD_MULADDS = 65536 * 4
+
+
+def fir_chunk_steps(window: int) -> int:
+    """Steps per BLAS product of etd4m_kernel2h's input FIR for ``window`` samples a step
+    (``m`` + 1 for the linear hold): :data:`FIR_CHUNK_STEPS`, fewer where the product of
+    (steps, window) by (window, 48) would exceed :data:`BLAS_ONE_THREAD_MULADDS`; 0 if
+    :data:`FIR_CHUNK_STEPS` is 0."""
+    if FIR_CHUNK_STEPS <= 0:
+        return 0
+    return max(1, min(FIR_CHUNK_STEPS, BLAS_ONE_THREAD_MULADDS // (48 * window)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -184,7 +205,7 @@ class Etd4m(MultiSample):
             status, nrow, i_done, nfev = etd4m_kernel2h(
                 chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic,
                 co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, ax, m, held.n_intervals // m,
-                held.out_every // m, z, y_out, hist, have)
+                held.out_every // m, z, y_out, hist, have, fir_chunk_steps(co.wt.shape[0]))
         else:
             status, nrow, i_done, nfev = (etd4m_kernel2 if chain.n == 2 else etd4m_kernel)(
                 chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic,
