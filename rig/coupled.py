@@ -697,7 +697,11 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     ``sums[b, 0, j] += theta_j^2``, ``sums[b, 1, j] += d_theta_j^2``,
     ``sums[b, 2, j] = max |d_theta_j|``; over every sample ``peaks[0, j] = max |theta_j|``,
     ``peaks[1, j] = max |d_theta_j|`` (is the first order valid all along?). ``z``, ``d``
-    (in/out) end at the last sample."""
+    (in/out) end at the last sample.
+
+    For n = 2, f is :func:`_remainder2_fast`'s (polynomial sines, one division: the dense
+    equations rounded differently, a few ulp), as etdab's; the state products run row beside
+    row (each row's sum over the columns in order, as a loop per row would form it)."""
     n, two, nz, nf, work, alpha = _kernel_scratch(mass, rows, z)
     prm = (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
            reaction, th0, q_idx, wc, rows, a_rows)
@@ -705,9 +709,17 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     fn = np.empty(nf)
     zt = np.empty(nz)
     dt = np.empty(nz)
+    phi_t = np.ascontiguousarray(phi.T)  # rows side by side: row r's terms in column order
+    gf0_t = np.ascontiguousarray(gf0.T)
+    gf1_t = np.ascontiguousarray(gf1.T)
+    a_cols = a_rows.shape[1]
     n_s = v.shape[0]
     n_rec = n_s - k_rec
-    ax = _remainder(two, prm, z, work, alpha, f)
+    if two:
+        ax = _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
+                              a_rows, a_cols, z, f)
+    else:
+        ax = _remainder(two, prm, z, work, alpha, f)
     for kk in range(n_s):
         for j in range(n):
             if abs(z[th0 + j]) > peaks[0, j]:
@@ -728,20 +740,29 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
         v0 = v[kk]
         dv = v[kk + 1] - v0
         for r in range(nz):
-            acc = g0[r] * v0 + g1[r] * dv
-            for col in range(nz):
-                acc += phi[r, col] * z[col]
-            zt[r] = acc
+            zt[r] = g0[r] * v0 + g1[r] * dv
+        for col in range(nz):
+            zc = z[col]
+            for r in range(nz):
+                zt[r] += phi_t[col, r] * zc
         for r in range(nz):
             z[r] = zt[r]
-        ax = _remainder(two, prm, z, work, alpha, fn)
+        if two:
+            ax = _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
+                                  wc, a_rows, a_cols, z, fn)
+        else:
+            ax = _remainder(two, prm, z, work, alpha, fn)
         for r in range(nz):
-            acc = 0.0
-            for col in range(nz):
-                acc += phi[r, col] * d[col]
-            for i in range(nf):
-                acc += gf0[r, i] * f[i] + gf1[r, i] * (fn[i] - f[i])
-            dt[r] = acc
+            dt[r] = 0.0
+        for col in range(nz):
+            dc = d[col]
+            for r in range(nz):
+                dt[r] += phi_t[col, r] * dc
+        for i in range(nf):
+            fi = f[i]
+            dfi = fn[i] - fi
+            for r in range(nz):
+                dt[r] += gf0_t[i, r] * fi + gf1_t[i, r] * dfi
         for r in range(nz):
             d[r] = dt[r]
         for i in range(nf):
