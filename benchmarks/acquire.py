@@ -6,6 +6,7 @@ with the earlier one (lawson4), interleaved, CPU and wall time.
     .venv/bin/python benchmarks/acquire.py                 # 7 rounds (~2 minutes)
     .venv/bin/python benchmarks/acquire.py --rounds 11 --configs linear,etdab
     .venv/bin/python benchmarks/acquire.py --rounds 5 --configs linear,etdab,etdab_per_sample
+    .venv/bin/python benchmarks/acquire.py --rounds 7 --configs linear,linear@fresh,etdab,etdab@fresh
 
 (``*_per_sample``: the same model without the fused chain, ``rig_bench(lifted=False)``.)
 
@@ -15,10 +16,18 @@ the median and quartiles of CPU (``time.process_time``: every thread of the proc
 time, and the median of the per-round ratios to the first configuration with their quartiles
 (a ratio within one round compares runs made under the same load). "Runs per minute on 2 cores"
 is 2 x 60 s / median CPU: what two such processes side by side sustain if CPU-bound.
+
+A configuration's name followed by ``@fresh`` (``--configs linear,linear@fresh``) runs it with
+a scene of its own every run, as a sweep over drive levels does (the source's level times
+1 + k 1e-6 for the k-th such run: the same model, the same work): it pays the scene's own
+computations every run (the model choice with its linearisation-error prediction and the
+expected responses, memoised per scene by :mod:`rig.scene_memo`), which repeated runs of one
+scene pay once per process.
 """
 
 import argparse
 import functools
+import itertools
 import os
 import sys
 import tempfile
@@ -46,9 +55,19 @@ CONFIGS = {
 }
 
 
+_RUNS = itertools.count(1)
+
+
 def one_run(name, out, extra=()):
-    override, kw = CONFIGS[name]
+    base, _, how = name.partition("@")
+    if base not in CONFIGS or how not in ("", "fresh"):
+        raise SystemExit(f"configuration {name!r}: expected one of {', '.join(CONFIGS)}, "
+                         "optionally followed by @fresh")
+    override, kw = CONFIGS[base]
     scene = load_scene("ishizaki2009", [override, *extra])
+    if how == "fresh":  # a scene of its own (module docstring)
+        level = scene.source.level_vrms * (1 + next(_RUNS) * 1e-6)
+        scene = load_scene("ishizaki2009", [override, *extra, f"source.level_vrms={level!r}"])
     t, c = time.perf_counter(), time.process_time()
     summary = acquire(scene, seed=2009, sinks=[Hdf5Sink(out, force=True)],
                       bench=functools.partial(rig_bench, **kw))
