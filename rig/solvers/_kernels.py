@@ -1441,6 +1441,24 @@ def _sincos_pair(a, b):
     return sa, ca, sb, cb
 
 
+@njit(cache=True, inline="always")
+def _sincos6(a, b, c, d, e, f):
+    """``_sincos4(a, b, c, d)`` and ``_sincos_pair(e, f)``, the same twelve numbers: the six
+    polynomials as one straight line where every |angle| <= SINCOS_POLY_MAX (no call, no
+    polynomials of the pair's padding zeros), else those two calls."""
+    if max(max(max(abs(a), abs(b)), max(abs(c), abs(d))), max(abs(e), abs(f))) <= SINCOS_POLY_MAX:
+        sa, ca = _sincos_poly(a)
+        sb, cb = _sincos_poly(b)
+        sc, cc = _sincos_poly(c)
+        sd, cd = _sincos_poly(d)
+        se, ce = _sincos_poly(e)
+        sf, cf = _sincos_poly(f)
+        return sa, ca, sb, cb, sc, cc, sd, cd, se, ce, sf, cf
+    sa, ca, sb, cb, sc, cc, sd, cd = _sincos4(a, b, c, d)
+    se, ce, sf, cf = _sincos_pair(e, f)
+    return sa, ca, sb, cb, sc, cc, sd, cd, se, ce, sf, cf
+
+
 @njit(cache=True, nogil=True)
 def etd3_kernel(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp, ax, ay, sa, la,
                 h_in, nsub, n_int, out_every, y, y_out, hist, have):
@@ -2174,8 +2192,8 @@ def etd4m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, w
         p0, p1, p2, p3 = st[0, 0], st[0, 1], st[0, 2], st[0, 3]
         q0, q1, q2, q3 = st[1, 0], st[1, 1], st[1, 2], st[1, 3]
         r0, r1, r2, r3 = st[2, 0], st[2, 1], st[2, 2], st[2, 3]
-        sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
-        sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
+        (sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1, sr0, cr0, sr1,
+         cr1) = _sincos6(p0, p1, q0, q1, r0, r1)
         a00, a01, a10, a11, a20, a21 = _nsplit2(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0,
                                                 cp0, sp1, cp1)
         b00, b01, b10, b11, b20, b21 = _nsplit2(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0,
@@ -2355,8 +2373,8 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
         r0, r1, r2, r3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, one + one, z0, z1,
                                         z2, z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
                                         d00, d01, d10, d11)
-        sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
-        sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
+        (sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1, sr0, cr0, sr1,
+         cr1) = _sincos6(p0, p1, q0, q1, r0, r1)
         a00, a01, a10, a11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0, cp0,
                                              sp1, cp1)
         b00, b01, b10, b11, _, _ = _nsplit2h(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0, cq0,
@@ -2393,8 +2411,8 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     # N2 at the last step's stages for the native state (their sines and cosines as the step
     # formed them); without a step, the history's or the start state's
     if n_steps > 0:
-        sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = _sincos4(p0, p1, q0, q1)
-        sr0, cr0, sr1, cr1 = _sincos_pair(r0, r1)
+        (sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1, sr0, cr0, sr1,
+         cr1) = _sincos6(p0, p1, q0, q1, r0, r1)
         a20, a21 = _n2_at(hc, s, sp0, cp0, sp1, cp1)
         b20, b21 = _n2_at(hc, s, sq0, cq0, sq1, cq1)
         d20, d21 = _n2_at(hc, s, sr0, cr0, sr1, cr1)
