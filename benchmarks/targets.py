@@ -231,7 +231,8 @@ def _path_before(before):
     comparison): etd4m_kernel2 for n = 2 without a vertical input, and simulate's warnings
     taking the motion's peak to peak along the run's strided rows, as they did. (The two
     smaller savings of that change, the output times in place and the output array's size
-    without its rows, stay: the path before is slightly flattered.) ``"fir-loop"``:
+    without its rows, stay, and so do the six stage sines of speed round 7 in one branch, which
+    etd4m_kernel2 shares: the path before is slightly flattered.) ``"fir-loop"``:
     etd4m_kernel2h with its input FIR in the loop (``FIR_CHUNK_STEPS = 0``, speed round 6)."""
     import contextlib
 
