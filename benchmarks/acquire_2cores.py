@@ -8,6 +8,11 @@ model; the wall time from the moment every process is warm until the last one fi
 
 The models alternate within each round (linear, nonlinear; nonlinear, linear; ...). Printed per
 model: runs per minute (procs x runs x 60 s / wall) per round, their median and range.
+
+``--models linear,nonlinear,linear@fresh,nonlinear@fresh``: ``@fresh`` gives every timed run a
+scene of its own (the source's level times 1 + k 1e-6, k different in every run of every
+process), loaded inside the timed loop, as a sweep over drive levels runs: it pays the scene's
+memoised computations (the model choice and its prediction, the expected responses) every run.
 """
 
 import argparse
@@ -27,22 +32,29 @@ sys.path.insert(0, {root!r})
 from daq.acquisition import acquire, rig_bench
 from daq.hdf5 import Hdf5Sink
 from rig.scene import load_scene
-scene = load_scene("ishizaki2009", ["acquisition.model={model}"])
+base = ["acquisition.model={model}"]
+scene = load_scene("ishizaki2009", base)
 out = {out!r}
 acquire(scene, seed=1, sinks=[Hdf5Sink(out, force=True)], bench=rig_bench)
 print("warm", flush=True)
 sys.stdin.readline()  # the start signal
 for i in range({runs}):
+    if {fresh}:  # a scene of its own (module docstring)
+        k = 1 + {proc} * 100000 + i
+        scene = load_scene("ishizaki2009", base + [f"source.level_vrms={{0.1 * (1 + k * 1e-6)!r}}"])
     acquire(scene, seed=100 + i, sinks=[Hdf5Sink(out, force=True)], bench=rig_bench)
 print("done", flush=True)
 """
 
 
-def one_round(model: str, procs: int, runs: int, tmp: str) -> float:
+def one_round(name: str, procs: int, runs: int, tmp: str) -> float:
+    model, _, how = name.partition("@")
+    if model not in ("linear", "nonlinear") or how not in ("", "fresh"):
+        raise SystemExit(f"model {name!r}: expected linear or nonlinear, optionally @fresh")
     ps = []
     for p in range(procs):
-        code = WORKER.format(root=str(ROOT), model=model, runs=runs,
-                             out=os.path.join(tmp, f"{model}_{p}.h5"))
+        code = WORKER.format(root=str(ROOT), model=model, runs=runs, fresh=how == "fresh",
+                             proc=p, out=os.path.join(tmp, f"{model}_{p}.h5"))
         ps.append(subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE,
                                    stdout=subprocess.PIPE, text=True))
     for p in ps:
@@ -64,9 +76,11 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--runs", type=int, default=8, help="timed runs per process")
     ap.add_argument("--procs", type=int, default=2)
+    ap.add_argument("--models", default="linear,nonlinear",
+                    help="comma-separated: linear, nonlinear, each optionally @fresh")
     args = ap.parse_args(argv)
     print("load average before:", os.getloadavg())
-    models = ["linear", "nonlinear"]
+    models = args.models.split(",")
     per = {m: [] for m in models}
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(args.rounds):
