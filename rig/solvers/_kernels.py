@@ -2302,8 +2302,9 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     the stages nor its products with the (zero) vertical input are formed, except N2 at the
     last step's stages, which the native state carries (so a next block with a vertical input
     continues as from :func:`etd4m_kernel2`). Every other number is formed by the same
-    operations in the same order, without the terms that are exactly zero there: the result
-    equals :func:`etd4m_kernel2`'s with ``sa`` = 0 (tests/rig/solvers/test_etd4m_horizontal.py).
+    operations in the same order, without the terms that are exactly zero there: with
+    ``fir_chunk`` = 0 the result equals :func:`etd4m_kernel2`'s with ``sa`` = 0
+    (tests/rig/solvers/test_etd4m_horizontal.py).
 
     ``fir_chunk`` > 0: the input FIR (each step's 48 sums over its samples, which no state
     enters) is formed ``fir_chunk`` steps at a time, as one matrix product of the steps' input
@@ -2311,7 +2312,7 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     zero windows, so every product has the same shape), before the serial chain reads it: BLAS
     keeps the sums in registers, where the loop (``fir_chunk`` = 0, the path before) carries 48
     of them through memory sample by sample. BLAS may order or fuse a sum's terms otherwise
-    than the loop (it does for two samples a step), so the sums, and the run, equal the loop's
+    than the loop (it does in a one-row product), so the sums, and the run, equal the loop's
     within round-off (the bound and what it measured: tests/rig/solvers/
     test_etd4m_horizontal.py); for one chunk size every step's sums are formed by the same
     arithmetic wherever the step falls, so blocks continue a run bit for bit (measured in
