@@ -365,6 +365,20 @@ def _remainder(two, prm, z, work, alpha, f):
                         reaction, th0, q_idx, wc, a_rows, z, work, alpha, f)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _remainder_fast(two, prm, a_cols, z, work, alpha, f):
+    """:func:`_remainder` with :func:`_remainder2_fast` where ``two`` (polynomial sines, one
+    division; ``a_rows`` read in its first ``a_cols`` columns), else :func:`_remainder_n` (a
+    call)."""
+    (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
+     reaction, th0, q_idx, wc, rows, a_rows) = prm
+    if two:
+        return _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
+                                a_rows, a_cols, z, f)
+    return _remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage,
+                        reaction, th0, q_idx, wc, a_rows, z, work, alpha, f)
+
+
 def accelerations(params: CoupledParams, z, *, recursive: bool = False
                   ) -> tuple[float, np.ndarray]:
     """Nonlinear stage acceleration x0'' [m/s^2] and theta'' (n,) [rad/s^2] at bench state z
@@ -715,11 +729,7 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     a_cols = a_rows.shape[1]
     n_s = v.shape[0]
     n_rec = n_s - k_rec
-    if two:
-        ax = _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
-                              a_rows, a_cols, z, f)
-    else:
-        ax = _remainder(two, prm, z, work, alpha, f)
+    ax = _remainder_fast(two, prm, a_cols, z, work, alpha, f)
     for kk in range(n_s):
         for j in range(n):
             if abs(z[th0 + j]) > peaks[0, j]:
@@ -747,11 +757,7 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
                 zt[r] += phi_t[col, r] * zc
         for r in range(nz):
             z[r] = zt[r]
-        if two:
-            ax = _remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
-                                  wc, a_rows, a_cols, z, fn)
-        else:
-            ax = _remainder(two, prm, z, work, alpha, fn)
+        ax = _remainder_fast(two, prm, a_cols, z, work, alpha, fn)
         for r in range(nz):
             dt[r] = 0.0
         for col in range(nz):
