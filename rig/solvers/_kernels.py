@@ -2320,9 +2320,9 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     nw = 8
     acc = np.empty(6 * nw)
     nq = wt.shape[0]
-    kc = max(fir_chunk, 1)
-    accs = np.empty((kc if fir_chunk > 0 else 0, 6 * nw))
-    win = np.empty((accs.shape[0], nq))
+    kc = max(fir_chunk, 0)  # 0: the FIR in the loop, no chunk buffers
+    accs = np.empty((kc, 6 * nw))
+    win = np.empty((kc, nq))
     phi3 = phi.reshape((1, 4, 4))
     nev = 0
     z0, z1, z2, z3 = y[0], y[1], y[2], y[3]
@@ -2348,7 +2348,7 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     done = n_steps
     for k in range(n_steps):
         i0 = k * m
-        if fir_chunk > 0:
+        if kc > 0:
             kk = k % kc
             if kk == 0:  # the next chunk's windows (rows of nq samples, m apart) times wt
                 kn = min(kc, n_steps - k)
