@@ -39,19 +39,23 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from benchmarks._interleave import interleaved  # noqa: E402
+
+
+def _timed(fn):
+    """``fn()``'s (wall, CPU) seconds, as :func:`benchmarks._interleave.interleaved` takes them."""
+    t, c = time.perf_counter(), time.process_time()
+    fn()
+    return time.perf_counter() - t, time.process_time() - c
+
 
 def _median_cpu(fns: dict, rounds: int) -> dict:
-    """CPU per call of each function, interleaved rounds after one warm-up call each."""
+    """CPU per call of each function, medians of interleaved rounds (A B, B A, ...) after one
+    warm-up call each."""
     for f in fns.values():
         f()
-    out = {k: [] for k in fns}
-    for i in range(rounds):
-        keys = list(fns) if i % 2 == 0 else list(fns)[::-1]
-        for k in keys:
-            c = time.process_time()
-            fns[k]()
-            out[k].append(time.process_time() - c)
-    return {k: float(np.median(v)) for k, v in out.items()}
+    _, cpus = interleaved(list(fns), rounds, lambda k: _timed(fns[k]), rotate=False)
+    return {k: float(np.median(v)) for k, v in cpus.items()}
 
 
 def fft_part(rounds: int) -> None:
@@ -65,24 +69,23 @@ def fft_part(rounds: int) -> None:
     made = {}
 
     def run(factor):
-        st, parts = src.start_source(source, 1), []
-        for i in range(0, n, block):
-            v, st = src.generate(source, st, min(block, n - i))
-            parts.append(v)
-        made[factor] = np.concatenate(parts)
+        src.FRAME_FACTOR = factor
+        src._design.cache_clear()
+        source.taps  # the filter's design, outside the timing
 
-    cpu = {f: [] for f in factors}
+        def generate():
+            st, parts = src.start_source(source, 1), []
+            for i in range(0, n, block):
+                v, st = src.generate(source, st, min(block, n - i))
+                parts.append(v)
+            made[factor] = np.concatenate(parts)
+        return _timed(generate)
+
     frame = src.FRAME_FACTOR
     try:
-        for i in range(rounds + 1):
-            for f in (factors if i % 2 == 0 else factors[::-1]):
-                src.FRAME_FACTOR = f
-                src._design.cache_clear()
-                source.taps  # the filter's design, outside the timing
-                c = time.process_time()
-                run(f)
-                if i:
-                    cpu[f].append(time.process_time() - c)
+        for f in factors:  # warm-up
+            run(f)
+        _, cpu = interleaved(list(factors), rounds, run, rotate=False)
     finally:
         src.FRAME_FACTOR = frame
         src._design.cache_clear()
@@ -274,7 +277,7 @@ def _fir_free_kernel():
     src = src[src.index("def "):]
     src = src.replace("def etd4m_kernel2h(", "def etd4m_kernel2h_fir_free(", 1)
     src = src.replace("ax, m, n_steps,", "ax, m, n_steps, given,", 1)
-    branch, call = "        if fir_chunk > 0:\n", "            _etd4m_fir48(ax, i0, 1, wt, acc)\n"
+    branch, call = "        if kc > 0:\n", "            _etd4m_fir48(ax, i0, 1, wt, acc)\n"
     if branch not in src or call not in src:
         raise RuntimeError("etd4m_kernel2h no longer forms its FIR as expected")
     src = src.replace(branch, "        if False:\n").replace(call, "            acc = given[k]\n")

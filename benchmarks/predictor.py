@@ -20,6 +20,9 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from benchmarks._interleave import tree_pairs  # noqa: E402
 
 _CHILD = r"""
 import json, sys, time
@@ -51,21 +54,20 @@ def main(argv=None):
     ap.add_argument("--pairs", type=int, default=5, help="processes per tree (alternating)")
     ap.add_argument("--predictions", type=int, default=9, help="fresh scenes per process")
     args = ap.parse_args(argv)
-    trees = {"this tree": ROOT}
-    if args.baseline is not None:
-        trees["baseline"] = args.baseline.resolve()
-    got = {k: [] for k in trees}
-    for i in range(args.pairs):
-        for k in (list(trees) if i % 2 == 0 else list(trees)[::-1]):
-            got[k].append(measure(trees[k], args.predictions))
+    if args.baseline is None:
+        got = {"this": [measure(ROOT, args.predictions) for _ in range(args.pairs)]}
+    else:
+        got = tree_pairs({"this": ROOT, "baseline": args.baseline.resolve()}, args.pairs,
+                         lambda tree: measure(tree, args.predictions))
     for k, runs in got.items():
         cpu = [r["cpu"] for r in runs]
-        print(f"{k}: CPU per prediction, median of {args.pairs} processes (each the median of "
+        name = "this tree" if k == "this" else k
+        print(f"{name}: CPU per prediction, median of {args.pairs} processes (each the median of "
               f"{args.predictions}): {statistics.median(cpu) * 1e3:.1f} ms "
               f"[{min(cpu) * 1e3:.1f}, {max(cpu) * 1e3:.1f}]")
     if "baseline" in got:
-        ratio = [a["cpu"] / b["cpu"] for a, b in zip(got["this tree"], got["baseline"])]
-        a, b = got["this tree"][-1], got["baseline"][-1]
+        ratio = [a["cpu"] / b["cpu"] for a, b in zip(got["this"], got["baseline"])]
+        a, b = got["this"][-1], got["baseline"][-1]
         diff = max(abs(x - y) / abs(y) for x, y in zip(a["relative_rms_theta"],
                                                         b["relative_rms_theta"]))
         print(f"this tree / baseline per pair: median {statistics.median(ratio):.3f} "
