@@ -1,15 +1,17 @@
 #!/usr/bin/env python3
 """Where the paper run's remaining time is bound by work that keeps its bytes: the alternatives
-tried in speed round 7 for the three largest parts, each against the project's path, in one
+tried in speed rounds 7 and 8 for the three largest parts, each against the project's path, in one
 warm process, interleaved, CPU medians.
 
     .venv/bin/python benchmarks/floors.py               # all three parts (~1 minute)
     .venv/bin/python benchmarks/floors.py --part etd4m --rounds 21
 
-``fft``: the source's noise (a 131,072-tap FIR at 1 kHz by overlap-save, one rfft, product and
-irfft per frame, :func:`rig.devices.source._noise`) for the paper run's 3.33e6 samples, with
-frames of 2 to 8 times the taps (the source's is 4, :data:`rig.devices.source.FRAME_FACTOR`;
-the frames, and so the samples' round-off, follow the frame length).
+``fft``: the source's noise (a 131,072-tap FIR at 1 kHz by overlap-save,
+:func:`rig.devices.source._noise`) for the paper run's 3.33e6 samples, with frames of 2 to 8
+times the taps (the source's is 4, :data:`rig.devices.source.FRAME_FACTOR`), each frame by one
+rfft, product and irfft (the path before speed round 8) or two frames by one complex FFT,
+product and inverse (:data:`rig.devices.source.FRAMES_PER_FFT`); the frames, and so the
+samples' round-off, follow both.
 
 ``normals``: the 1.0e7 standard normal draws of the linear run's three sensor streams (3.33e6
 samples each), drawn as the fused kernel draws them (numba's Generator, one stream after the
@@ -65,11 +67,13 @@ def fft_part(rounds: int) -> None:
 
     source = build_model(load_scene("ishizaki2009", ["acquisition.model=linear"])).source
     n, block = 3_330_001, 100_000  # the paper run's DAC samples, in the run's 100 s blocks
-    factors = (2, 3, 4, 5, 8)
+    # (frame length / taps, frames per FFT): one real FFT a frame (1, the path before speed
+    # round 8) or two frames in one complex FFT (2, the source's now)
+    configs = ((4, 1), (4, 2), (2, 2), (3, 2), (5, 1), (5, 2), (8, 2))
     made = {}
 
-    def run(factor):
-        src.FRAME_FACTOR = factor
+    def run(config):
+        src.FRAME_FACTOR, src.FRAMES_PER_FFT = config
         src._design.cache_clear()
         source.taps  # the filter's design, outside the timing
 
@@ -78,26 +82,27 @@ def fft_part(rounds: int) -> None:
             for i in range(0, n, block):
                 v, st = src.generate(source, st, min(block, n - i))
                 parts.append(v)
-            made[factor] = np.concatenate(parts)
+            made[config] = np.concatenate(parts)
         return _timed(generate)
 
-    frame = src.FRAME_FACTOR
+    own = (src.FRAME_FACTOR, src.FRAMES_PER_FFT)
     try:
-        for f in factors:  # warm-up
-            run(f)
-        _, cpu = interleaved(list(factors), rounds, run, rotate=False)
+        for c in configs:  # warm-up
+            run(c)
+        _, cpu = interleaved(list(configs), rounds, run, rotate=False)
     finally:
-        src.FRAME_FACTOR = frame
+        src.FRAME_FACTOR, src.FRAMES_PER_FFT = own
         src._design.cache_clear()
-    ref = made[frame]
+    ref = made[own]
     rms = float(np.sqrt(np.mean(ref**2)))
     print(f"the source's noise ({source.n_taps} taps), the paper run's {n:,} samples in 100 s "
-          f"blocks, CPU, medians of {rounds}, by the overlap-save frame length:")
-    for f in factors:
-        mark = "  (the source's)" if f == frame else ""
-        d = float(np.max(np.abs(made[f] - ref))) / rms
-        print(f"  frame = {f} x taps: {np.median(cpu[f]) * 1e3:.1f} ms, samples within "
-              f"{d:.1g} of the rms of the source's{mark}")
+          f"blocks, CPU, medians of {rounds}, by the overlap-save frame length and the frames "
+          f"per FFT (1: a real FFT each, 2: a pair in one complex FFT):")
+    for c in configs:
+        mark = "  (the source's)" if c == own else ""
+        d = float(np.max(np.abs(made[c] - ref))) / rms
+        print(f"  frame = {c[0]} x taps, {c[1]} per FFT: {np.median(cpu[c]) * 1e3:.1f} ms, "
+              f"samples within {d:.1g} of the rms of the source's{mark}")
 
 
 def _pcg64_kernels():
