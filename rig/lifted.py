@@ -26,7 +26,10 @@ in the core's cache; measured in BENCHMARKS.md):
    rms, far above round-off), the white noise of the accelerometer and of both PSD axes (drawn
    inside the kernel from the same numpy generators, the same values in the same order as
    :meth:`Accelerometer.sense_and_output` and :meth:`OpticalLever.measure` draw them), the
-   clipping at the accelerometer's range and at the detector's edge with their flags;
+   clipping at the accelerometer's range and at the detector's edge with their flags; a row at
+   a time (sample ``i`` of every interval: :func:`_accelerometer_row`, :func:`_lever_row`),
+   loops that vectorise (the lever's where every tilt of the row is within the small-angle
+   polynomial's range, as a mirror's microradians are), the same arithmetic as per sample;
 
 4. the anti-alias filter (the acquisition's sections, passed in as plain arrays: rig does not
    import daq), linear in its input, that clipped noisy sum: lifted to the interval in the
@@ -68,7 +71,7 @@ from rig._jit import njit
 from rig._sosfilt import sos_sample
 from rig.blocks import DecimatedBlock
 from rig.bench.run import mirror_point
-from rig.devices.optical_lever import _spot
+from rig.devices.optical_lever import SMALL_ANGLE_RAD, _spot, _spot_small
 from rig.devices.source import _fill_standard_normal
 from rig.errors import ConfigError, DivergenceError
 
@@ -398,33 +401,25 @@ def _fused_chunk(phi_t, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
                     r[m, j] += w * x[c, j]
     # (3) per sample: sensors, noise, clipping, flags -> the filter's inputs; the noise is
     # drawn first, in sample order (each stream as the per-sample path draws it)
-    n = nj * q
-    wa = np.zeros(n if sd_a > 0.0 else 0)
-    wx = np.zeros(n if sd_p > 0.0 else 0)
-    wy = np.zeros(wx.shape[0])
-    for k in range(wa.shape[0]):
-        wa[k] = sd_a * rng_a.standard_normal()
-    for k in range(wx.shape[0]):
-        wx[k] = sd_p * rng_x.standard_normal()
-    for k in range(wy.shape[0]):
-        wy[k] = sd_p * rng_y.standard_normal()
+    # (the draws of sample q j + i at [i, j], beside the readings they join)
+    wa = np.zeros((q, nj if sd_a > 0.0 else 0))
+    wx = np.zeros((q, nj if sd_p > 0.0 else 0))
+    wy = np.zeros(wx.shape)
+    for j in range(wa.shape[1]):
+        for i in range(q):
+            wa[i, j] = sd_a * rng_a.standard_normal()
+    for j in range(wx.shape[1]):
+        for i in range(q):
+            wx[i, j] = sd_p * rng_x.standard_normal()
+    for j in range(wy.shape[1]):
+        for i in range(q):
+            wy[i, j] = sd_p * rng_y.standard_normal()
     xin = np.empty((3, q, nj))
     flag = np.empty((2, q, nj), dtype=np.bool_)
     for i in range(q):
-        for j in range(nj):
-            va = gain_a * r[3 * i, j]
-            if wa.shape[0]:
-                va = va + wa[j * q + i]
-            flag[0, i, j] = abs(va) > lim_a
-            xin[0, i, j] = min(max(va, -lim_a), lim_a)
-        for j in range(nj):
-            uk, vk = _spot(r[3 * i + 1, j], 0.0, r[3 * i + 2, j], cphi, sphi, dist)
-            if wx.shape[0]:
-                uk = uk + wx[j * q + i]
-                vk = vk + wy[j * q + i]
-            flag[1, i, j] = (abs(uk) > half) or (abs(vk) > half)
-            xin[1, i, j] = gain_x * min(max(uk, -half), half)
-            xin[2, i, j] = gain_y * min(max(vk, -half), half)
+        _accelerometer_row(r[3 * i], wa[i], gain_a, lim_a, xin[0, i], flag[0, i])
+        _lever_row(r[3 * i + 1], r[3 * i + 2], wx[i], wy[i], cphi, sphi, dist, half, gain_x,
+                   gain_y, xin[1, i], xin[2, i], flag[1, i])
     for f in range(2):  # the interval rule: since the previous kept instant, up to this one
         c = carry[f]
         for j in range(nj):
@@ -438,6 +433,55 @@ def _fused_chunk(phi_t, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
     carry[2] = carry[1]
     # (4) the lifted anti-alias sections, per channel
     _lifted_sections_pass(xin, aa, am_t, ac, ad, s_aa, volts, j0)
+
+
+@njit(cache=True, nogil=True)
+def _accelerometer_row(r, w, gain, lim, out, flag):
+    """One sample of every interval of a chunk: the sensed acceleration readings ``r`` times
+    the gain, plus the noise ``w`` (empty: none), clipped at ``+-lim`` into ``out`` and flagged
+    beyond it (:meth:`Accelerometer.sense_and_output`'s arithmetic; a loop that vectorises)."""
+    if w.shape[0]:
+        for j in range(r.shape[0]):
+            va = gain * r[j] + w[j]
+            flag[j] = abs(va) > lim
+            out[j] = min(max(va, -lim), lim)
+    else:
+        for j in range(r.shape[0]):
+            va = gain * r[j]
+            flag[j] = abs(va) > lim
+            out[j] = min(max(va, -lim), lim)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _lever_row(dx, th, wx, wy, cphi, sphi, dist, half, gain_x, gain_y, out_x, out_y, flag):
+    """One sample of every interval of a chunk: the optical lever's exact spot of the mirror
+    translations ``dx`` and rotations ``th`` (:func:`rig.devices.optical_lever._spot`), plus the
+    noise ``wx``, ``wy`` (empty: none), clipped at the detector's edge ``+-half`` times the signed
+    gains into ``out_x``, ``out_y`` and flagged beyond it (:meth:`OpticalLever.measure`'s
+    arithmetic). Where every tilt is within the small-angle polynomial's range (a mirror's
+    tilts are microradians) the spot is :func:`_spot_small`, the same arithmetic without a
+    branch or a call, so the loop vectorises."""
+    n = dx.shape[0]
+    small = True
+    for j in range(n):
+        small = small & (abs(th[j]) <= SMALL_ANGLE_RAD)
+    if small and wx.shape[0]:
+        for j in range(n):
+            uk, vk = _spot_small(dx[j], 0.0, th[j], cphi, sphi, dist)
+            uk = uk + wx[j]
+            vk = vk + wy[j]
+            flag[j] = (abs(uk) > half) | (abs(vk) > half)
+            out_x[j] = gain_x * min(max(uk, -half), half)
+            out_y[j] = gain_y * min(max(vk, -half), half)
+        return
+    for j in range(n):
+        uk, vk = _spot(dx[j], 0.0, th[j], cphi, sphi, dist)
+        if wx.shape[0]:
+            uk = uk + wx[j]
+            vk = vk + wy[j]
+        flag[j] = (abs(uk) > half) or (abs(vk) > half)
+        out_x[j] = gain_x * min(max(uk, -half), half)
+        out_y[j] = gain_y * min(max(vk, -half), half)
 
 
 @njit(cache=True, nogil=True)

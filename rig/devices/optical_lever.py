@@ -202,6 +202,11 @@ class OpticalLever:
 #: below this |theta| [rad] :func:`_cos_sin` sums the Taylor series instead of calling libm
 SMALL_ANGLE_RAD = 2.0 ** -6
 
+# The spot's kernels divide under numpy's error model: a zero divisor (a lever at 90 degrees or
+# a mirror edge-on, neither a measurement) gives inf or nan, which the bench's finite checks
+# report, instead of Python's ZeroDivisionError, whose test in every division keeps a loop of
+# spots from vectorising (rig.lifted._lever_row).
+
 
 @njit(cache=True, nogil=True)
 def _cos_sin(th):
@@ -214,18 +219,39 @@ def _cos_sin(th):
     tilts; tests/rig/devices/test_sensors.py compares them with math.cos and math.sin below
     1e-4 rad and near the threshold); beyond, libm."""
     if abs(th) <= SMALL_ANGLE_RAD:
-        t2 = th * th
-        c = 1.0 + t2 * (-0.5 + t2 * (1.0 / 24.0 + t2 * (-1.0 / 720.0 + t2 * (1.0 / 40320.0))))
-        s = th + th * (t2 * (-1.0 / 6.0 + t2 * (1.0 / 120.0 + t2 * (-1.0 / 5040.0
-                                                                    + t2 * (1.0 / 362880.0)))))
-        return c, s
+        return _cos_sin_small(th)
     return math.cos(th), math.sin(th)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
+def _cos_sin_small(th):
+    """:func:`_cos_sin` for ``|th| <= SMALL_ANGLE_RAD``: the Taylor polynomials alone (no branch,
+    no call: a loop of them vectorises)."""
+    t2 = th * th
+    c = 1.0 + t2 * (-0.5 + t2 * (1.0 / 24.0 + t2 * (-1.0 / 720.0 + t2 * (1.0 / 40320.0))))
+    s = th + th * (t2 * (-1.0 / 6.0 + t2 * (1.0 / 120.0 + t2 * (-1.0 / 5040.0
+                                                                + t2 * (1.0 / 362880.0)))))
+    return c, s
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _spot(dx, dz, th, cphi, sphi, dist):
     """Exact spot (u, v) of one sample (module docstring)."""
     c, s = _cos_sin(th)
+    return _spot_cs(dx, dz, c, s, cphi, sphi, dist)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _spot_small(dx, dz, th, cphi, sphi, dist):
+    """:func:`_spot` for ``|th| <= SMALL_ANGLE_RAD`` (the same arithmetic, without a branch or a
+    call: a loop of it vectorises)."""
+    c, s = _cos_sin_small(th)
+    return _spot_cs(dx, dz, c, s, cphi, sphi, dist)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _spot_cs(dx, dz, c, s, cphi, sphi, dist):
+    """:func:`_spot` from the mirror's ``cos th``, ``sin th``."""
     t = (c * dx + s * dz) / (-cphi * c)  # q = t d, d = (-cphi, -sphi, 0)
     qx = -cphi * t
     qy = -sphi * t
