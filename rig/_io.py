@@ -6,6 +6,7 @@ the user's umask gives a new file. Also the version every written file records
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib.metadata
 import os
 import tempfile
@@ -60,8 +61,10 @@ def atomic_output(path: Path, *, force: bool, suffix: str = ""):
             tmp_path.unlink()
 
 
+@functools.lru_cache(maxsize=1)
 def software_version() -> str:
-    """The installed version of pendulum-daq (written into every file the project makes)."""
+    """The installed version of pendulum-daq (written into every file the project makes); read
+    once per process (the package's metadata is parsed: ~4 ms, every run of a sweep paid it)."""
     try:
         return importlib.metadata.version("pendulum-daq")
     except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
