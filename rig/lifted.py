@@ -416,10 +416,11 @@ def _fused_chunk(phi_t, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
             wy[i, j] = sd_p * rng_y.standard_normal()
     xin = np.empty((3, q, nj))
     flag = np.empty((2, q, nj), dtype=np.bool_)
+    level = np.empty(0)  # the mirror's height: 0 (the linear bench has none)
     for i in range(q):
         _accelerometer_row(r[3 * i], wa[i], gain_a, lim_a, xin[0, i], flag[0, i])
-        _lever_row(r[3 * i + 1], r[3 * i + 2], wx[i], wy[i], cphi, sphi, dist, half, gain_x,
-                   gain_y, xin[1, i], xin[2, i], flag[1, i])
+        _lever_row(r[3 * i + 1], level, r[3 * i + 2], wx[i], wy[i], cphi, sphi, dist, half,
+                   gain_x, gain_y, xin[1, i], xin[2, i], flag[1, i])
     for f in range(2):  # the interval rule: since the previous kept instant, up to this one
         c = carry[f]
         for j in range(nj):
@@ -453,35 +454,45 @@ def _accelerometer_row(r, w, gain, lim, out, flag):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _lever_row(dx, th, wx, wy, cphi, sphi, dist, half, gain_x, gain_y, out_x, out_y, flag):
-    """One sample of every interval of a chunk: the optical lever's exact spot of the mirror
-    translations ``dx`` and rotations ``th`` (:func:`rig.devices.optical_lever._spot`), plus the
-    noise ``wx``, ``wy`` (empty: none), clipped at the detector's edge ``+-half`` times the signed
-    gains into ``out_x``, ``out_y`` and flagged beyond it (:meth:`OpticalLever.measure`'s
-    arithmetic). Where every tilt is within the small-angle polynomial's range (a mirror's
-    tilts are microradians) the spot is :func:`_spot_small`, the same arithmetic without a
-    branch or a call, so the loop vectorises."""
+def _lever_row(dx, dz, th, wx, wy, cphi, sphi, dist, half, gain_x, gain_y, out_x, out_y,
+               flag):
+    """One sample of every interval of a chunk: the optical lever's exact spot of the mirror's
+    translations ``dx``, heights ``dz`` (empty: 0) and rotations ``th``
+    (:func:`rig.devices.optical_lever._spot`), plus the noise ``wx``, ``wy`` (empty: none),
+    clipped at the detector's edge ``+-half`` times the signed gains into ``out_x``, ``out_y``
+    and flagged beyond it (:meth:`OpticalLever.measure`'s arithmetic). Where every tilt is
+    within the small-angle polynomial's range (a mirror's tilts are microradians) and there is
+    noise, the spot is :func:`_spot_small`, the same arithmetic without a branch or a call, so
+    the loop vectorises."""
     n = dx.shape[0]
-    small = True
+    small = wx.shape[0] > 0
     for j in range(n):
         small = small & (abs(th[j]) <= SMALL_ANGLE_RAD)
-    if small and wx.shape[0]:
+    if small and dz.shape[0]:
+        for j in range(n):
+            uk, vk = _spot_small(dx[j], dz[j], th[j], cphi, sphi, dist)
+            flag[j], out_x[j], out_y[j] = _lever_out(uk + wx[j], vk + wy[j], half, gain_x,
+                                                     gain_y)
+    elif small:
         for j in range(n):
             uk, vk = _spot_small(dx[j], 0.0, th[j], cphi, sphi, dist)
-            uk = uk + wx[j]
-            vk = vk + wy[j]
-            flag[j] = (abs(uk) > half) | (abs(vk) > half)
-            out_x[j] = gain_x * min(max(uk, -half), half)
-            out_y[j] = gain_y * min(max(vk, -half), half)
-        return
-    for j in range(n):
-        uk, vk = _spot(dx[j], 0.0, th[j], cphi, sphi, dist)
-        if wx.shape[0]:
-            uk = uk + wx[j]
-            vk = vk + wy[j]
-        flag[j] = (abs(uk) > half) or (abs(vk) > half)
-        out_x[j] = gain_x * min(max(uk, -half), half)
-        out_y[j] = gain_y * min(max(vk, -half), half)
+            flag[j], out_x[j], out_y[j] = _lever_out(uk + wx[j], vk + wy[j], half, gain_x,
+                                                     gain_y)
+    else:
+        for j in range(n):
+            uk, vk = _spot(dx[j], dz[j] if dz.shape[0] else 0.0, th[j], cphi, sphi, dist)
+            if wx.shape[0]:
+                uk = uk + wx[j]
+                vk = vk + wy[j]
+            flag[j], out_x[j], out_y[j] = _lever_out(uk, vk, half, gain_x, gain_y)
+
+
+@njit(cache=True, nogil=True)
+def _lever_out(uk, vk, half, gain_x, gain_y):
+    """The detector's flag (the spot beyond its edge ``+-half``) and its two outputs, the spot
+    clipped at the edge times the signed gains."""
+    return ((abs(uk) > half) | (abs(vk) > half), gain_x * min(max(uk, -half), half),
+            gain_y * min(max(vk, -half), half))
 
 
 @njit(cache=True, nogil=True)
@@ -653,7 +664,8 @@ def _nonlinear_kernel(z_out, accel, th0, hp_col, wc, gain_a, rng_a, sd_a, lim_a,
     """Per DAC sample k of the bench states ``z_out`` (n, nz) (angles from column ``th0``, the
     accelerometer's high-pass state at ``hp_col``, -1: none) and ``accel`` (n,): the mirror's
     kinematics (:func:`rig.bench.run.mirror_point`), the accelerometer
-    (``_sense_output_kernel``'s arithmetic) and the lever (``_measure_kernel``'s) into the filter
+    (``_sense_output_kernel``'s arithmetic) and the lever (``_measure_kernel``'s, a row of
+    samples at a time: :func:`_lever_row`) into the filter
     inputs of ``chunk`` intervals at a time (3, q, chunk), with each chunk's noise drawn first
     in sample order per stream (``sd_a`` / ``sd_p`` = 0: none drawn), and per channel whether
     its sensor saturated since the previous kept instant (``sat`` (3, J); ``carry`` (3,) in/out:
@@ -674,6 +686,15 @@ def _nonlinear_kernel(z_out, accel, th0, hp_col, wc, gain_a, rng_a, sd_a, lim_a,
         _fill_standard_normal(rng_x, wx)
         _fill_standard_normal(rng_y, wy)
         xin = np.empty((3, q, nc))
+        flag = np.empty((2, q, nc), dtype=np.bool_)
+        # per sample: the accelerometer and the mirror's kinematics (sines and cosines of the
+        # angles); the lever's spots then a row at a time (sample i of every interval), which
+        # vectorises (_lever_row)
+        mxk = np.empty((q, nc))
+        mzk = np.empty((q, nc))
+        mrk = np.empty((q, nc))
+        nxr = np.empty((q, nc if wx.shape[0] else 0))
+        nyr = np.empty(nxr.shape)
         for j in range(nc):
             for i in range(q):
                 k = (j0 + j) * q + i
@@ -681,27 +702,26 @@ def _nonlinear_kernel(z_out, accel, th0, hp_col, wc, gain_a, rng_a, sd_a, lim_a,
                 va = gain_a * (accel[k] - wc * h)
                 if wa.shape[0]:
                     va = va + sd_a * wa[j * q + i]
-                f_a = abs(va) > lim_a
+                flag[0, i, j] = abs(va) > lim_a
                 xin[0, i, j] = min(max(va, -lim_a), lim_a)
-                xk, zk, rk = mirror_point(z_out, k, th0, lengths, body, s_m)
-                uk, vk = _spot(xk, zk, rk, cphi, sphi, dist)
+                mxk[i, j], mzk[i, j], mrk[i, j] = mirror_point(z_out, k, th0, lengths, body, s_m)
                 if wx.shape[0]:
-                    uk = uk + sd_p * wx[j * q + i]
-                    vk = vk + sd_p * wy[j * q + i]
-                f_p = (abs(uk) > half) or (abs(vk) > half)
-                xin[1, i, j] = gain_x * min(max(uk, -half), half)
-                xin[2, i, j] = gain_y * min(max(vk, -half), half)
-                if i == 0:
-                    mx[j0 + j] = xk
-                    mrot[j0 + j] = rk
-                    sat[0, j0 + j] = c_a or f_a
-                    sat[1, j0 + j] = c_p or f_p
-                    sat[2, j0 + j] = sat[1, j0 + j]
-                    c_a = False
-                    c_p = False
-                else:
-                    c_a = c_a or f_a
-                    c_p = c_p or f_p
+                    nxr[i, j] = sd_p * wx[j * q + i]
+                    nyr[i, j] = sd_p * wy[j * q + i]
+        for i in range(q):
+            _lever_row(mxk[i], mzk[i], mrk[i], nxr[i], nyr[i], cphi, sphi, dist, half, gain_x,
+                       gain_y, xin[1, i], xin[2, i], flag[1, i])
+        for j in range(nc):  # the interval rule, in sample order
+            mx[j0 + j] = mxk[0, j]
+            mrot[j0 + j] = mrk[0, j]
+            sat[0, j0 + j] = c_a or flag[0, 0, j]
+            sat[1, j0 + j] = c_p or flag[1, 0, j]
+            sat[2, j0 + j] = sat[1, j0 + j]
+            c_a = False
+            c_p = False
+            for i in range(1, q):
+                c_a = c_a or flag[0, i, j]
+                c_p = c_p or flag[1, i, j]
         _lifted_sections_pass(xin, aa, am_t, ac, ad, s_aa, volts, j0)
     carry[0] = c_a
     carry[1] = c_p

@@ -284,12 +284,15 @@ def test_the_fused_nonlinear_chain_refuses_a_linear_model_an_odd_block_and_unlif
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
 
 
+@pytest.mark.parametrize("height", [True, False])
 @pytest.mark.parametrize("noisy", [True, False])
 @pytest.mark.parametrize("tilt_rad", [3e-6, 0.05])
-def test_the_fused_sensor_rows_equal_the_sensors_sample_by_sample_bit_for_bit(tilt_rad, noisy):
+def test_the_fused_sensor_rows_equal_the_sensors_sample_by_sample_bit_for_bit(tilt_rad, noisy,
+                                                                              height):
     # rig.lifted's per-row sensors against the devices' own per-sample arithmetic: the lever's
     # vectorised small-angle spot where every tilt is below SMALL_ANGLE_RAD (3e-6 rad) and the
-    # general one where one is not (0.05 rad), the noise added or not, clipped and flagged
+    # general one where one is not (0.05 rad), the mirror's height given (the nonlinear
+    # bench's) or 0 (the linear one's), the noise added or not, clipped and flagged
     from rig.devices.optical_lever import SMALL_ANGLE_RAD, _spot
     from rig.lifted import _accelerometer_row, _lever_row
 
@@ -298,17 +301,19 @@ def test_the_fused_sensor_rows_equal_the_sensors_sample_by_sample_bit_for_bit(ti
     dx = rng.standard_normal(n) * 2e-3
     th = rng.standard_normal(n) * tilt_rad
     wx, wy, wa = (rng.standard_normal(n) * 1e-4 if noisy else np.zeros(0) for _ in range(3))
+    dz = rng.standard_normal(n) * 1e-4 if height else np.zeros(0)
     assert (np.max(np.abs(th)) > SMALL_ANGLE_RAD) == (tilt_rad > SMALL_ANGLE_RAD)
     cphi, sphi, dist, gx, gy = math.cos(0.3), math.sin(0.3), 0.5, -250.0, 250.0
     spots = []
     for j in range(n):
-        u, v = _spot(float(dx[j]), 0.0, float(th[j]), cphi, sphi, dist)
+        u, v = _spot(float(dx[j]), float(dz[j]) if height else 0.0, float(th[j]), cphi, sphi,
+                     dist)
         if noisy:
             u, v = u + float(wx[j]), v + float(wy[j])
         spots.append((u, v))
     half = float(np.quantile(np.max(np.abs(spots), axis=1), 0.9))  # a tenth off the detector
     out_x, out_y, flag = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
-    _lever_row(dx, th, wx, wy, cphi, sphi, dist, half, gx, gy, out_x, out_y, flag)
+    _lever_row(dx, dz, th, wx, wy, cphi, sphi, dist, half, gx, gy, out_x, out_y, flag)
     acc, acc_flag = np.empty(n), np.empty(n, dtype=np.bool_)
     r = rng.standard_normal(n) * 0.3
     _accelerometer_row(r, wa, 10.0, 4.0, acc, acc_flag)
