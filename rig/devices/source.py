@@ -51,9 +51,10 @@ samples (FFT), each frame producing ``3 n_taps + 1`` outputs that are buffered; 
 any number of samples is served from that buffer. The frames are made two at a time, in one
 complex FFT (:func:`_frame_pair`: the first frame's input as the real part, the second's as the
 imaginary part; ``h`` is real, so the inverse transform's real and imaginary parts are the two
-frames' outputs): one complex transform pair costs ~0.7 of two real ones here
-(BENCHMARKS.md), and the outputs equal one real FFT per frame (:func:`_frame_real`, the path
-before) up to round-off (~1e-15 of the rms: tests/rig/devices/test_source.py). Because frames
+frames' outputs): the paper run's source then costs ~0.75 of one real transform pair per frame
+here (BENCHMARKS.md; a run that needs an odd number of frames makes one more), and the outputs
+equal one real FFT per frame (:func:`_frame_real`, the path before) up to round-off (~4e-15 of
+the rms: tests/rig/devices/test_source.py). Because frames
 (and their pairs, counted from the first) never depend on how the output is requested, blocks of
 any size reproduce a one-shot run bit for bit, and the signal is continuous across blocks (it is
 one stationary process; there are no joins). The filter's history is primed with ``n_taps - 1``
