@@ -24,9 +24,17 @@ from collections import OrderedDict
 import numpy as np
 
 
-def scene_key(scene) -> str:
-    """Canonical JSON of the scene's resolved settings."""
-    return json.dumps(scene.settings, sort_keys=True, default=repr)
+def scene_key(scene, ignore: tuple = ()) -> str:
+    """Canonical JSON of the scene's resolved settings, without those named in ``ignore``
+    (``"section.key"``)."""
+    settings = scene.settings
+    if ignore:
+        settings = {sec: dict(v) if isinstance(v, dict) else v for sec, v in settings.items()}
+        for name in ignore:
+            sec, _, key = name.partition(".")
+            if isinstance(settings.get(sec), dict):
+                settings[sec].pop(key, None)
+    return json.dumps(settings, sort_keys=True, default=repr)
 
 
 def _arg_key(a):
@@ -37,16 +45,19 @@ def _arg_key(a):
     return a
 
 
-def per_scene(maxsize: int = 16):
+def per_scene(maxsize: int = 16, ignore: tuple = ()):
     """Decorator: memoise ``f(scene, *args, **kwargs)`` on (:func:`scene_key`, args, kwargs)
-    (module docstring). ``f.cache_clear()`` empties the memo."""
+    (module docstring). ``ignore``: settings (``"section.key"``) that ``f``'s result does not
+    depend on, left out of the key, so scenes that differ only there share one entry (e.g. the
+    responses per source volt across a sweep of the drive's level). ``f.cache_clear()`` empties
+    the memo."""
     def wrap(f):
         memo: OrderedDict = OrderedDict()
         lock = threading.Lock()
 
         @functools.wraps(f)
         def call(scene, *args, **kwargs):
-            key = (scene_key(scene), _arg_key(args),
+            key = (scene_key(scene, ignore), _arg_key(args),
                    tuple(sorted((k, _arg_key(v)) for k, v in kwargs.items())))
             with lock:
                 hit = memo.get(key)

@@ -92,7 +92,7 @@ _RESPONSE_FIELDS = ("a", "x", "y", "stage_accel", "stage_disp", "mirror_x", "mir
                     "theta_2", "h_t_pendulum", "theta_2_pendulum")
 
 
-@per_scene()
+@per_scene(ignore=("source.level_vrms",))
 def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> BenchResponse:
     """The exact linear response of the whole chain source -> channels at ``freqs_hz`` [Hz].
 
@@ -103,7 +103,9 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
     the linearised optical lever; both need ``0 <= f < fs / 2``. At 0 Hz, where the stage's
     acceleration and the mirror's motion vanish, the ratios (``h_t``, ``theta_2`` and the
     pendulum's) are their limits: finite for the pendulum, NaN through an accelerometer with a
-    high-pass (:func:`_dc_ratios`). Memoised per scene and grid (:mod:`rig.scene_memo`).
+    high-pass (:func:`_dc_ratios`). Memoised per scene and grid (:mod:`rig.scene_memo`), the
+    source's level left out of the key: the responses are per source volt, so a sweep of the
+    drive's level computes them once (tests/rig/test_scene_memo.py).
     """
     model = build_model(scene) if scene.acquisition.model == "linear" else \
         build_model(_as_linear(scene))

@@ -37,3 +37,40 @@ def test_the_model_choice_is_memoised_per_scene():
     one = select_model(sc)
     two = select_model(sc)
     assert one == two and one is not two
+
+
+def test_settings_a_function_ignores_are_left_out_of_its_key():
+    calls = []
+
+    @per_scene(ignore=("source.level_vrms",))
+    def f(scene):
+        calls.append(1)
+        return len(calls)
+
+    f(load_scene("ishizaki2009"))
+    f(load_scene("ishizaki2009", ["source.level_vrms=0.37"]))  # ignored: one entry
+    assert len(calls) == 1
+    f(load_scene("ishizaki2009", ["source.fmax_hz=10"]))  # not ignored
+    assert len(calls) == 2
+    a, b = load_scene("ishizaki2009"), load_scene("ishizaki2009", ["source.level_vrms=0.37"])
+    assert scene_key(a, ("source.level_vrms",)) == scene_key(b, ("source.level_vrms",))
+    assert scene_key(a) != scene_key(b) and "level_vrms" in scene_key(a)
+
+
+def test_the_expected_responses_do_not_depend_on_the_drive_level_which_their_memo_ignores():
+    # what lets a sweep of the drive's level compute the responses once: computed afresh (the
+    # memo emptied) at two levels and two source types, they are equal bit for bit
+    from rig.bench import expected_response
+
+    f = np.linspace(0.0, 49.9, 101)
+    for base in ([], ["source.type=burst-random"]):
+        got = []
+        for level in ("0.1", "2.5"):
+            expected_response.cache_clear()
+            sc = load_scene("ishizaki2009", [*base, f"source.level_vrms={level}"])
+            got.append([expected_response(sc, f, sampled=s) for s in (True, False)])
+        for one, two in zip(*got):
+            for name in ("a", "x", "y", "h_t", "theta_2", "stage_accel", "theta"):
+                assert np.asarray(getattr(one, name)).tobytes() == \
+                    np.asarray(getattr(two, name)).tobytes(), name
+    expected_response.cache_clear()
