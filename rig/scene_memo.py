@@ -5,8 +5,9 @@ linearisation-error prediction (:func:`rig.bench.select_model`, ~0.15-0.25 s for
 run) and the exact responses on a frequency grid (:func:`rig.bench.expected_response`). A
 dataset of thousands of runs of one scene pays for them once per process. The key is the scene's
 resolved settings (:attr:`rig.scene.Scene.settings`, which define the scene: ``load_scene`` of
-them gives an equal scene) as canonical JSON, plus the other arguments (arrays by dtype, shape
-and bytes). A hit returns a deep copy of the first result (the caller may change it), so a
+them gives an equal scene) as canonical JSON, less any the function declares its result
+independent of (``ignore``: the responses per source volt of the drive's level), plus the other
+arguments (arrays by dtype, shape and bytes). A hit returns a deep copy of the first result (the caller may change it), so a
 cached call returns exactly what the first call returned, its recorded wall time included.
 At most ``maxsize`` entries per function, least recently used dropped first; thread-safe.
 
