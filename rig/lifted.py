@@ -416,7 +416,7 @@ def _fused_chunk(phi_t, gamma_q, readings, accel_row, th0, mirror_w, body, v, z,
             wy[i, j] = sd_p * rng_y.standard_normal()
     xin = np.empty((3, q, nj))
     flag = np.empty((2, q, nj), dtype=np.bool_)
-    level = np.empty(0)  # the mirror's height: 0 (the linear bench has none)
+    level = np.zeros(nj)  # the mirror's height: 0 (the linear bench has none)
     for i in range(q):
         _accelerometer_row(r[3 * i], wa[i], gain_a, lim_a, xin[0, i], flag[0, i])
         _lever_row(r[3 * i + 1], level, r[3 * i + 2], wx[i], wy[i], cphi, sphi, dist, half,
@@ -457,7 +457,7 @@ def _accelerometer_row(r, w, gain, lim, out, flag):
 def _lever_row(dx, dz, th, wx, wy, cphi, sphi, dist, half, gain_x, gain_y, out_x, out_y,
                flag):
     """One sample of every interval of a chunk: the optical lever's exact spot of the mirror's
-    translations ``dx``, heights ``dz`` (empty: 0) and rotations ``th``
+    translations ``dx``, heights ``dz`` and rotations ``th``
     (:func:`rig.devices.optical_lever._spot`), plus the noise ``wx``, ``wy`` (empty: none),
     clipped at the detector's edge ``+-half`` times the signed gains into ``out_x``, ``out_y``
     and flagged beyond it (:meth:`OpticalLever.measure`'s arithmetic). Where every tilt is
@@ -468,19 +468,14 @@ def _lever_row(dx, dz, th, wx, wy, cphi, sphi, dist, half, gain_x, gain_y, out_x
     small = wx.shape[0] > 0
     for j in range(n):
         small = small & (abs(th[j]) <= SMALL_ANGLE_RAD)
-    if small and dz.shape[0]:
+    if small:
         for j in range(n):
             uk, vk = _spot_small(dx[j], dz[j], th[j], cphi, sphi, dist)
             flag[j], out_x[j], out_y[j] = _lever_out(uk + wx[j], vk + wy[j], half, gain_x,
                                                      gain_y)
-    elif small:
-        for j in range(n):
-            uk, vk = _spot_small(dx[j], 0.0, th[j], cphi, sphi, dist)
-            flag[j], out_x[j], out_y[j] = _lever_out(uk + wx[j], vk + wy[j], half, gain_x,
-                                                     gain_y)
     else:
         for j in range(n):
-            uk, vk = _spot(dx[j], dz[j] if dz.shape[0] else 0.0, th[j], cphi, sphi, dist)
+            uk, vk = _spot(dx[j], dz[j], th[j], cphi, sphi, dist)
             if wx.shape[0]:
                 uk = uk + wx[j]
                 vk = vk + wy[j]

@@ -7,8 +7,9 @@ dataset of thousands of runs of one scene pays for them once per process. The ke
 resolved settings (:attr:`rig.scene.Scene.settings`, which define the scene: ``load_scene`` of
 them gives an equal scene) as canonical JSON, less any the function declares its result
 independent of (``ignore``: the responses per source volt of the drive's level), plus the other
-arguments (arrays by dtype, shape and bytes). A hit returns a deep copy of the first result (the caller may change it), so a
-cached call returns exactly what the first call returned, its recorded wall time included.
+arguments (arrays by dtype, shape and bytes). A hit returns a deep copy of the first result (the
+caller may change it), so a cached call returns exactly what the first call returned, its
+recorded wall time included.
 At most ``maxsize`` entries per function, least recently used dropped first; thread-safe.
 
 Public API: :func:`per_scene`, :func:`scene_key`.

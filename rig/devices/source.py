@@ -54,8 +54,8 @@ imaginary part; ``h`` is real, so the inverse transform's real and imaginary par
 frames' outputs): the paper run's source then costs ~0.75 of one real transform pair per frame
 here (BENCHMARKS.md; a run that needs an odd number of frames makes one more), and the outputs
 equal one real FFT per frame (:func:`_frame_real`, the path before) up to round-off (~4e-15 of
-the rms: tests/rig/devices/test_source.py). Because frames
-(and their pairs, counted from the first) never depend on how the output is requested, blocks of
+the rms: tests/rig/devices/test_source.py). Because frames (and their pairs, counted from the
+first) never depend on how the output is requested, blocks of
 any size reproduce a one-shot run bit for bit, and the signal is continuous across blocks (it is
 one stationary process; there are no joins). The filter's history is primed with ``n_taps - 1``
 white samples before the first output, so the noise is stationary from t = 0. Deterministic types
@@ -251,15 +251,16 @@ class Source:
 
     @property
     def _taps_spectrum(self) -> np.ndarray:
-        """rfft of the taps over one frame."""
-        return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
-                       self.fs_hz)[1]
+        """rfft of the taps over one frame (the path of one real FFT a frame, made when first
+        asked for)."""
+        return _real_spectrum(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                              self.fs_hz)
 
     @property
     def _taps_spectrum_full(self) -> np.ndarray:
         """The complex FFT of the taps over one frame (both halves)."""
         return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
-                       self.fs_hz)[2]
+                       self.fs_hz)[1]
 
     def design_psd(self, freqs_hz) -> np.ndarray:
         """Design one-sided PSD of the DAC samples [V^2/Hz] for the noise types (random, pink;
@@ -316,8 +317,8 @@ def _amplitude(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
 
 @lru_cache(maxsize=8)
 def _design(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: float):
-    """(taps, rfft of taps over one frame, the whole complex FFT of the taps over one frame) of
-    the noise-shaping FIR (module docstring); cached by its parameters, all read-only."""
+    """(taps, the complex FFT of the taps over one frame) of the noise-shaping FIR (module
+    docstring); cached by its parameters, both read-only."""
     n = 1 << int(math.ceil(math.log2(FILTER_SPAN_S * fs_hz)))
     big = _DESIGN_OVERSAMPLE * n
     grid = np.fft.rfftfreq(big, 1.0 / fs_hz)
@@ -325,16 +326,25 @@ def _design(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: 
                          n=big)  # zero phase, circular
     h = np.roll(ideal, n // 2)[:n] * np.kaiser(n, KAISER_BETA)
     h /= math.sqrt(float(np.sum(h * h)))
-    spec = np.fft.rfft(h, n=FRAME_FACTOR * n)
     full = _fft().fft(h, n=FRAME_FACTOR * n)
-    for a in (h, spec, full):
+    for a in (h, full):
         a.setflags(write=False)
-    return h, spec, full
+    return h, full
+
+
+@lru_cache(maxsize=8)
+def _real_spectrum(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
+                   fs_hz: float) -> np.ndarray:
+    """rfft over one frame of :func:`_design`'s taps for these parameters, read-only (cached)."""
+    taps = _design(pink, fmin_hz, fmax_hz, shelf_hz, fs_hz)[0]
+    spec = np.fft.rfft(taps, n=FRAME_FACTOR * taps.size)
+    spec.setflags(write=False)
+    return spec
 
 
 def _fft():
-    """scipy.fft (imported when first used; its complex transforms are ~1.3 times faster than
-    numpy's here, its real ones alike)."""
+    """scipy.fft, imported when first used (its complex transforms were faster than numpy's
+    here; its real ones alike)."""
     import scipy.fft
 
     return scipy.fft

@@ -301,13 +301,12 @@ def test_the_fused_sensor_rows_equal_the_sensors_sample_by_sample_bit_for_bit(ti
     dx = rng.standard_normal(n) * 2e-3
     th = rng.standard_normal(n) * tilt_rad
     wx, wy, wa = (rng.standard_normal(n) * 1e-4 if noisy else np.zeros(0) for _ in range(3))
-    dz = rng.standard_normal(n) * 1e-4 if height else np.zeros(0)
+    dz = rng.standard_normal(n) * 1e-4 if height else np.zeros(n)
     assert (np.max(np.abs(th)) > SMALL_ANGLE_RAD) == (tilt_rad > SMALL_ANGLE_RAD)
     cphi, sphi, dist, gx, gy = math.cos(0.3), math.sin(0.3), 0.5, -250.0, 250.0
     spots = []
     for j in range(n):
-        u, v = _spot(float(dx[j]), float(dz[j]) if height else 0.0, float(th[j]), cphi, sphi,
-                     dist)
+        u, v = _spot(float(dx[j]), float(dz[j]), float(th[j]), cphi, sphi, dist)
         if noisy:
             u, v = u + float(wx[j]), v + float(wy[j])
         spots.append((u, v))
