@@ -36,6 +36,10 @@ DAQ_CONTRACT = ("daq", "daq.records", "daq.hdf5", "daq.sinks", "daq.check")
 EXCEPTIONS = {
     ("processing.dataset.task", "daq.acquisition"):
         "the dataset runner acquires its runs: a second composition root beside the CLI",
+    ("processing.sine_sweep", "daq.sine"):
+        "the stepped-sine sweep acquires point by point and chooses each next point (auto "
+        "resolution, auto level) from the last one's analysis: a composition root like the "
+        "dataset runner",
 }
 
 #: Cycles inside one package, each with what removes it (a new cycle fails).

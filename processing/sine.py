@@ -1,0 +1,157 @@
+"""The stepped-sine analysis of one point: a tracking synchronous DFT over whole cycles.
+
+Each point's window (``N`` output samples after the settle time, holding ``K`` whole cycles of
+the drive, :mod:`rig.devices.stepped_sine`) is transformed at the drive's own phase: for
+harmonic ``k`` of channel c, ``Y_ck = (2 / N) sum_j y_c[j] e^{-i 2 pi k phi_j}`` [V], with
+``phi_j`` the source's phase at sample j (the phase the DAC used). Over whole cycles the
+exponentials are orthogonal, so DC and the other harmonics do not leak into ``Y_ck``.
+
+- the responses: ``H_t = (Y_x1 / cal_x) / (Y_a1 / cal_a)`` [m/(m/s^2)], ``Theta_2 = (Y_y1 /
+  cal_y) / (Y_a1 / cal_a)`` [rad/(m/s^2)] (calibrations and sensor signs undone, SPEC 5);
+- their random error: the residual after DC and harmonics 1..H has variance ``s_c^2`` (``N - 2H
+  - 1`` degrees of freedom), so each part of ``Y_c1`` has the standard deviation ``s_c sqrt(2 /
+  N)``, and the ratio's relative error (1 sigma, in gain and, in radians, in phase) is
+  ``sqrt(sum_c (s_c sqrt(2/N) / |Y_c1|)^2)`` over its two channels;
+- the fundamental's share of the window's power per channel (the coherence-like ratio),
+  ``|Y_c1|^2 / 2`` over the window's variance;
+- the truth beside it (:func:`rig.bench.sine.settling_bias`): the exact steady state and the
+  estimate the exact linear chain gives with the step's transient (the settling bias), and the
+  optical lever's second-order prediction of the 2f components (x: ``-coef_x Theta^2 / 2``, y:
+  ``-coef_y X Theta / 2`` for the mirror's phasors X, Theta at f:
+  :func:`processing.coherence_model.lever_coefficients`), through the filter at 2f.
+
+Harmonics at or above half the output rate are not measured (NaN).
+
+Public API: :class:`SinePointResult`, :func:`analyze_point`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from processing.coherence_model import lever_coefficients
+
+DB = 20.0 / math.log(10.0)
+
+
+@dataclass(frozen=True, eq=False)
+class SinePointResult:
+    """One analysed point (complex responses in engineering units; see the module docstring).
+
+    Attributes
+    ----------
+    frequency_hz, level_vrms, settle_s, integrate_s, cycles, t0_s : the point.
+    h_t, theta_2 : measured complex responses; h_t_exact, theta_2_exact : the exact steady
+        state; h_t_bias, theta_2_bias : the exact settling bias (estimate of the noiseless
+        linear chain minus the steady state).
+    rel_error : {"h_t", "theta_2"}: relative random error (1 sigma) [1].
+    harmonics : (3, H) complex amplitudes of a, x, y at k f, k = 1..H, engineering units.
+    fundamental_ratio : (3,) fundamental's share of each channel's window power [1].
+    lever_2f : (2,) predicted 2f components of x [m] and y [rad] (optical lever geometry).
+    clipped, saturated : (3,) samples clipped / saturated in the point.
+    settle_bound : (3,) the settle rule's modal bound at the window's start, relative [1].
+    """
+
+    frequency_hz: float
+    level_vrms: float
+    settle_s: float
+    integrate_s: float
+    cycles: int
+    t0_s: float
+    h_t: complex
+    theta_2: complex
+    h_t_exact: complex
+    theta_2_exact: complex
+    h_t_bias: complex
+    theta_2_bias: complex
+    rel_error: dict
+    harmonics: np.ndarray
+    fundamental_ratio: np.ndarray
+    lever_2f: np.ndarray
+    clipped: np.ndarray
+    saturated: np.ndarray
+    settle_bound: np.ndarray
+
+    def gain_phase_error(self, name: str) -> tuple[float, float]:
+        """``(dB, deg)`` of the measured ``name`` ("h_t" or "theta_2") against the exact steady
+        state: ``20 log10 |H / H_exact|`` and the angle of ``H / H_exact``."""
+        r = getattr(self, name) / getattr(self, f"{name}_exact")
+        return DB * math.log(abs(r)), math.degrees(math.atan2(r.imag, r.real))
+
+    def bias_db_deg(self, name: str) -> tuple[float, float]:
+        """The settling bias as ``(dB, deg)``: the noiseless estimate against the steady state."""
+        ex = getattr(self, f"{name}_exact")
+        r = (ex + getattr(self, f"{name}_bias")) / ex
+        return DB * math.log(abs(r)), math.degrees(math.atan2(r.imag, r.real))
+
+    def error_db_deg(self, name: str) -> tuple[float, float]:
+        """The random error (1 sigma) as ``(dB, deg)``."""
+        e = self.rel_error[name]
+        return DB * e, math.degrees(e)
+
+
+def synchronous_dft(y: np.ndarray, phase_cycles: np.ndarray, harmonics: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """``(Y, residual variance)``: ``Y[c, k-1] = (2/N) sum_j y[c, j] e^{-i 2 pi k phi_j}`` for
+    k = 1..harmonics over the rows of ``y`` (channels, N), and the variance of each row's
+    residual after its mean and those harmonics (``N - 2 H - 1`` degrees of freedom)."""
+    y = np.asarray(y, float)
+    n = y.shape[1]
+    k = np.arange(1, harmonics + 1)
+    basis = np.exp(-2j * np.pi * np.outer(phase_cycles, k))  # (N, H)
+    coef = (2.0 / n) * (y @ basis)
+    fit = y.mean(axis=1, keepdims=True) + (coef @ basis.conj().T).real
+    dof = max(n - 2 * harmonics - 1, 1)
+    var = np.sum((y - fit) ** 2, axis=1) / dof
+    return coef, var
+
+
+def analyze_point(record, truth, chain, lever, harmonics: int = 5) -> SinePointResult:
+    """Analyse a :class:`daq.sine.PointRecord` with its exact :class:`rig.bench.sine.PointTruth`
+    (module docstring); ``chain`` the :class:`rig.bench.sine.SineChain`, ``lever`` the scene's
+    optical lever."""
+    p = record.point
+    n, s = p.integrate_samples, p.settle_samples
+    fs, q = chain.fs_hz, chain.q
+    rate = fs / q
+    phase_w = record.phase_cycles + p.frequency_hz * q * s / fs
+    phases = phase_w + p.cycles * np.arange(n) / n
+    y = record.volts[:, s:s + n]
+    coef, var = synchronous_dft(y, phases, harmonics)
+    vpu = chain.volts_per_unit
+    eu = coef / vpu[:, None]
+    nyq = np.arange(1, harmonics + 1) * p.frequency_hz >= rate / 2
+    eu[:, nyq] = np.nan
+    ac_power = np.var(y, axis=1)
+    ratio = (np.abs(coef[:, 0]) ** 2 / 2) / np.maximum(ac_power, 1e-300)
+    sd = np.sqrt(var * 2.0 / n)
+    rel = sd / np.maximum(np.abs(coef[:, 0]), 1e-300)
+    steady = truth.steady_v / vpu
+    noiseless = (truth.steady_v + truth.transient_v) / vpu
+    h = eu[1:, 0] / eu[0, 0]
+    ex = steady[1:] / steady[0]
+    biased = noiseless[1:] / noiseless[0]
+    # the lever's 2f: the mirror's phasors at f (the filter's response at f undone) through the
+    # filter at 2f
+    from rig.bench.sine import filter_response
+
+    g1, g2 = filter_response(chain, p.frequency_hz), filter_response(chain, 2 * p.frequency_hz)
+    dx, th = steady[1] / g1, steady[2] / g1
+    cf = lever_coefficients(lever)
+    lever_2f = np.array([-cf["x"] * th * th / 2, -cf["y"] * dx * th / 2]) * g2
+    if 2 * p.frequency_hz >= rate / 2:
+        lever_2f[:] = np.nan
+    return SinePointResult(
+        frequency_hz=p.frequency_hz, level_vrms=p.level_vrms, settle_s=s / rate,
+        integrate_s=n / rate, cycles=p.cycles, t0_s=record.t0_s, h_t=complex(h[0]),
+        theta_2=complex(h[1]), h_t_exact=complex(ex[0]), theta_2_exact=complex(ex[1]),
+        h_t_bias=complex(biased[0] - ex[0]), theta_2_bias=complex(biased[1] - ex[1]),
+        rel_error={"h_t": float(math.hypot(rel[0], rel[1])),
+                   "theta_2": float(math.hypot(rel[0], rel[2]))},
+        harmonics=eu, fundamental_ratio=ratio, lever_2f=lever_2f,
+        clipped=np.array([record.clipped[c] for c in ("a", "x", "y")]),
+        saturated=np.array([record.saturated.get(c, 0) for c in ("a", "x", "y")]),
+        settle_bound=np.asarray(truth.settle_bound))
