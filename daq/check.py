@@ -42,7 +42,8 @@ __all__ = ["FileCheck", "MissingFile", "check_file", "check_ok_or_raise"]
 #: acquiring).
 BAD_STATUSES = ("not hdf5", "truncated", "corrupt", "unreadable", "invalid")
 _KINDS = {"pendulum-daq run": "run", "pendulum-daq spectra": "spectra",
-          "pendulum-daq trajectory": "trajectory", "pendulum-daq dataset": "dataset"}
+          "pendulum-daq trajectory": "trajectory", "pendulum-daq dataset": "dataset",
+          "pendulum-daq sine": "sine"}
 
 
 class MissingFile(ConfigError, FileNotFoundError):
@@ -183,6 +184,8 @@ class _Checker:
             skip = set()
             if self.kind == "run":
                 skip = self._run(f)
+            elif self.kind == "sine":
+                self._sine(f)
             self._everything(f, skip)
             if marked:
                 self.notes.append("still marked open for writing (writer running or killed): "
@@ -291,6 +294,42 @@ class _Checker:
         if not grow:
             self.problem("invalid", "no per-record datasets")
         return {name for name, _ in grow}
+
+    def _sine(self, f) -> None:
+        """The sine run file's checks (:mod:`daq.sine_file`): its version, status and
+        ``points_complete`` against the rows of every per-point dataset (the checksums are
+        verified when :meth:`_everything` reads every dataset)."""
+        import h5py
+
+        from daq.sine_file import FORMAT_VERSION as SINE_VERSION
+
+        if self.version != SINE_VERSION:
+            self.problem("invalid", f"format version {self.version!r} is not one this reader "
+                                    f"knows ({SINE_VERSION})")
+        need = ("entry/status", "entry/points_complete", "entry/sweep", "entry/sweep/point",
+                "entry/scene/settings_json", "entry/model")
+        missing = [k for k in need if k not in f]
+        if missing:
+            self.problem("invalid", f"not a whole sine run file: missing {', '.join(missing)}")
+            return
+        e = f["entry"]
+        status = _text(e["status"][()]).strip("\x00 ")
+        n = int(e["points_complete"][()])
+        self.run_status = status if status in STATUSES else None
+        if status not in STATUSES:
+            self.problem("invalid", f"status {status!r} is not one of {', '.join(STATUSES)}")
+        elif status != "complete":
+            self.notes.append(f"incomplete ({status}): {n} points")
+        self.notes.append(f"{n} points")
+        for name in ("sweep", "records"):
+            if name not in e:
+                continue
+            for key, ds in e[name].items():
+                if (isinstance(ds, h5py.Dataset) and ds.maxshape and ds.maxshape[0] is None
+                        and key != "sample" and not key.startswith("codes_")
+                        and ds.shape[0] < n):
+                    self.problem("truncated", f"entry/{name}/{key} holds {ds.shape[0]} rows "
+                                              f"but points_complete = {n}")
 
     def _verify_rows(self, name: str, ds, n: int) -> None:
         """Read rows 0..n-1 of ``ds`` (all at once, then row by row if that fails), which

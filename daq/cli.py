@@ -22,6 +22,7 @@ from daq.cli_analyze import analyze, dataset, export
 from daq.cli_errors import ErrorsAsMessages
 from daq.cli_live import view
 from daq.cli_scene import model, scene, simulate
+from daq.cli_sine import sine
 
 
 @click.group(cls=ErrorsAsMessages, context_settings={"help_option_names": ["-h", "--help"]})
@@ -38,7 +39,8 @@ def main(ctx, debug):
     ctx.meta["daq.debug"] = debug
 
 
-for _command in (scene, model, simulate, view, acquire, inspect, analyze, dataset, export):
+for _command in (scene, model, simulate, view, acquire, inspect, analyze, dataset, export,
+                 sine):
     main.add_command(_command)
 
 

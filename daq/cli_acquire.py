@@ -231,7 +231,16 @@ def inspect(path, as_json, repair):
 
     if repair and clear_write_flags(path) and not as_json:
         click.echo(f"cleared the open-for-writing mark of {path}")
-    fc = run_check(path)
+    fc = run_check(path, sine_ok=True)
+    if fc.kind == "sine":  # a stepped-sine run file (daq sine)
+        from daq.sine_file import sine_info
+
+        info = sine_info(path)
+        info["check"] = fc.to_dict()
+        click.echo(json.dumps(info, indent=2) if as_json else _sine_text(info))
+        if not fc.ok:
+            raise click.exceptions.Exit(1)
+        return
     info = run_info(path)
     info["check"] = fc.to_dict()
     if as_json:
@@ -240,6 +249,22 @@ def inspect(path, as_json, repair):
         click.echo(_inspect_text(info))
     if not fc.ok:
         raise click.exceptions.Exit(1)
+
+
+def _sine_text(i: dict) -> str:
+    m = i["model"]
+    band = (f"{i['fmin_hz']:.4g}-{i['fmax_hz']:.4g} Hz" if i["points"] else "no point")
+    return "\n".join([
+        f"{i['path']}: {i['file_format']} {i['file_format_version']}, written by pendulum-daq "
+        f"{i.get('software_version', '?')}",
+        f"scene: {i.get('scene_name', '?')}, seed {i.get('seed', '?')}, started "
+        f"{i.get('start_time', '?')}",
+        f"status: {i['status']}, {i['points']} points, {band}, "
+        f"{i['bench_s_accepted_points'] / 3600:.2f} h of bench time in the kept points"
+        + (", time records kept" if i["records_kept"] else ""),
+        f"model: {m.get('model')} ({m.get('reason', 'forced')})",
+        f"check: {'OK' if i['check']['ok'] else 'BAD: ' + '; '.join(i['check']['problems'])}",
+    ])
 
 
 def _inspect_text(i: dict) -> str:

@@ -58,13 +58,16 @@ def model_lines(info: dict) -> list[str]:
     return lines
 
 
-def run_check(path: Path):
+def run_check(path: Path, *, sine_ok: bool = False):
     """:func:`daq.check.check_file` of a file that must be a run file that opens: a ConfigError
-    (not a run file, truncated, unreadable: the reader's own message) otherwise."""
+    (not a run file, truncated, unreadable: the reader's own message) otherwise; with
+    ``sine_ok`` a stepped-sine run file (:mod:`daq.sine_file`) is accepted too."""
     from daq.check import check_file
     from daq.hdf5 import open_run
 
     fc = check_file(path)
+    if fc.kind == "sine" and sine_ok:
+        return fc
     if fc.kind != "run":
         with open_run(path):  # raises the reader's message
             pass

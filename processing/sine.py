@@ -155,3 +155,70 @@ def analyze_point(record, truth, chain, lever, harmonics: int = 5) -> SinePointR
         clipped=np.array([record.clipped[c] for c in ("a", "x", "y")]),
         saturated=np.array([record.saturated.get(c, 0) for c in ("a", "x", "y")]),
         settle_bound=np.asarray(truth.settle_bound))
+
+
+_RESP_UNITS = {"h_t": "m/(m/s^2)", "theta_2": "rad/(m/s^2)"}
+_EU = {"a": "m/s^2", "x": "m", "y": "rad"}
+
+
+def _point_columns() -> dict:
+    """name -> (unit, long_name, per harmonic) of a point's row (:func:`point_row`)."""
+    cols = {"frequency": ("Hz", "drive frequency (whole cycles in the window)", False),
+            "level_vrms": ("V", "source level (rms)", False),
+            "settle_s": ("s", "settle time before the window (simulated)", False),
+            "integrate_s": ("s", "integration window (simulated)", False),
+            "cycles": ("1", "whole cycles in the window", False),
+            "t0_s": ("s", "start of the point from the sweep's start", False)}
+    for r, unit in _RESP_UNITS.items():
+        for kind, what in (("", "measured"), ("_exact", "exact steady state"),
+                           ("_bias", "exact settling bias (noiseless estimate - steady)")):
+            for part in ("real", "imag"):
+                cols[f"{r}{kind}_{part}"] = (unit, f"{r} {what}, {part} part", False)
+        cols[f"{r}_gain_db"] = ("dB", f"measured {r} gain 20 log10|H| re 1 {unit}", False)
+        cols[f"{r}_phase_deg"] = ("degree", f"measured {r} phase, wrapped", False)
+        cols[f"{r}_rel_error"] = ("1", f"relative random error of {r} (1 sigma)", False)
+    for c, unit in _EU.items():
+        for part in ("real", "imag"):
+            cols[f"harmonic_{c}_{part}"] = (unit, f"channel {c} at k f, {part} part "
+                                                  "(NaN at or above Nyquist)", True)
+        cols[f"fundamental_ratio_{c}"] = ("1", f"fundamental's share of channel {c}'s window "
+                                                "power", False)
+        cols[f"clipped_{c}"] = ("1", f"samples of channel {c} the ADC clipped", False)
+        cols[f"saturated_{c}"] = ("1", f"samples channel {c}'s sensor was over range", False)
+        cols[f"settle_bound_{c}"] = ("1", f"settle rule's transient bound of {c} at the "
+                                          "window's start, relative", False)
+    for c in ("x", "y"):
+        for part in ("real", "imag"):
+            cols[f"lever_2f_{c}_{part}"] = (_EU[c], f"optical lever's predicted 2f component "
+                                                    f"of {c}, {part} part", False)
+    return cols
+
+
+#: the columns of a point's row: name -> (unit, long_name, per harmonic)
+POINT_COLUMNS = _point_columns()
+
+
+def point_row(res: SinePointResult) -> dict:
+    """A point as ``{column: value}`` for :data:`POINT_COLUMNS` (files, CSV)."""
+    row = {"frequency": res.frequency_hz, "level_vrms": res.level_vrms,
+           "settle_s": res.settle_s, "integrate_s": res.integrate_s, "cycles": res.cycles,
+           "t0_s": res.t0_s}
+    for r in _RESP_UNITS:
+        for kind in ("", "_exact", "_bias"):
+            v = getattr(res, f"{r}{kind}")
+            row[f"{r}{kind}_real"], row[f"{r}{kind}_imag"] = v.real, v.imag
+        v = getattr(res, r)
+        row[f"{r}_gain_db"] = DB * math.log(abs(v))
+        row[f"{r}_phase_deg"] = math.degrees(math.atan2(v.imag, v.real))
+        row[f"{r}_rel_error"] = res.rel_error[r]
+    for i, c in enumerate(_EU):
+        row[f"harmonic_{c}_real"] = res.harmonics[i].real
+        row[f"harmonic_{c}_imag"] = res.harmonics[i].imag
+        row[f"fundamental_ratio_{c}"] = res.fundamental_ratio[i]
+        row[f"clipped_{c}"] = res.clipped[i]
+        row[f"saturated_{c}"] = res.saturated[i]
+        row[f"settle_bound_{c}"] = res.settle_bound[i]
+    for i, c in enumerate(("x", "y")):
+        row[f"lever_2f_{c}_real"], row[f"lever_2f_{c}_imag"] = (res.lever_2f[i].real,
+                                                                res.lever_2f[i].imag)
+    return row

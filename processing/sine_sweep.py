@@ -27,8 +27,11 @@ Per point (:class:`SineSettings`):
   measured (capped at ``level_limit_vrms``), up to ``auto_level_tries`` times in all, and the
   next point starts at the level that held (the 35670A's ``SOUR:VOLT:AUTO``).
 
-Sinks receive ``start(info)``, ``point(result, record)`` and ``stop(status)`` (the sine run
-file, :class:`daq.sine_file.SineFileSink`, is one).
+Sinks receive ``start(info)`` (settings, seed, model, channels, filter, scene, the row's
+columns), ``point(row, record)`` (:func:`processing.sine.point_row` and the
+:class:`daq.sine.PointRecord`) for every accepted point and ``stop(status)`` (the sine run file,
+:class:`daq.sine_file.SineFileSink`, is one); each sink's ``check()``, if it has one, runs
+before anything is simulated.
 
 Public API: :class:`SineSettings`, :class:`SineSweep`, :func:`measure_sine`, :func:`planned_grid`.
 """
@@ -42,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rig.errors import ConfigError
-from processing.sine import SinePointResult, analyze_point
+from processing.sine import POINT_COLUMNS, SinePointResult, analyze_point, point_row
 
 CHANNELS = ("a", "x", "y")
 
@@ -296,6 +299,9 @@ def _measure(scene, settings, seed, sinks, progress) -> SineSweep:
     if level0 > settings.level_limit_vrms:
         raise ConfigError(f"level_vrms = {level0!r} is invalid: expected at most "
                           f"level_limit_vrms = {settings.level_limit_vrms!r} V")
+    for s in sinks:
+        if hasattr(s, "check"):
+            s.check()
     worst = _worst_frequency(scene, settings)
     acq = SineAcquisition(scene, seed, worst_hz=worst,
                           level_vrms=_worst_level(scene, settings, level0, worst),
@@ -303,7 +309,7 @@ def _measure(scene, settings, seed, sinks, progress) -> SineSweep:
                           fmax_hz=settings.fmax_hz)
     info = {"settings": _settings_dict(settings), "seed": int(seed), "worst_hz": worst,
             "model": acq.model_info, "channels": acq.channels, "antialias": acq.antialias,
-            "scene": scene}
+            "scene": scene, "columns": POINT_COLUMNS, "harmonics": settings.harmonics}
     for s in sinks:
         s.start(info)
     accepted, discarded = [], []
@@ -364,7 +370,7 @@ def _sweep(settings, acq, rate, level, accepted, discarded, sinks, progress, set
         if ok:
             accepted.append(res)
             for s in sinks:
-                s.point(res, rec)
+                s.point(point_row(res), rec)
             last, last_nominal = res, f
         else:
             discarded.append(res)

@@ -64,9 +64,10 @@ def _id(text: str) -> str:
 def uff58(*, func_type: int, response: Dof, reference: Dof | None, x: np.ndarray,
           data: np.ndarray, abscissa: str, ids: tuple[str, ...], load_case: int = 0,
           ordinate_type: int | None = None, ordinate_unit: str | None = None,
-          ordinate_label: str | None = None) -> dict:
+          ordinate_label: str | None = None, even: bool = True) -> dict:
     """One UFF 58 data set (a pyuff dict) on the evenly spaced abscissa ``x`` ("time" [s] or
-    "frequency" [Hz]); ``data`` real or complex. A ratio's ordinate is the response's quantity
+    "frequency" [Hz]; ``even=False``: any increasing abscissa, written as (x, value) pairs, e.g.
+    a stepped sine's points); ``data`` real or complex. A ratio's ordinate is the response's quantity
     over the reference's; ``ordinate_type``/``ordinate_unit`` replace the response's (e.g. for a
     coherence, unit "1")."""
     import pyuff
@@ -81,7 +82,7 @@ def uff58(*, func_type: int, response: Dof, reference: Dof | None, x: np.ndarray
         func_type=func_type, ver_num=0, load_case_id=int(load_case),
         rsp_ent_name=response.entity, rsp_node=response.node, rsp_dir=response.direction,
         ref_ent_name=ref.entity, ref_node=ref.node, ref_dir=ref.direction,
-        abscissa_spacing=1, abscissa_spec_data_type=TIME if abscissa == "time" else FREQUENCY,
+        abscissa_spacing=1 if even else 0, abscissa_spec_data_type=TIME if abscissa == "time" else FREQUENCY,
         abscissa_axis_units_lab="s" if abscissa == "time" else "Hz",
         ordinate_spec_data_type=response.data_type if ordinate_type is None else ordinate_type,
         ordinate_len_unit_exp=response.length_exp if ordinate_type is None else 0,
