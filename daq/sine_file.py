@@ -182,7 +182,19 @@ class SineFileSink:
         aa.attrs["NX_class"] = "NXcollection"
         for k, v in info["antialias"].describe().items():
             aa.attrs[k] = attr_value(v)
-        aa.create_dataset("sos", data=np.asarray(info["antialias"].sos))
+        sos_v = np.asarray(info["antialias"].sos, dtype=np.float64)
+        sec = aa.create_dataset("section", data=np.arange(1, sos_v.shape[0] + 1, dtype=np.int64))
+        sec.make_scale("section")
+        sec.attrs["long_name"] = "second-order section (1-based, applied in order)"
+        coef = aa.create_dataset("coefficient", data=np.array(
+            ["b0", "b1", "b2", "a0", "a1", "a2"], dtype=h5py.string_dtype()))
+        coef.make_scale("coefficient")
+        coef.attrs["long_name"] = "coefficient of a section"
+        sos = aa.create_dataset("sos", data=sos_v)
+        sos.dims[0].attach_scale(sec)
+        sos.dims[1].attach_scale(coef)
+        sos.attrs.update({"units": "1", "long_name": "second-order sections of the anti-alias "
+                                                     "filter at the simulation rate"})
         s = e.create_group("settings")
         s.attrs.update({"NX_class": "NXcollection", "settings_json": _json(st),
                         "worst_hz": info["worst_hz"]})

@@ -53,6 +53,8 @@ class SinePointResult:
     lever_2f : (2,) predicted 2f components of x [m] and y [rad] (optical lever geometry).
     clipped, saturated : (3,) samples clipped / saturated in the point.
     settle_bound : (3,) the settle rule's modal bound at the window's start, relative [1].
+    coef_sd : (3,) standard deviation of each part (real, imaginary) of any harmonic's
+        coefficient of a, x, y from the noise, engineering units.
     """
 
     frequency_hz: float
@@ -74,6 +76,7 @@ class SinePointResult:
     clipped: np.ndarray
     saturated: np.ndarray
     settle_bound: np.ndarray
+    coef_sd: np.ndarray
 
     def gain_phase_error(self, name: str) -> tuple[float, float]:
         """``(dB, deg)`` of the measured ``name`` ("h_t" or "theta_2") against the exact steady
@@ -154,7 +157,7 @@ def analyze_point(record, truth, chain, lever, harmonics: int = 5) -> SinePointR
         harmonics=eu, fundamental_ratio=ratio, lever_2f=lever_2f,
         clipped=np.array([record.clipped[c] for c in ("a", "x", "y")]),
         saturated=np.array([record.saturated.get(c, 0) for c in ("a", "x", "y")]),
-        settle_bound=np.asarray(truth.settle_bound))
+        settle_bound=np.asarray(truth.settle_bound), coef_sd=sd / np.abs(vpu))
 
 
 _RESP_UNITS = {"h_t": "m/(m/s^2)", "theta_2": "rad/(m/s^2)"}

@@ -275,7 +275,9 @@ def write_sine_report(sweep, scene, path, *, force: bool = False) -> Path:
 
 def sine_uff_datasets(sweep, scene) -> list[dict]:
     """UFF 58 sets of the sweep: H_t and Theta_2 at the points (function type 4, FRF, uneven
-    abscissa), with the nodes and directions of ``daq analyze --uff`` (:mod:`rig._uff`)."""
+    abscissa), with the nodes and directions of ``daq analyze --uff`` (:mod:`rig._uff`). ASCII
+    UFF 58 writes an uneven abscissa as E13.5 (6 significant digits: the frequencies within
+    5e-6 relative; the run file and the CSV keep them whole), the values with 12 digits."""
     from rig._uff import CHANNEL_DOFS, FRF, uff58
 
     f = sweep.column("frequency_hz")

@@ -48,7 +48,9 @@ def files(tmp_path_factory):
         '"acquisition.record_s=5", "acquisition.settle_s=5"]\n'
         '[grid]\n"source.level_vrms" = [0.05, 0.1]\n[analysis]\nnperseg = 500\n')
     daq("dataset", "sweep.toml", "--out", "ds", "--workers", "1", cwd=d)
-    out = {k: d / f"{k}.h5" for k in ("run", "spectra", "trajectory")}
+    daq("sine", "ishizaki2009", "--fmin", "1", "--fmax", "2", "--points", "2",
+        "--keep-records", "--out", "sine.h5", "-q", cwd=d)
+    out = {k: d / f"{k}.h5" for k in ("run", "spectra", "trajectory", "sine")}
     out["dataset run"] = d / "ds" / "runs" / "run_000000.h5"
     out["dataset manifest"] = d / "ds" / "manifest.h5"
     return out
