@@ -1,5 +1,10 @@
 """``daq sine``: a stepped-sine measurement of a scene's bench (the 35670A's swept-sine mode).
 
+Defaults: the accuracy sweep of the README (auto resolution 2 dB / 20 deg from a 50-point log
+grid, the mirror's rotation held at 3e-4 rad up to 1 V, windows continued to a 0.02 dB random
+error, the settle from the bench's poles); ``--points N`` alone gives a fixed grid, ``--level V``
+a fixed level, ``--random-error 0`` the windows as given.
+
 A thin layer over :func:`processing.sine_sweep.measure_sine`: every option is validated and
 every output path checked before anything is simulated; errors are one line naming the value.
 """
@@ -12,6 +17,11 @@ import click
 
 from daq.cli_common import force_option, set_option
 from rig.errors import ConfigError
+
+
+#: the defaults of the README's accuracy sweep (tests/processing/test_sine.py)
+DEFAULT_AUTO_RESOLUTION = "2,20"
+DEFAULT_AUTO_LEVEL = "y,3e-4,0.2"
 
 
 def _numbers(text: str | None, n: int, option: str, what: str) -> tuple | None:
@@ -52,11 +62,12 @@ def _exclusive(a, b, names: str) -> None:
 @click.option("--fmin", type=float, default=0.1, show_default=True, help="First frequency [Hz].")
 @click.option("--fmax", type=float, default=10.0, show_default=True, help="Last frequency [Hz].")
 @click.option("--points", type=int, default=None,
-              help="Points of the grid (default 101; with --auto-resolution: the largest step "
-                   "is the grid's, default 61 points).")
+              help="Points of a fixed grid (no auto resolution unless it is given too: then "
+                   "the grid's step is the largest; default grid 50 points).")
 @click.option("--auto-resolution", metavar="DB,DEG", default=None,
               help="Finer steps where gain or phase changes fast: the largest change between "
-                   "neighbouring points, e.g. 2,20 (SENS:FREQ:RES:AUTO).")
+                   "neighbouring points (SENS:FREQ:RES:AUTO); default 2,20 unless --points "
+                   "is given.")
 @click.option("--min-step", type=float, default=0.0005, show_default=True,
               help="Smallest auto-resolution step [Hz].")
 @click.option("--spacing", type=click.Choice(["log", "lin"]), default="log", show_default=True)
@@ -71,16 +82,18 @@ def _exclusive(a, b, names: str) -> None:
               help="Window: at least this many whole cycles.")
 @click.option("--integrate-s", type=float, default=10.0, show_default=True,
               help="Window: at least this long [s].")
-@click.option("--random-error", "random_error_db", type=float, default=None, metavar="DB",
+@click.option("--random-error", "random_error_db", type=float, default=0.02,
+              show_default=True, metavar="DB",
               help="Continue each window until the random error of H_t and Theta_2 (1 sigma) "
-                   "is at most DB dB (up to --max-integrate-s).")
-@click.option("--max-integrate-s", type=float, default=600.0, show_default=True,
+                   "is at most DB dB (up to --max-integrate-s); 0: windows as given.")
+@click.option("--max-integrate-s", type=float, default=20000.0, show_default=True,
               help="Longest window with --random-error [s].")
 @click.option("--level", "level_vrms", type=float, default=None,
-              help="Source level [V rms] (default the scene's source.level_vrms).")
+              help="A fixed source level [V rms] (no auto level).")
 @click.option("--auto-level", metavar="CHANNEL,TARGET,TOL", default=None,
               help="Hold a channel's fundamental at TARGET (its unit: a m/s^2, x m, y rad) "
-                   "within TOL (relative), e.g. y,3e-4,0.2 (SOUR:VOLT:AUTO).")
+                   "within TOL (relative) (SOUR:VOLT:AUTO); default y,3e-4,0.2 unless --level "
+                   "is given.")
 @click.option("--level-limit", type=float, default=1.0, show_default=True,
               help="Highest source level [V rms].")
 @click.option("--harmonics", type=int, default=5, show_default=True,
@@ -110,9 +123,16 @@ def sine(scene_arg, out, fmin, fmax, points, auto_resolution, min_step, spacing,
     from rig._io import check_writable
 
     _exclusive(settle_cycles, settle_s, "--settle-cycles and --settle-s")
+    _exclusive(level_vrms, auto_level, "--level and --auto-level")
+    if auto_resolution is None and points is None:
+        auto_resolution = DEFAULT_AUTO_RESOLUTION
+    if auto_level is None and level_vrms is None:
+        auto_level = DEFAULT_AUTO_LEVEL
+    if random_error_db is not None and random_error_db == 0:
+        random_error_db = None
     ar = _numbers(auto_resolution, 2, "--auto-resolution", "DB,DEG: two numbers > 0")
     settings = SineSettings(
-        fmin_hz=fmin, fmax_hz=fmax, points=points if points is not None else (61 if ar else 101),
+        fmin_hz=fmin, fmax_hz=fmax, points=points if points is not None else 50,
         spacing=spacing, direction=direction, auto_resolution=ar, min_step_hz=min_step,
         settle_cycles=settle_cycles, settle_s=settle_s, settle_tolerance=settle_tolerance,
         integrate_cycles=integrate_cycles, integrate_s=integrate_s,

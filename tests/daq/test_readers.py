@@ -49,7 +49,7 @@ def files(tmp_path_factory):
         '[grid]\n"source.level_vrms" = [0.05, 0.1]\n[analysis]\nnperseg = 500\n')
     daq("dataset", "sweep.toml", "--out", "ds", "--workers", "1", cwd=d)
     daq("sine", "ishizaki2009", "--fmin", "1", "--fmax", "2", "--points", "2",
-        "--keep-records", "--out", "sine.h5", "-q", cwd=d)
+        "--keep-records", "--random-error", "0", "--out", "sine.h5", "-q", cwd=d)
     out = {k: d / f"{k}.h5" for k in ("run", "spectra", "trajectory", "sine")}
     out["dataset run"] = d / "ds" / "runs" / "run_000000.h5"
     out["dataset manifest"] = d / "ds" / "manifest.h5"

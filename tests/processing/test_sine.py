@@ -95,6 +95,7 @@ def _daq(*args, cwd):
     (["--fmax", "60"], ["fmax_hz = 60.0", "half the output rate"]),
     (["--level", "2", "--level-limit", "1"], ["level_vrms = 2.0", "level_limit_vrms"]),
     (["--harmonics", "0"], ["harmonics = 0", "1..20"]),
+    (["--level", "0.1", "--auto-level", "y,1e-3,0.1"], ["--level and --auto-level"]),
 ])
 def test_cli_refuses_bad_options_in_one_line(tmp_path, args, words):
     r = _daq("sine", "ishizaki2009", "--out", "s.h5", *args, cwd=tmp_path)
@@ -113,7 +114,8 @@ def test_cli_files_open_in_every_reader(tmp_path):
 
     r = _daq("sine", "ishizaki2009", "--fmin", "2.3", "--fmax", "2.6", "--points", "4",
              "--auto-level", "y,3e-4,0.2", "--out", "s.h5", "--csv", "s.csv", "--uff", "s.uff",
-             "--report", "r.md", "--plot", "b.png", "--keep-records", "-q", cwd=tmp_path)
+             "--report", "r.md", "--plot", "b.png", "--keep-records", "--random-error", "0", "-q",
+             cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     ds = xr.open_dataset(tmp_path / "s.h5", group="entry/sweep", engine="h5netcdf")
     assert ds.sizes["point"] == 4 and ds.sizes["harmonic"] == 5
@@ -143,7 +145,7 @@ def test_cli_files_open_in_every_reader(tmp_path):
 
 def test_cli_check_names_a_cut_sine_file(tmp_path):
     r = _daq("sine", "ishizaki2009", "--fmin", "1", "--fmax", "2", "--points", "2", "--out",
-             "s.h5", "-q", cwd=tmp_path)
+             "s.h5", "--random-error", "0", "-q", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     data = (tmp_path / "s.h5").read_bytes()
     (tmp_path / "cut.h5").write_bytes(data[: len(data) * 2 // 3])
