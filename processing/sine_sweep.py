@@ -38,6 +38,7 @@ Public API: :class:`SineSettings`, :class:`SineSweep`, :func:`measure_sine`, :fu
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -346,8 +347,8 @@ def _sweep(settings, acq, rate, level, accepted, discarded, sinks, progress, set
         point = _point(settings, f, level, rate)
         phase = acq.bench.source.phase_cycles
         e0 = step_error(acq.chain, error, prev_point, point, phase)
-        point = type(point)(**{**point.__dict__, "settle_samples":
-                               _settle(settings, acq, point, e0, rate)})
+        point = dataclasses.replace(point, settle_samples=_settle(settings, acq, point, e0,
+                                                                  rate))
         rec, truth, res = _measured(settings, acq, point, e0, settling_bias)
         error, prev_point = truth.error_end, rec.point
         new_level = _next_level(settings, level, res)

@@ -307,7 +307,6 @@ def sine_model(scene: Scene, worst_hz: float, level_vrms: float, duration_s: flo
     ``duration_s`` from rest; the model is built for a sine at ``fmax_hz`` (the highest drive
     frequency, which sets the nonlinear remainder's node spacing)."""
     acq = scene.acquisition
-    rate = acq.rate_hz
     record = max(1.0, math.ceil(duration_s)) if duration_s > 0 else 1.0
 
     def sine_scene(f):
@@ -322,7 +321,6 @@ def sine_model(scene: Scene, worst_hz: float, level_vrms: float, duration_s: flo
     selection = None
     if acq.model == "auto":
         selection = select_model(sine_scene(worst_hz))
-    del rate
     return build_model(sine_scene(min(fmax_hz, scene.source.fs_hz / 2 * 0.999)),
                        selection=selection), selection
 

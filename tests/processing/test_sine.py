@@ -48,6 +48,13 @@ def test_sweep_matches_exact_response_at_peak_and_notch(fmin, fmax, target):
             e_db, _ = p.error_db_deg(name)
             assert e_db <= 0.0201 or p.integrate_s >= 19000  # target met or window at its cap
         assert p.saturated.sum() == 0 and p.clipped.sum() == 0
+        # auto level: the mirror's rotation within 20 % of 3e-4 rad, or the level at its cap
+        y = abs(p.harmonics[2, 0])
+        assert abs(y / 3e-4 - 1) <= 0.2 or p.level_vrms == pytest.approx(1.0), (p.frequency_hz, y)
+    # auto resolution: steps well below the grid's where the response turns fast
+    grid_step = fmin * ((fmax / fmin) ** (1 / 49) - 1)
+    assert np.min(np.diff(f)) < grid_step / 4
+    assert np.all(np.diff(f) > 0)  # up, in order
 
 
 def test_lever_predicts_the_2f_components():
@@ -152,3 +159,12 @@ def test_cli_check_names_a_cut_sine_file(tmp_path):
     chk = _daq("check", "cut.h5", cwd=tmp_path)
     assert chk.returncode == 1 and "truncated" in chk.stdout
     assert math.isfinite(len(data))
+
+
+def test_sweep_down_runs_the_grid_in_reverse():
+    scene = rig.load_scene("ishizaki2009", ["acquisition.model=linear"])
+    sweep = measure_sine(scene, SineSettings(fmin_hz=1.0, fmax_hz=2.0, points=3, direction="down",
+                                             level_vrms=0.05), seed=1)
+    f = sweep.column("frequency_hz")
+    assert f[0] == pytest.approx(2.0, rel=1e-3) and f[-1] == pytest.approx(1.0, rel=1e-3)
+    assert np.all(np.diff(f) < 0)
