@@ -2,7 +2,7 @@
 composes rig, daq and processing. This module is the group (and ``daq check``); each command
 group is a module of its own: :mod:`daq.cli_scene` (scene, model, simulate),
 :mod:`daq.cli_acquire` (acquire, inspect), :mod:`daq.cli_live` (the live view, view),
-:mod:`daq.cli_analyze` (analyze, dataset, export); shared options in :mod:`daq.cli_common`.
+:mod:`daq.cli_analyze` (analyze, dataset, export), :mod:`daq.cli_design` (design); shared options in :mod:`daq.cli_common`.
 
 Errors become one line and exit status 1 in one place, the group's class
 (:class:`daq.cli_errors.ErrorsAsMessages`); ``daq --debug`` lets them through.
@@ -19,6 +19,7 @@ import click
 
 from daq.cli_acquire import acquire, inspect
 from daq.cli_analyze import analyze, dataset, export
+from daq.cli_design import design
 from daq.cli_errors import ErrorsAsMessages
 from daq.cli_live import view
 from daq.cli_scene import model, scene, simulate
@@ -38,7 +39,8 @@ def main(ctx, debug):
     ctx.meta["daq.debug"] = debug
 
 
-for _command in (scene, model, simulate, view, acquire, inspect, analyze, dataset, export):
+for _command in (scene, model, simulate, view, acquire, inspect, analyze, dataset, export,
+                 design):
     main.add_command(_command)
 
 

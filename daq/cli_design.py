@@ -1,0 +1,121 @@
+"""``daq design``: from a targets file to a pendulum design (:mod:`rig.design`), its report,
+figure, trade-offs, tolerance Monte Carlo and a virtual measurement of it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from daq.cli_common import force_option
+from rig._io import atomic_output, check_writable
+
+
+def _read_text(path: Path, what: str) -> str:
+    from rig.errors import ConfigError
+
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{what} file {str(path)!r} does not exist") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{what} file {str(path)!r} is not a TOML text file (byte {exc.start} "
+                          "is not UTF-8)") from None
+    except OSError as exc:
+        raise ConfigError(f"{what} file {str(path)!r} cannot be read: {exc.strerror}") from None
+
+
+def _write_text(path: Path, text: str, force: bool) -> None:
+    with atomic_output(path, force=force) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+
+
+@click.command("design")
+@click.argument("targets_path", metavar="TARGETS.toml", type=click.Path(dir_okay=False,
+                                                                        path_type=Path))
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the designed scene (TOML that daq acquire takes).")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the design report (markdown).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the design's responses against its targets (PNG).")
+@click.option("--json", "as_json", is_flag=True, help="Print the design as JSON.")
+@force_option
+def design(targets_path, out, report_path, plot_path, as_json, force):
+    """Design a double physical pendulum (Ishizaki et al. 2009) from TARGETS.toml.
+
+    The paper's relations are solved exactly where the targets determine the design; what they
+    leave free is optimised against the performance targets on the exact linear model; targets
+    that cannot all be met give the nearest feasible design and what binds it.
+    """
+    from rig.design import design as make_design
+    from rig.design import design_dict, design_markdown, design_scene_toml, parse_targets
+    from rig.scene import load_scene
+
+    for p in (out, report_path, plot_path):
+        if p is not None:
+            check_writable(p, force=force)
+    targets = parse_targets(_read_text(targets_path, "targets"), source=str(targets_path))
+    d = make_design(targets)
+    scene_text = design_scene_toml(d, header=f"designed by daq design from {targets_path}")
+    if out is not None:
+        _write_text(out, scene_text, force)
+        sc = load_scene(out)
+        if sc.chain != d.chain:
+            raise click.ClickException(f"{out}: its base {targets.base!r} changes the designed "
+                                       "pendulum (e.g. sets l_m); give [design] base = "
+                                       "\"ishizaki2009\"")
+    if plot_path is not None:
+        from processing.design_plots import design_figure
+        from rig.design.report import design_curves
+
+        f_hi = max([10.0 * d.inputs.f1_hz] + [s.band_hz[1] for s in targets.suppression]
+                   + [t.freq_hz * 2 for t in targets.translation])
+        curves = design_curves(d, _grid(0.05 * d.inputs.f2_hz, f_hi))
+        fig = design_figure(d, curves)
+        with atomic_output(plot_path, force=force) as tmp:
+            fig.savefig(tmp, dpi=120, format="png")
+    if report_path is not None:
+        fig_ref = plot_path.name if plot_path is not None else None
+        _write_text(report_path, design_markdown(d, figure=fig_ref), force)
+    if as_json:
+        click.echo(json.dumps(design_dict(d), indent=2))
+        return
+    click.echo(_summary(d))
+    for p in (out, report_path, plot_path):
+        if p is not None:
+            click.echo(f"wrote {p}")
+
+
+def _grid(lo, hi):
+    import numpy as np
+
+    return np.geomspace(lo, hi, 2000)
+
+
+def _summary(d) -> str:
+    i, c = d.inputs, d.chain
+    head = "every target met" if d.status == "met" else "NEAREST FEASIBLE DESIGN (not every target met)"
+    lines = [f"{d.targets.name}: {head}, policy ({d.targets.policy})",
+             f"  r1 = {i.r1_m * 1e3:.5g} mm, r2 = {i.r2_m * 1e3:.5g} mm, f1 = {i.f1_hz:.5g} Hz, "
+             f"f2 = {i.f2_hz:.5g} Hz, eps = {i.eps:.5g}",
+             f"  m1 = {c.mass_kg[0] * 1e3:.5g} g, m2 = {c.mass_kg[1] * 1e3:.5g} g, "
+             f"J1 = {c.inertia_kgm2[0]:.4g} kg m^2, J2 = {c.inertia_kgm2[1]:.4g} kg m^2"]
+    p = d.params
+    lines.append(f"  alpha = {p.alpha:.4g}, beta^2 = {p.beta2:.4g}, mu = {p.mu:.4g}, "
+                 f"nu = {p.nu:.4g}, sigma^2 = {p.sigma2:.4g}, delta = {p.delta:.4g}")
+    lines.append("  modes: " + ", ".join(f"{f:.5g} Hz (Q = {q:.4g})"
+                                          for f, q in zip(d.modes_hz, d.modes_q)))
+    notch = ("none at a finite frequency (J1 = 0)" if d.notch_hz == float("inf")
+             else f"{d.notch_hz:.5g} Hz, depth {d.notch_depth_db:.3g} dB")
+    lines.append(f"  Theta_2 notch: {notch}")
+    for perf in d.performance:
+        lines.append(f"  {perf.what}: {perf.value_db:.4g} dB"
+                     + ("" if perf.limit_db is None else
+                        f" (limit {perf.limit_db:g} dB, margin {perf.margin_db:+.3g} dB)"))
+    for n in d.notes:
+        lines.append(f"  note: {n}")
+    if d.binding:
+        lines.append("  binding: " + "; ".join(d.binding))
+    return "\n".join(lines)

@@ -1,0 +1,74 @@
+"""Figures of a pendulum design (:mod:`rig.design`): its responses against its targets, the
+trade-off sweeps and the tolerance Monte Carlo. Each function renders result data into a
+:class:`matplotlib.figure.Figure` built without pyplot (the caller saves it)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from processing.plots import decade_axis
+
+
+def _db(h):
+    with np.errstate(divide="ignore"):
+        return 20 * np.log10(np.abs(h))
+
+
+def design_figure(d, curves: dict) -> Figure:
+    """Three panels on log frequency: the mirror's translation |x/x0''|, the rotations |Theta_1|,
+    |Theta_2| with the notch, and the suppression -20 log10|theta2/theta1| with the bands asked
+    for, claim (29)'s alpha and the exact high-frequency limit. ``curves``:
+    :func:`rig.design.report.design_curves`."""
+    from rig.ishizaki import rotation_isolation
+
+    f = curves["freqs_hz"]
+    fig = Figure(figsize=(13, 4.6), layout="constrained")
+    ax = fig.subplots(1, 3)
+    ax[0].semilogx(f, _db(curves["x"]), "k", lw=1.4, label="mirror translation x (exact)")
+    for t in d.targets.translation:
+        if t.response == "x":
+            for lim, mk in ((t.max_db, "v"), (t.min_db, "^")):
+                if lim is not None:
+                    ax[0].plot([t.freq_hz], [lim], mk, color="tab:red", ms=8,
+                               label=f"target at {t.freq_hz:g} Hz")
+    ax[0].set_ylabel("|x / x0''| [dB re 1 m/(m/s^2)]")
+    ax[0].set_title("translation per stage acceleration")
+    ax[1].semilogx(f, _db(curves["theta1"]), color="tab:blue", ls=":", lw=1.5,
+                   label="stage 1 rotation θ₁")
+    ax[1].semilogx(f, _db(curves["theta2"]), "k", lw=1.4, label="mirror rotation θ₂")
+    if math.isfinite(d.notch_hz) and f[0] < d.notch_hz < f[-1]:
+        ax[1].axvline(d.notch_hz, color="tab:green", ls="--", lw=1,
+                      label=f"θ₂ notch {d.notch_hz:.3g} Hz")
+    ax[1].set_ylabel("|Θ| [dB re 1 rad/(m/s^2)]")
+    ax[1].set_title("rotation per stage acceleration")
+    ax[2].semilogx(f, -_db(curves["ratio"]), "k", lw=1.4, label="-20 log10|θ₂/θ₁| (exact)")
+    iso = rotation_isolation(d.params)
+    ax[2].axhline(-iso.alpha_db, color="tab:orange", ls="--", lw=1,
+                  label=f"claim (29): -20 log10 α = {-iso.alpha_db:.1f} dB")
+    if math.isfinite(iso.ratio_db):
+        ax[2].axhline(-iso.ratio_db, color="tab:purple", ls=":", lw=1,
+                      label=f"exact limit above f1: {-iso.ratio_db:.1f} dB")
+    for s in d.targets.suppression:
+        lo, hi = s.band_hz
+        if s.min_db is not None:
+            ax[2].fill_between([lo, hi], [s.min_db] * 2, [s.min_db - 200] * 2, color="tab:red",
+                               alpha=0.12, lw=0, label=f"not allowed: < {s.min_db:g} dB in band")
+        else:
+            ax[2].axvspan(lo, hi, color="tab:green", alpha=0.08, label="band maximised")
+    ax[2].set_ylim(min(-20, float(np.nanmin(-_db(curves["ratio"]))) - 5),
+                   max(60, float(np.nanmax(-_db(curves["ratio"])[np.isfinite(curves["ratio"])]))
+                       + 5 if np.isfinite(curves["ratio"]).any() else 60))
+    ax[2].set_ylabel("rotation suppression [dB]")
+    ax[2].set_title("suppression of the mirror's rotation")
+    for a in ax:
+        a.set_xlabel("frequency [Hz]")
+        a.set_xlim(f[0], f[-1])
+        a.grid(True, which="both", alpha=0.3)
+        decade_axis(a)
+        a.legend(fontsize=7, loc="best")
+    fig.suptitle(f"design {d.targets.name}: {'every target met' if d.status == 'met' else 'nearest feasible design'}"
+                 f" (policy ({d.targets.policy}))")
+    return fig

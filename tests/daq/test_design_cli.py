@@ -1,0 +1,55 @@
+"""daq design (CliRunner): the scene, report, figure and JSON it writes, and one-line refusals."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from daq.cli import main
+from rig.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+PAPER = ROOT / "examples" / "design" / "ishizaki2009_targets.toml"
+
+
+def test_design_writes_a_scene_acquire_takes_a_report_and_a_figure(tmp_path):
+    out, rep, png = tmp_path / "s.toml", tmp_path / "d.md", tmp_path / "d.png"
+    res = CliRunner().invoke(main, ["design", str(PAPER), "--out", str(out), "--report",
+                                    str(rep), "--plot", str(png)])
+    assert res.exit_code == 0, res.output
+    assert "every target met" in res.output and "mu = 0.0918 is inconsistent" in res.output
+    sc = load_scene(out)
+    assert sc.pendulum_kind == "ishizaki" and sc.name == "ishizaki2009-designed"
+    text = rep.read_text()
+    assert "| mu | 0.0918 |" in text and "inconsistent" in text and "![design](d.png)" in text
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_design_json_is_plain_data():
+    res = CliRunner().invoke(main, ["design", str(PAPER), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    assert data["status"] == "met" and data["groups"]["mu"] > 0.12
+    assert data["checks"][-1]["status"] == "inconsistent"
+
+
+def test_bad_targets_file_is_one_line(tmp_path):
+    bad = tmp_path / "t.toml"
+    bad.write_text("[targets]\nf1_hz = \"fast\"\n")
+    res = CliRunner().invoke(main, ["design", str(bad)])
+    assert res.exit_code == 1
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and "targets.f1_hz = 'fast' is invalid" in lines[0]
+    assert "Traceback" not in res.output
+    res = CliRunner().invoke(main, ["design", str(tmp_path / "missing.toml")])
+    assert res.exit_code == 1 and "does not exist" in res.output
+
+
+def test_design_does_not_overwrite_without_force(tmp_path):
+    out = tmp_path / "s.toml"
+    out.write_text("keep")
+    res = CliRunner().invoke(main, ["design", str(PAPER), "--out", str(out)])
+    assert res.exit_code == 1 and "exists; pass --force" in res.output
+    assert out.read_text() == "keep"
