@@ -40,9 +40,13 @@ def _write_text(path: Path, text: str, force: bool) -> None:
               help="Write the design report (markdown).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the design's responses against its targets (PNG).")
+@click.option("--tradeoffs", "tradeoffs_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Write the trade-off sweeps (alpha, f2/f1, sigma^2) and policy (i) against "
+                   "(ii) into this directory: tradeoffs.png, tradeoffs_*.csv, policies.png, "
+                   "policies.csv.")
 @click.option("--json", "as_json", is_flag=True, help="Print the design as JSON.")
 @force_option
-def design(targets_path, out, report_path, plot_path, as_json, force):
+def design(targets_path, out, report_path, plot_path, tradeoffs_dir, as_json, force):
     """Design a double physical pendulum (Ishizaki et al. 2009) from TARGETS.toml.
 
     The paper's relations are solved exactly where the targets determine the design; what they
@@ -72,10 +76,13 @@ def design(targets_path, out, report_path, plot_path, as_json, force):
 
         f_hi = max([10.0 * d.inputs.f1_hz] + [s.band_hz[1] for s in targets.suppression]
                    + [t.freq_hz * 2 for t in targets.translation])
-        curves = design_curves(d, _grid(0.05 * d.inputs.f2_hz, f_hi))
+        curves = design_curves(d.chain, _grid(0.05 * d.inputs.f2_hz, f_hi))
         fig = design_figure(d, curves)
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
+    written = []
+    if tradeoffs_dir is not None:
+        written += write_tradeoffs(d, tradeoffs_dir, force=force)
     if report_path is not None:
         fig_ref = plot_path.name if plot_path is not None else None
         _write_text(report_path, design_markdown(d, figure=fig_ref), force)
@@ -83,9 +90,57 @@ def design(targets_path, out, report_path, plot_path, as_json, force):
         click.echo(json.dumps(design_dict(d), indent=2))
         return
     click.echo(_summary(d))
-    for p in (out, report_path, plot_path):
+    for p in (out, report_path, plot_path, *written):
         if p is not None:
             click.echo(f"wrote {p}")
+
+
+def write_tradeoffs(d, folder: Path, *, force: bool) -> list[Path]:
+    """The sweeps and the policy pair of design ``d`` as figures and CSV in ``folder``."""
+    import numpy as np
+
+    from processing.design_plots import policy_figure, tradeoff_figure
+    from rig._io import write_columns_csv
+    from rig.design.report import design_curves
+    from rig.design.tradeoffs import SWEEPS, policy_pair, sweep
+    from rig.ishizaki import design_parameters
+
+    folder.mkdir(parents=True, exist_ok=True)
+    names = ["tradeoffs.png", "policies.png", "policies.csv"] + [f"tradeoffs_{g}.csv"
+                                                                for g in SWEEPS]
+    for n in names:
+        check_writable(folder / n, force=force)
+    band = d.targets.suppression[0].band_hz if d.targets.suppression else None
+    sweeps = [sweep(d.inputs, g, band_hz=band) for g in SWEEPS]
+    out = []
+    for s in sweeps:
+        cols = s.columns()
+        out.append(write_columns_csv(folder / f"tradeoffs_{s.group}.csv", list(cols),
+                                     list(cols.values()), force=force))
+    fig = tradeoff_figure(sweeps, title=f"{d.targets.name}: trade-offs on the exact linear model "
+                          "(others held: α, ν, σ², ε, f1)")
+    with atomic_output(folder / "tradeoffs.png", force=force) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    out.append(folder / "tradeoffs.png")
+    chains = [x.chain() for x in policy_pair(d.inputs)]
+    grid = _grid(0.05 * d.inputs.f2_hz, 20 * d.inputs.f1_hz)
+    ci, cii = (design_curves(c, grid) for c in chains)
+    s2 = design_parameters(chains[0]).sigma2
+    fig = policy_figure(ci, cii, labels=(f"policy (i): σ² = {s2:.3f}",
+                                         "policy (ii): σ² = 1 (J1 = 0)"),
+                        title=f"{d.targets.name}: policy (i) against (ii), α, ν, ε, f1 held")
+    with atomic_output(folder / "policies.png", force=force) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    out.append(folder / "policies.png")
+    cols = {"frequency_hz": grid}
+    for tag, c in (("i", ci), ("ii", cii)):
+        with np.errstate(divide="ignore"):
+            cols[f"x_db_{tag}"] = 20 * np.log10(np.abs(c["x"]))
+            cols[f"theta2_db_{tag}"] = 20 * np.log10(np.abs(c["theta2"]))
+            cols[f"suppression_db_{tag}"] = -20 * np.log10(np.abs(c["ratio"]))
+    out.append(write_columns_csv(folder / "policies.csv", list(cols), list(cols.values()),
+                                 force=force))
+    return out
 
 
 def _grid(lo, hi):

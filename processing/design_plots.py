@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
 from processing.plots import decade_axis
 
@@ -71,4 +72,79 @@ def design_figure(d, curves: dict) -> Figure:
         a.legend(fontsize=7, loc="best")
     fig.suptitle(f"design {d.targets.name}: {'every target met' if d.status == 'met' else 'nearest feasible design'}"
                  f" (policy ({d.targets.policy}))")
+    return fig
+
+
+def tradeoff_figure(sweeps, *, title: str = "") -> Figure:
+    """Columns: the sweeps (alpha, nu, sigma^2; log x); rows: rotation suppression in the band
+    with the exact limit and claim (29), the translation's largest departure from one pendulum,
+    the Theta_2 notch's frequency and its depth. The design's own value is a vertical line."""
+    n = len(sweeps)
+    fig = Figure(figsize=(4.4 * n, 11), layout="constrained")
+    ax = fig.subplots(4, n, squeeze=False, sharex="col")
+    for j, s in enumerate(sweeps):
+        v = s.values
+        a = ax[0, j]
+        a.semilogx(v, s.suppression_db, "k", lw=1.5,
+                   label=f"worst in {s.band_hz[0]:.3g}-{s.band_hz[1]:.3g} Hz (exact)")
+        a.semilogx(v, np.where(np.isfinite(s.limit_db), s.limit_db, np.nan), color="tab:purple",
+                   ls=":", lw=1.5, label="exact limit above f1")
+        a.semilogx(v, s.alpha_db, color="tab:orange", ls="--", lw=1,
+                   label="claim (29): -20 log10 α")
+        a.set_ylabel("rotation suppression [dB]")
+        ax[1, j].loglog(v, s.translation_dev_db, "k", lw=1.5)
+        ax[1, j].set_ylabel("max |20 log10 |x/x_single|| [dB]")
+        fin = np.isfinite(s.notch_hz)
+        ax[2, j].loglog(v[fin], s.notch_hz[fin], color="tab:green", lw=1.5,
+                        label="Θ₂ notch")
+        ax[2, j].loglog(v, s.modes_hz[:, 0], color="tab:blue", ls=":", label="mode 1")
+        ax[2, j].loglog(v, s.modes_hz[:, 1], color="tab:red", ls=":", label="mode 2")
+        if not fin.all():
+            ax[2, j].annotate("notch at infinity (σ² = 1)", xy=(v[~fin][0], s.modes_hz[-1, 1]),
+                              fontsize=7, ha="right", va="bottom")
+        ax[2, j].set_ylabel("frequency [Hz]")
+        ax[3, j].semilogx(v[fin], s.notch_depth_db[fin], color="tab:green", lw=1.5)
+        ax[3, j].set_ylabel("notch depth [dB]")
+        ax[3, j].set_xlabel(s.group.replace("sigma2", "σ²").replace("alpha", "α = r2/r1")
+                            .replace("nu", "ν = f2/f1"))
+        for i in (1, 2):
+            ax[i, j].yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:g}"))
+            ax[i, j].yaxis.set_minor_formatter(FuncFormatter(lambda y, _: ""))
+        for i in range(4):
+            ax[i, j].axvline(s.design_value, color="0.5", lw=1, ls="-.",
+                             label="the design" if i in (0, 2) else None)
+            ax[i, j].grid(True, which="both", alpha=0.3)
+        ax[0, j].legend(fontsize=7)
+        ax[2, j].legend(fontsize=7)
+        ax[0, j].set_title("sweep of " + {"alpha": "α", "nu": "ν", "sigma2": "σ²"}[s.group])
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def policy_figure(curves_i: dict, curves_ii: dict, *, labels=("policy (i)", "policy (ii)"),
+                  title: str = "") -> Figure:
+    """Policy (i) and (ii) side by side: translation, |Theta_2| and the rotation suppression on
+    log frequency, (i) solid and (ii) dashed (``curves_*``: :func:`rig.design.report.design_curves`
+    of each)."""
+    fig = Figure(figsize=(13, 4.6), layout="constrained")
+    ax = fig.subplots(1, 3)
+    for c, lab, ls in ((curves_i, labels[0], "-"), (curves_ii, labels[1], "--")):
+        f = c["freqs_hz"]
+        ax[0].semilogx(f, _db(c["x"]), "k", ls=ls, lw=1.3, label=lab)
+        ax[1].semilogx(f, _db(c["theta2"]), "k", ls=ls, lw=1.3, label=lab)
+        ax[2].semilogx(f, -_db(c["ratio"]), "k", ls=ls, lw=1.3, label=lab)
+    ax[0].set_ylabel("|x / x0''| [dB re 1 m/(m/s^2)]")
+    ax[0].set_title("mirror translation")
+    ax[1].set_ylabel("|Θ₂| [dB re 1 rad/(m/s^2)]")
+    ax[1].set_title("mirror rotation")
+    ax[2].set_ylabel("-20 log10|θ₂/θ₁| [dB]")
+    ax[2].set_title("rotation suppression")
+    for a in ax:
+        a.set_xlabel("frequency [Hz]")
+        a.grid(True, which="both", alpha=0.3)
+        decade_axis(a)
+        a.legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
     return fig

@@ -149,12 +149,13 @@ def design_markdown(d: Design, *, figure: str | None = None) -> str:
     return "\n".join(out) + "\n"
 
 
-def design_curves(d: Design, freqs_hz) -> dict:
-    """The exact responses of the design on ``freqs_hz`` [Hz]: ``theta1``, ``theta2`` [rad per
-    m/s^2], ``ratio`` theta2/theta1 [-], ``x`` the mirror's translation [m per m/s^2]."""
+def design_curves(chain, freqs_hz) -> dict:
+    """The exact responses of a design's 2-body ``chain`` (absolute damping) on ``freqs_hz``
+    [Hz]: ``theta1``, ``theta2`` [rad per m/s^2], ``ratio`` theta2/theta1 [-], ``x`` the mirror's
+    translation at O2 [m per m/s^2]."""
     from rig.design.model import Pendulums
 
-    p = Pendulums.from_chain(d.chain)
+    p = Pendulums.from_chain(chain)
     f = np.asarray(freqs_hz, float)
     t1, t2 = p.angles(f)
     return {"freqs_hz": f, "theta1": t1[0], "theta2": t2[0], "ratio": p.rotation_ratio(f)[0],

@@ -53,3 +53,13 @@ def test_design_does_not_overwrite_without_force(tmp_path):
     res = CliRunner().invoke(main, ["design", str(PAPER), "--out", str(out)])
     assert res.exit_code == 1 and "exists; pass --force" in res.output
     assert out.read_text() == "keep"
+
+
+def test_tradeoffs_write_figures_and_csv(tmp_path):
+    res = CliRunner().invoke(main, ["design", str(PAPER), "--tradeoffs", str(tmp_path / "t")])
+    assert res.exit_code == 0, res.output
+    names = sorted(p.name for p in (tmp_path / "t").iterdir())
+    assert names == ["policies.csv", "policies.png", "tradeoffs.png", "tradeoffs_alpha.csv",
+                     "tradeoffs_nu.csv", "tradeoffs_sigma2.csv"]
+    head = (tmp_path / "t" / "tradeoffs_nu.csv").read_text().splitlines()[0]
+    assert head.startswith("nu,suppression_db,limit_db,claim29_alpha_db")
