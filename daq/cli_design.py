@@ -44,9 +44,18 @@ def _write_text(path: Path, text: str, force: bool) -> None:
               help="Write the trade-off sweeps (alpha, f2/f1, sigma^2) and policy (i) against "
                    "(ii) into this directory: tradeoffs.png, tradeoffs_*.csv, policies.png, "
                    "policies.csv.")
+@click.option("--tolerances", "tolerances_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="A tolerance file: Monte Carlo of the design over it (yield, sensitivities).")
+@click.option("--samples", default=10000, show_default=True, type=click.IntRange(min=10),
+              help="Monte Carlo samples (with --tolerances).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the Monte Carlo.")
+@click.option("--mc-out", "mc_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Write the Monte Carlo's figure and samples (tolerances.png, .csv) here.")
 @click.option("--json", "as_json", is_flag=True, help="Print the design as JSON.")
 @force_option
-def design(targets_path, out, report_path, plot_path, tradeoffs_dir, as_json, force):
+def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_path, samples,
+           seed, mc_dir, as_json, force):
     """Design a double physical pendulum (Ishizaki et al. 2009) from TARGETS.toml.
 
     The paper's relations are solved exactly where the targets determine the design; what they
@@ -60,7 +69,15 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, as_json, fo
     for p in (out, report_path, plot_path):
         if p is not None:
             check_writable(p, force=force)
+    if mc_dir is not None and tolerances_path is None:
+        raise click.UsageError("--mc-out needs --tolerances FILE")
     targets = parse_targets(_read_text(targets_path, "targets"), source=str(targets_path))
+    tol = None
+    if tolerances_path is not None:
+        from rig.design.tolerance import parse_tolerances
+
+        tol = parse_tolerances(_read_text(tolerances_path, "tolerance"),
+                               source=str(tolerances_path))
     d = make_design(targets)
     scene_text = design_scene_toml(d, header=f"designed by daq design from {targets_path}")
     if out is not None:
@@ -81,15 +98,24 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, as_json, fo
         with atomic_output(plot_path, force=force) as tmp:
             fig.savefig(tmp, dpi=120, format="png")
     written = []
+    mc_text, mc_data = "", None
+    if tol is not None:
+        mc_text, mc_data, files = run_tolerances(d, tol, samples, seed, mc_dir, force=force)
+        written += files
     if tradeoffs_dir is not None:
         written += write_tradeoffs(d, tradeoffs_dir, force=force)
     if report_path is not None:
         fig_ref = plot_path.name if plot_path is not None else None
-        _write_text(report_path, design_markdown(d, figure=fig_ref), force)
+        _write_text(report_path, design_markdown(d, figure=fig_ref) + mc_text, force)
     if as_json:
-        click.echo(json.dumps(design_dict(d), indent=2))
+        data = design_dict(d)
+        if mc_data is not None:
+            data["tolerances"] = mc_data
+        click.echo(json.dumps(data, indent=2))
         return
     click.echo(_summary(d))
+    if mc_text:
+        click.echo(mc_text.rstrip())
     for p in (out, report_path, plot_path, *written):
         if p is not None:
             click.echo(f"wrote {p}")
@@ -141,6 +167,51 @@ def write_tradeoffs(d, folder: Path, *, force: bool) -> list[Path]:
     out.append(write_columns_csv(folder / "policies.csv", list(cols), list(cols.values()),
                                  force=force))
     return out
+
+
+def run_tolerances(d, tol, samples, seed, folder, *, force):
+    """The Monte Carlo and sensitivities of ``d``: (markdown text, data, files written)."""
+    import numpy as np
+
+    from rig._io import write_columns_csv
+    from rig.design.tolerance import monte_carlo, sensitivities
+
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+        for n in ("tolerances.png", "tolerances.csv"):
+            check_writable(folder / n, force=force)
+    mc = monte_carlo(d, tol, samples=samples, seed=seed)
+    sens = sensitivities(d, tol)
+    summ = mc.summary()
+    lines = ["", f"## Tolerances: Monte Carlo of {samples} pendulums (seed {seed})", "",
+             f"Yield {100 * mc.yield_:.2f} % (95 % interval {100 * mc.yield_ci[0]:.2f}-"
+             f"{100 * mc.yield_ci[1]:.2f} %); {int((~mc.physical).sum())} samples not rigid "
+             "bodies.", "", "| output | mean | std | 5 % | 50 % | 95 % |", "|---|---|---|---|---|---|"]
+    for k, v in summ.items():
+        if v.get("finite"):
+            lines.append(f"| {k} [{mc.units[k]}] | {v['mean']:.5g} | {v['std']:.3g} | "
+                         f"{v['p5']:.5g} | {v['p50']:.5g} | {v['p95']:.5g} |")
+    lines += ["", "| output | most sensitive to (d output/d p, x spread) |", "|---|---|"]
+    for k, rows in sens.items():
+        lines.append(f"| {k} | " + "; ".join(f"{r.parameter}: {r.derivative:.3g} x "
+                                             f"{r.spread:.3g} = {r.contribution:.3g}"
+                                             for r in rows[:3]) + " |")
+    files = []
+    if folder is not None:
+        from processing.design_plots import tolerance_figure
+
+        fig = tolerance_figure(mc, sens, d, tol)
+        with atomic_output(folder / "tolerances.png", force=force) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+        cols = {**{f"p_{k}": v for k, v in mc.samples.items()}, **mc.outputs,
+                "passed": mc.passed.astype(float)}
+        files = [folder / "tolerances.png",
+                 write_columns_csv(folder / "tolerances.csv", list(cols), list(cols.values()),
+                                   force=force)]
+    data = {"samples": samples, "seed": seed, "yield": mc.yield_, "yield_ci95": list(mc.yield_ci),
+            "not_rigid": int((~mc.physical).sum()), "summary": summ,
+            "sensitivities": {k: [r.__dict__ for r in rows] for k, rows in sens.items()}}
+    return "\n".join(lines) + "\n", data, files
 
 
 def _grid(lo, hi):

@@ -148,3 +148,51 @@ def policy_figure(curves_i: dict, curves_ii: dict, *, labels=("policy (i)", "pol
     if title:
         fig.suptitle(title)
     return fig
+
+
+def tolerance_figure(mc, sens: dict, d, tol) -> Figure:
+    """The Monte Carlo's distributions (the two modes, the first suppression band, the notch)
+    with the acceptance windows and targets, and the sensitivity ranking of the suppression (or
+    of the upper mode without a band): ``mc`` :class:`rig.design.tolerance.MonteCarlo`, ``sens``
+    :func:`rig.design.tolerance.sensitivities`."""
+    fig = Figure(figsize=(13, 7.5), layout="constrained")
+    ax = fig.subplots(2, 3)
+    panels = [("f_mode1_hz", "lower mode [Hz]", tol.accept.get("f2_hz")),
+              ("f_mode2_hz", "upper mode [Hz]", tol.accept.get("f1_hz")),
+              ("suppression1_db", "rotation suppression, band 1 [dB]", None),
+              ("notch_hz", "Θ₂ notch [Hz]", None),
+              ("notch_depth_db", "Θ₂ notch depth [dB]", None)]
+    sup = d.targets.suppression[0].min_db if d.targets.suppression else None
+    for a, (key, label, window) in zip(ax.flat, panels):
+        v = mc.outputs.get(key)
+        if v is None:
+            a.set_visible(False)
+            continue
+        v = v[np.isfinite(v)]
+        a.hist(v, bins=60, color="0.35")
+        a.axvline(float(getattr(d, "modes_hz", (np.nan, np.nan))[0] if key == "f_mode1_hz" else
+                        d.modes_hz[1] if key == "f_mode2_hz" else np.median(v)),
+                  color="k", ls="-.", lw=1, label="design" if key.startswith("f_") else "median")
+        if window:
+            for w in window:
+                a.axvline(w, color="tab:red", lw=1.2)
+            a.axvspan(*window, color="tab:green", alpha=0.08, label="accepted")
+        if key == "suppression1_db" and sup is not None:
+            a.axvline(sup, color="tab:red", lw=1.2, label=f"target {sup:g} dB")
+        a.set_xlabel(label)
+        a.set_ylabel("samples")
+        a.legend(fontsize=7)
+        a.grid(True, alpha=0.3)
+    key = "suppression1_db" if "suppression1_db" in sens else "f_mode2_hz"
+    rows = sens[key][:8][::-1]
+    a = ax.flat[5]
+    a.barh([r.parameter for r in rows], [r.contribution for r in rows], color="tab:blue")
+    a.set_xscale("log")
+    a.set_xlabel(f"|d {key} / d p| × spread of p [{mc.units[key]}]")
+    a.set_title("sensitivity ranking")
+    a.grid(True, which="both", alpha=0.3)
+    n = mc.passed.size
+    fig.suptitle(f"{d.targets.name}: Monte Carlo of {n} pendulums (seed {mc.seed}), yield "
+                 f"{100 * mc.yield_:.1f} % [{100 * mc.yield_ci[0]:.1f}, "
+                 f"{100 * mc.yield_ci[1]:.1f}] (95 %)")
+    return fig

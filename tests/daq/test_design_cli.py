@@ -63,3 +63,18 @@ def test_tradeoffs_write_figures_and_csv(tmp_path):
                      "tradeoffs_nu.csv", "tradeoffs_sigma2.csv"]
     head = (tmp_path / "t" / "tradeoffs_nu.csv").read_text().splitlines()[0]
     assert head.startswith("nu,suppression_db,limit_db,claim29_alpha_db")
+
+
+def test_tolerances_give_yield_sensitivities_and_files(tmp_path):
+    targets = ROOT / "examples" / "design" / "suppression_targets.toml"
+    tol = ROOT / "examples" / "design" / "tolerances.toml"
+    res = CliRunner().invoke(main, ["design", str(targets), "--tolerances", str(tol),
+                                    "--samples", "500", "--seed", "4", "--mc-out",
+                                    str(tmp_path / "mc"), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)["tolerances"]
+    assert data["samples"] == 500 and 0 <= data["yield"] <= 1
+    assert data["sensitivities"]["suppression1_db"][0]["parameter"] == "r2_m"
+    assert (tmp_path / "mc" / "tolerances.png").exists()
+    rows = (tmp_path / "mc" / "tolerances.csv").read_text().splitlines()
+    assert len(rows) == 501 and rows[0].startswith("p_r1_m,")
