@@ -3,6 +3,7 @@ figure, trade-offs, tolerance Monte Carlo and a virtual measurement of it."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -52,10 +53,17 @@ def _write_text(path: Path, text: str, force: bool) -> None:
               help="Seed of the Monte Carlo.")
 @click.option("--mc-out", "mc_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the Monte Carlo's figure and samples (tolerances.png, .csv) here.")
+@click.option("--verify", is_flag=True,
+              help="Acquire and analyse the designed scene (the emulated experiment) and report "
+                   "its measured modes and rotation suppression beside the designed ones.")
+@click.option("--verify-records", type=click.IntRange(min=3),
+              help="Records of the virtual measurement (default: the base scene's).")
+@click.option("--verify-record-s", type=click.FloatRange(min=10.0, min_open=False),
+              help="Seconds per record of the virtual measurement (default: the base's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the design as JSON.")
 @force_option
 def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_path, samples,
-           seed, mc_dir, as_json, force):
+           seed, mc_dir, verify, verify_records, verify_record_s, as_json, force):
     """Design a double physical pendulum (Ishizaki et al. 2009) from TARGETS.toml.
 
     The paper's relations are solved exactly where the targets determine the design; what they
@@ -104,6 +112,13 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_
         written += files
     if tradeoffs_dir is not None:
         written += write_tradeoffs(d, tradeoffs_dir, force=force)
+    ver = None
+    if verify:
+        from daq.cli_design_verify import verify_design
+
+        ver = verify_design(d, scene_text, seed=max(seed, 1), records=verify_records,
+                            record_s=verify_record_s)
+        mc_text += ver.markdown()
     if report_path is not None:
         fig_ref = plot_path.name if plot_path is not None else None
         _write_text(report_path, design_markdown(d, figure=fig_ref) + mc_text, force)
@@ -111,11 +126,19 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_
         data = design_dict(d)
         if mc_data is not None:
             data["tolerances"] = mc_data
+        if ver is not None:
+            data["verification"] = dataclasses.asdict(ver)
         click.echo(json.dumps(data, indent=2))
         return
     click.echo(_summary(d))
-    if mc_text:
-        click.echo(mc_text.rstrip())
+    if tol is not None:
+        click.echo(f"  tolerances: yield {100 * mc_data['yield']:.2f} % (95 % "
+                   f"{100 * mc_data['yield_ci95'][0]:.2f}-{100 * mc_data['yield_ci95'][1]:.2f} %) "
+                   f"of {samples} samples; most sensitive: " + ", ".join(
+                       f"{k} to {v[0]['parameter']}" for k, v in mc_data["sensitivities"].items()
+                       if v and k.startswith(("suppression", "f_mode"))))
+    if ver is not None:
+        click.echo("\n".join("  " + x for x in ver.lines()))
     for p in (out, report_path, plot_path, *written):
         if p is not None:
             click.echo(f"wrote {p}")
