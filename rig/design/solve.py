@@ -92,7 +92,8 @@ class PerformanceCheck:
 
     @property
     def met(self) -> bool:
-        return self.margin_db >= -1e-6
+        """No limit (as much as possible) or a margin >= 0 (to 1e-6 dB)."""
+        return self.limit_db is None or self.margin_db >= -1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,8 +175,8 @@ def performance(p: Pendulums, targets: Targets, f1: float, *, per_point: bool = 
     for s, lo, hi in _bands(targets, f1):
         grid = np.geomspace(lo, hi, _GRID)
         fz = float(p.theta1_zero_hz()[0])
-        if lo < fz < hi:
-            grid = np.sort(np.append(grid, fz))
+        if lo < fz < hi:  # Theta_1's zero (the ratio's peak) replaces its nearest point
+            grid[np.argmin(np.abs(np.log(grid / fz)))] = fz
         with np.errstate(divide="ignore"):
             sup = -20 * np.log10(np.abs(p.rotation_ratio(grid)[0]))
         limit = s.min_db
@@ -221,18 +222,26 @@ def _constraints(targets: Targets) -> list[tuple[str, callable]]:
         unit = VARIABLES[name][0]
         u_s = "" if unit == "-" else f" {unit}"
         what = "m1 > 0" if name == "eps" else "default range"
-        out.append((f"{name} >= {lo:g}{u_s} ({what})", lambda u, i=i, lo=math.log(lo): u[i] - lo))
+        shown_lo = "1 + 1e-6" if name == "eps" else f"{lo:g}"
+        out.append((f"{name} >= {shown_lo}{u_s} ({what})",
+                    lambda u, i=i, lo=math.log(lo): u[i] - lo))
         out.append((f"{name} <= {hi:g}{u_s} (default range)",
                     lambda u, i=i, hi=math.log(hi): hi - u[i]))
     a_s, c_s = monomial("sigma2", g)
     j1min, j2min = targets.j1_min_kgm2, targets.j2_min_kgm2
 
-    def j1(u):  # J1 = M r1^2 (1/sigma^2 - 1) >= j1min
-        return 1.0 - math.exp(a_s @ u + c_s) * (1.0 + j1min / (m * math.exp(2 * u[0])))
+    def log1p_exp(x):  # ln(1 + e^x) without overflow
+        return float(np.logaddexp(0.0, x))
 
-    def j2(u):  # J2 = m2 r2^2 (g/(r2 w2^2) - 1) >= j2min
-        s2b = math.exp(u[1] + 2 * u[3] + c_s)
-        return 1.0 - s2b * (1.0 + j2min * math.exp(u[4]) / (m * math.exp(2 * u[1])))
+    ln_j1, ln_j2 = (math.log(j / m) if j > 0 else None for j in (j1min, j2min))
+
+    def j1(u):  # J1 = M r1^2 (1/sigma^2 - 1) >= j1min, as -ln sigma^2 - ln(1 + j1min/(M r1^2))
+        extra = 0.0 if ln_j1 is None else log1p_exp(ln_j1 - 2 * u[0])
+        return -(a_s @ u + c_s) - extra
+
+    def j2(u):  # J2 = m2 r2^2 (g/(r2 w2^2) - 1) >= j2min, the same in logarithms
+        extra = 0.0 if ln_j2 is None else log1p_exp(ln_j2 + u[4] - 2 * u[1])
+        return -(u[1] + 2 * u[3] + c_s) - extra
 
     out.append((f"J1 >= {j1min:g} kg m^2 (sigma^2 <= {'1' if j1min == 0 else '1/(1 + J1min/(M r1^2))'}"
                 ": a rigid stage 1)", j1))
@@ -295,6 +304,15 @@ def _slsqp(fun, x0, cons_fun, **kw):
                     options={"maxiter": 300, "ftol": 1e-12}, **kw)
 
 
+_BOX = np.log(np.array(list(_DEFAULT_BOX.values())))  # (5, 2): ln lo, ln hi
+
+
+def _in_box(u):
+    """``u`` clipped into the default range: where the model is evaluated while an optimiser
+    explores outside it (the constraints still see the true ``u``)."""
+    return np.clip(u, _BOX[:, 0], _BOX[:, 1])
+
+
 def design(targets: Targets) -> Design:
     """The design of ``targets`` (module docstring): exact where the targets determine it,
     optimised on the exact linear model where they do not, the nearest feasible design where
@@ -315,10 +333,11 @@ def design(targets: Targets) -> Design:
             return float(np.sum(_residuals(rows, x) ** 2)) if rows else 0.0
 
         best = None
-        box = np.log(np.array(list(_DEFAULT_BOX.values())).T)
-        for start in (u, u_ref, np.clip(u, box[0] + 1e-3, box[1] - 1e-3)):
+        for start in (np.clip(u, _BOX[:, 0], _BOX[:, 1]), u_ref,
+                      np.clip(u, _BOX[:, 0] + 1e-3, _BOX[:, 1] - 1e-3)):
             scale = max(misfit(start), 1.0)
-            r = _slsqp(lambda x, s=scale: misfit(x) / s, start, lambda x: _cons_vec(cons, x))
+            r = _slsqp(lambda x, s=scale: misfit(x) / s, start, lambda x: _cons_vec(cons, x),
+                       bounds=list(map(tuple, _BOX)))
             if np.min(_cons_vec(cons, r.x)) > -1e-9 and (best is None or
                                                         misfit(r.x) < misfit(best.x)):
                 best = r
@@ -380,6 +399,7 @@ def _policy_ii(u, rows, cons, targets):
 
 
 def _margins_of(u, targets, per_point):
+    u = _in_box(u)
     p = Pendulums(**_physical(u, targets), g_mps2=targets.g_mps2)
     return performance(p, targets, math.exp(u[2]), per_point=per_point)
 
@@ -443,6 +463,27 @@ def _snap(u, targets):
     return u
 
 
+def _degeneracies(p: DesignParameters, modes_hz, targets: Targets) -> list[str]:
+    """Statements for a design near the paper's hard cases (SPEC section 7)."""
+    out = []
+    if 1 - p.beta2 < 1e-3:
+        out.append(f"beta^2 = {p.beta2:.6g} -> 1: the mass matrix is nearly singular (det H / "
+                   f"(D1 I2) = 1 - beta^2 = {1 - p.beta2:.3g}); the upper mode goes to "
+                   f"{modes_hz[1]:.4g} Hz as the two stages lock together (beta^2 <= 1/eps "
+                   "always, so this needs m1 << m2, sigma^2 -> 1 and r2 omega2^2/g -> 1)")
+    if abs(p.nu - 1) < 0.05:
+        out.append(f"nu = {p.nu:.6g} ~ 1: the stages' frequencies coincide, the modes split to "
+                   f"{modes_hz[0]:.4g} and {modes_hz[1]:.4g} Hz through the coupling (beta) and "
+                   "policy (i)'s omega2 << omega1 is not met")
+    elif p.nu > 1:
+        out.append(f"nu = {p.nu:.4g} > 1: stage 2 is stiffer than stage 1, against policy (i) "
+                   "(omega2 << omega1)")
+    if targets.policy == "i" and 1 - p.sigma2 < 1e-6:
+        out.append(f"sigma^2 = {p.sigma2:.9g} ~ 1: J1 ~ 0, the Theta_2 notch moves to infinity "
+                   "(the closed forms (20), (21) divide by ~0; the exact model does not)")
+    return out
+
+
 def _assemble(u, targets, rows, excluded, cons, optimised, notes) -> Design:
     r1, r2, f1, f2, eps = (float(x) for x in np.exp(u))
     leq1 = targets.g_mps2 / (2 * math.pi * f1) ** 2
@@ -472,6 +513,7 @@ def _assemble(u, targets, rows, excluded, cons, optimised, notes) -> Design:
                                   (s2 - 1) / _POLICY_II_TOL, "met" if ok else "missed"))
     perf = tuple(PerformanceCheck(w, v, lim, m) for w, v, lim, m in
                  performance(p, targets, f1, per_point=False))
+    notes += _degeneracies(params, fm[0], targets)
     binding = [label for label, f in cons if f(u) <= _ACTIVE]
     if optimised and perf:
         worst = min(perf, key=lambda c: c.margin_db)
