@@ -52,8 +52,12 @@ def design_figure(d, curves: dict) -> Figure:
     if math.isfinite(iso.ratio_db):
         ax[2].axhline(-iso.ratio_db, color="tab:purple", ls=":", lw=1,
                       label=f"exact limit above f1: {-iso.ratio_db:.1f} dB")
-    for s in d.targets.suppression:
-        lo, hi = s.band_hz
+    bands = [s.band_hz for s in d.targets.suppression]
+    if not d.targets.suppression and not d.targets.translation:
+        bands_default = (1.5 * d.inputs.f1_hz, 10 * d.inputs.f1_hz)
+        ax[2].axvspan(*bands_default, color="0.5", alpha=0.08,
+                      label="default band of the report")
+    for s, (lo, hi) in zip(d.targets.suppression, bands):
         if s.min_db is not None:
             ax[2].fill_between([lo, hi], [s.min_db] * 2, [s.min_db - 200] * 2, color="tab:red",
                                alpha=0.12, lw=0, label=f"not allowed: < {s.min_db:g} dB in band")

@@ -1,12 +1,8 @@
 """From targets to a design: the paper's relations solved exactly, the rest optimised on the exact model.
 
-With l = r1 (O2 at G1) every design variable of :data:`rig.design.targets.VARIABLES` is a
-monomial in the five independent ones, ``u = ln(r1, r2, f1, f2, eps)`` (g fixed)::
-
-    alpha = r2/r1   nu = f2/f1   sigma^2 = r1 w1^2/g   beta^2 = alpha sigma^4 nu^2/eps
-    mu = alpha/(eps nu^2)   delta = alpha sigma^2/eps          (w1 = 2 pi f1)
-
-so the fixed targets are linear equations ``A u = b`` in logarithms. :func:`design` solves them:
+With l = r1 every design variable is a monomial in ``u = ln(r1, r2, f1, f2, eps)``
+(:mod:`rig.design.relations`), so the fixed targets are linear equations ``A u = b`` in
+logarithms. :func:`design` solves them:
 
 1. exactly (``lstsq``; the part of ``u`` they leave free is taken from the paper's design). An
    over-determined set is fitted by weighted least squares, each equation weighted by its
@@ -16,14 +12,15 @@ so the fixed targets are linear equations ``A u = b`` in logarithms. :func:`desi
 2. If that violates a bound or a rigid body's J1 >= j1_min (sigma^2 <= 1 for J1 = 0), J2 >= j2_min
    or m1 > 0: the nearest feasible design in the same weighted sense (SLSQP), naming the binding
    constraints and the targets it misses.
-3. Directions the targets leave free are optimised against the performance targets with the exact
-   linear model (:class:`rig.design.model.Pendulums`): first the worst margin is maximised (its
-   optimum says what limits the design); if every target can be met with ``margin_db``, the design
-   closest to the paper's that keeps that margin is returned. Without a performance target the
-   default objective is the most rotation suppression over 1.5 f1 .. 10 f1.
-
-Policy (ii) adds sigma^2 = 1, i.e. J1 = 0 (stage 1's mass at G1); with ``j1_min_kgm2 > 0`` it
-cannot be met and the nearest design (sigma^2 at its bound) is returned with that statement.
+3. Policy (ii) adds sigma^2 = 1, i.e. J1 = 0 (stage 1's mass at G1), solved exactly along what
+   the targets leave free; with ``j1_min_kgm2 > 0``, or targets that fix sigma^2, it cannot be
+   met and the nearest design is returned with that statement.
+4. Directions still free are optimised against the performance targets on the exact linear
+   model (:class:`rig.design.model.Pendulums`): first the worst margin is maximised (its optimum
+   says what limits the design); if every target can be met with ``margin_db``, the design
+   closest to the paper's that keeps that margin is returned (for a target asking for as much
+   as possible: the closest within 0.1 dB of the best). Without any performance target the free
+   variables keep the paper's design's values, and the report says so.
 """
 
 from __future__ import annotations
@@ -37,33 +34,17 @@ from scipy.optimize import minimize
 
 from rig.chain import Chain
 from rig.design.model import Pendulums
-from rig.design.targets import VARIABLES, SuppressionTarget, Targets
+from rig.design.relations import (
+    INDEPENDENT, LN_BOX, constraint_values, constraints, in_box, monomial,
+    performance, performance_bands, physical_of)
+from rig.design.targets import Targets
 from rig.errors import ConfigError
 from rig.ishizaki import FITTED_DESIGN, DesignInputs, DesignParameters, design_parameters
 
-__all__ = ["Design", "TargetCheck", "PerformanceCheck", "design", "monomial", "INDEPENDENT",
-           "pendulums_of", "performance"]
+__all__ = ["Design", "TargetCheck", "PerformanceCheck", "design", "pendulums_of"]
 
-INDEPENDENT = ("r1_m", "r2_m", "f1_hz", "f2_hz", "eps")
-#: name -> exponents of (r1, r2, f1, f2, eps); the constant is (power of sigma^2) ln(4 pi^2/g)
-_EXPONENTS = {
-    "r1_m": ((1, 0, 0, 0, 0), 0), "r2_m": ((0, 1, 0, 0, 0), 0), "f1_hz": ((0, 0, 1, 0, 0), 0),
-    "f2_hz": ((0, 0, 0, 1, 0), 0), "eps": ((0, 0, 0, 0, 1), 0), "alpha": ((-1, 1, 0, 0, 0), 0),
-    "nu": ((0, 0, -1, 1, 0), 0), "sigma2": ((1, 0, 2, 0, 0), 1), "beta2": ((1, 1, 2, 2, -1), 2),
-    "mu": ((-1, 1, 2, -2, -1), 0), "delta": ((0, 1, 2, 0, -1), 1),
-}
-#: Bounds the optimiser never leaves (ln space), reported when they bind.
-_DEFAULT_BOX = {"r1_m": (1e-4, 10.0), "r2_m": (1e-7, 10.0), "f1_hz": (1e-3, 1e3),
-                "f2_hz": (1e-3, 1e3), "eps": (1.0 + 1e-6, 100.0)}
 _POLICY_II_TOL = 1e-6  # relative: sigma^2 = 1 to 1 ppm
 _ACTIVE = 1e-6
-_GRID = 96  # log-spaced points per suppression band
-
-
-def monomial(name: str, g_mps2: float) -> tuple[np.ndarray, float]:
-    """(a, c) with ``ln(variable) = a . ln(r1, r2, f1, f2, eps) + c`` (l = r1)."""
-    a, k = _EXPONENTS[name]
-    return np.asarray(a, float), k * math.log(4 * math.pi**2 / g_mps2)
 
 
 @dataclass(frozen=True)
@@ -138,122 +119,10 @@ class Design:
 
 # -- the exact model of one u ------------------------------------------------------------------
 
-def _physical(u, targets: Targets) -> dict:
-    r1, r2, f1, f2, eps = np.exp(u)
-    g, m = targets.g_mps2, targets.total_mass_kg
-    w1, w2 = 2 * math.pi * f1, 2 * math.pi * f2
-    m2 = m / eps
-    m1 = m - m2
-    j1 = m * r1 * (g / w1**2 - r1)
-    j2 = m2 * r2 * (g / w2**2 - r2)
-    s1 = m * r1
-    gam1 = 0.0 if math.isinf(targets.q1) else g * s1 / (w1 * targets.q1)
-    gam2 = 0.0 if math.isinf(targets.q2) else g * m2 * r2 / (w2 * targets.q2)
-    return dict(m1_kg=m1, m2_kg=m2, r1_m=r1, l_m=r1, r2_m=r2, j1_kgm2=max(j1, 0.0),
-                j2_kgm2=max(j2, 0.0), gamma1_nms=gam1, gamma2_nms=gam2)
-
-
 def pendulums_of(inputs: DesignInputs) -> Pendulums:
     """The one pendulum of ``inputs`` (l = r1 or its l_m) for the batched model."""
     return Pendulums.from_chain(inputs.chain())
 
-
-def _bands(targets: Targets, f1: float) -> list[tuple[SuppressionTarget, float, float]]:
-    sup = list(targets.suppression)
-    if not sup and not targets.translation:
-        sup = [SuppressionTarget((1.5 * f1, 10.0 * f1), None)]
-    return [(s, *s.band_hz) for s in sup]
-
-
-def performance(p: Pendulums, targets: Targets, f1: float, *, per_point: bool = False):
-    """The performance targets of ``targets`` on pendulum 0 of ``p``.
-
-    Returns a list of (description, value [dB], limit [dB] or None, margins [dB]) with ``margins``
-    the array over the band's grid (``per_point``) or its minimum.
-    """
-    out = []
-    for s, lo, hi in _bands(targets, f1):
-        grid = np.geomspace(lo, hi, _GRID)
-        fz = float(p.theta1_zero_hz()[0])
-        if lo < fz < hi:  # Theta_1's zero (the ratio's peak) replaces its nearest point
-            grid[np.argmin(np.abs(np.log(grid / fz)))] = fz
-        with np.errstate(divide="ignore"):
-            sup = -20 * np.log10(np.abs(p.rotation_ratio(grid)[0]))
-        limit = s.min_db
-        margins = sup - (limit if limit is not None else 0.0)
-        what = f"rotation suppression -20 log10|theta2/theta1| over {lo:.4g}-{hi:.4g} Hz"
-        out.append((what, float(sup.min()), limit, margins if per_point else float(margins.min())))
-    for t in targets.translation:
-        h = p.translation([t.freq_hz])[0, 0]
-        if t.response == "isolation":
-            h = 1 - (2 * math.pi * t.freq_hz) ** 2 * h
-            what = f"translation isolation |x_abs/x0| at {t.freq_hz:g} Hz"
-        else:
-            what = f"translation |x/x0''| at {t.freq_hz:g} Hz [dB re 1 m/(m/s^2)]"
-        db = float(20 * np.log10(abs(h)))
-        ms = []
-        if t.max_db is not None:
-            ms.append(t.max_db - db)
-        if t.min_db is not None:
-            ms.append(db - t.min_db)
-        limit = t.max_db if t.max_db is not None else t.min_db
-        out.append((what, db, limit, np.asarray(ms) if per_point else float(min(ms))))
-    return out
-
-
-# -- constraints ------------------------------------------------------------------------------
-
-def _constraints(targets: Targets) -> list[tuple[str, callable]]:
-    """(label, f(u) -> float >= 0) for every bound and rigid-body condition."""
-    g, m = targets.g_mps2, targets.total_mass_kg
-    out = []
-    for name, v in targets.variables.items():
-        a, c = monomial(name, g)
-        unit = VARIABLES[name][0]
-        u_s = "" if unit == "-" else f" {unit}"
-        if v.lo is not None:
-            out.append((f"{name} >= {v.lo:g}{u_s} (stated bound)",
-                        lambda u, a=a, c=c, lo=math.log(v.lo): a @ u + c - lo))
-        if v.hi is not None:
-            out.append((f"{name} <= {v.hi:g}{u_s} (stated bound)",
-                        lambda u, a=a, c=c, hi=math.log(v.hi): hi - a @ u - c))
-    for i, name in enumerate(INDEPENDENT):
-        lo, hi = _DEFAULT_BOX[name]
-        unit = VARIABLES[name][0]
-        u_s = "" if unit == "-" else f" {unit}"
-        what = "m1 > 0" if name == "eps" else "default range"
-        shown_lo = "1 + 1e-6" if name == "eps" else f"{lo:g}"
-        out.append((f"{name} >= {shown_lo}{u_s} ({what})",
-                    lambda u, i=i, lo=math.log(lo): u[i] - lo))
-        out.append((f"{name} <= {hi:g}{u_s} (default range)",
-                    lambda u, i=i, hi=math.log(hi): hi - u[i]))
-    a_s, c_s = monomial("sigma2", g)
-    j1min, j2min = targets.j1_min_kgm2, targets.j2_min_kgm2
-
-    def log1p_exp(x):  # ln(1 + e^x) without overflow
-        return float(np.logaddexp(0.0, x))
-
-    ln_j1, ln_j2 = (math.log(j / m) if j > 0 else None for j in (j1min, j2min))
-
-    def j1(u):  # J1 = M r1^2 (1/sigma^2 - 1) >= j1min, as -ln sigma^2 - ln(1 + j1min/(M r1^2))
-        extra = 0.0 if ln_j1 is None else log1p_exp(ln_j1 - 2 * u[0])
-        return -(a_s @ u + c_s) - extra
-
-    def j2(u):  # J2 = m2 r2^2 (g/(r2 w2^2) - 1) >= j2min, the same in logarithms
-        extra = 0.0 if ln_j2 is None else log1p_exp(ln_j2 + u[4] - 2 * u[1])
-        return -(u[1] + 2 * u[3] + c_s) - extra
-
-    out.append((f"J1 >= {j1min:g} kg m^2 (sigma^2 <= {'1' if j1min == 0 else '1/(1 + J1min/(M r1^2))'}"
-                ": a rigid stage 1)", j1))
-    out.append((f"J2 >= {j2min:g} kg m^2 (r2 w2^2/g <= 1: a rigid stage 2)", j2))
-    return out
-
-
-def _cons_vec(cons, u):
-    return np.array([f(u) for _, f in cons])
-
-
-# -- the solve ----------------------------------------------------------------------------------
 
 def _equations(targets: Targets, skip=()):
     rows = []
@@ -304,15 +173,6 @@ def _slsqp(fun, x0, cons_fun, **kw):
                     options={"maxiter": 300, "ftol": 1e-12}, **kw)
 
 
-_BOX = np.log(np.array(list(_DEFAULT_BOX.values())))  # (5, 2): ln lo, ln hi
-
-
-def _in_box(u):
-    """``u`` clipped into the default range: where the model is evaluated while an optimiser
-    explores outside it (the constraints still see the true ``u``)."""
-    return np.clip(u, _BOX[:, 0], _BOX[:, 1])
-
-
 def design(targets: Targets) -> Design:
     """The design of ``targets`` (module docstring): exact where the targets determine it,
     optimised on the exact linear model where they do not, the nearest feasible design where
@@ -327,18 +187,18 @@ def design(targets: Targets) -> Design:
         name = rows[bad][0]
         excluded[name] = math.exp(rows[bad][1] @ u + rows[bad][2])
         rows = rows[:bad] + rows[bad + 1:]
-    cons = _constraints(targets)
-    if np.min(_cons_vec(cons, u)) < 0:  # the exact solution is not buildable: nearest one
+    cons = constraints(targets)
+    if np.min(constraint_values(cons, u)) < 0:  # the exact solution is not buildable: nearest one
         def misfit(x):
             return float(np.sum(_residuals(rows, x) ** 2)) if rows else 0.0
 
         best = None
-        for start in (np.clip(u, _BOX[:, 0], _BOX[:, 1]), u_ref,
-                      np.clip(u, _BOX[:, 0] + 1e-3, _BOX[:, 1] - 1e-3)):
+        for start in (np.clip(u, LN_BOX[:, 0], LN_BOX[:, 1]), u_ref,
+                      np.clip(u, LN_BOX[:, 0] + 1e-3, LN_BOX[:, 1] - 1e-3)):
             scale = max(misfit(start), 1.0)
-            r = _slsqp(lambda x, s=scale: misfit(x) / s, start, lambda x: _cons_vec(cons, x),
-                       bounds=list(map(tuple, _BOX)))
-            if np.min(_cons_vec(cons, r.x)) > -1e-9 and (best is None or
+            r = _slsqp(lambda x, s=scale: misfit(x) / s, start, lambda x: constraint_values(cons, x),
+                       bounds=list(map(tuple, LN_BOX)))
+            if np.min(constraint_values(cons, r.x)) > -1e-9 and (best is None or
                                                         misfit(r.x) < misfit(best.x)):
                 best = r
         if best is None:
@@ -373,7 +233,7 @@ def _policy_ii(u, rows, cons, targets):
         return u, None, (f"policy (ii) needs sigma^2 = 1 but the fixed targets determine "
                          f"sigma^2 = r1 (2 pi f1)^2/g = {s2:.6g}: leave one of them free")
     exact = _lstsq(rows + [("policy (ii)", a_s, c_s, 0.0, _POLICY_II_TOL)], u)
-    if np.min(_cons_vec(cons, _snap(exact, targets))) > -1e-12:
+    if np.min(constraint_values(cons, _snap(exact, targets))) > -1e-12:
         u = _snap(exact, targets)
     else:  # J1 >= j1_min > 0: sigma^2 as near 1 as the bound allows, the targets kept
         b_used = a_used @ u
@@ -382,10 +242,10 @@ def _policy_ii(u, rows, cons, targets):
             return a_used @ x - b_used
 
         r = minimize(lambda x: float((a_s @ x + c_s) ** 2) * 1e4, u, method="SLSQP",
-                     constraints=[{"type": "ineq", "fun": lambda x: _cons_vec(cons, x)}]
+                     constraints=[{"type": "ineq", "fun": lambda x: constraint_values(cons, x)}]
                      + ([{"type": "eq", "fun": eq}] if rows else []),
                      options={"maxiter": 300, "ftol": 1e-16})
-        if np.min(_cons_vec(cons, r.x)) > -1e-9 and (not rows or np.max(np.abs(eq(r.x))) < 1e-9):
+        if np.min(constraint_values(cons, r.x)) > -1e-9 and (not rows or np.max(np.abs(eq(r.x))) < 1e-9):
             u = r.x
     s2 = math.exp(a_s @ u + c_s)
     row = ("policy (ii)", a_s, c_s, a_s @ u + c_s, _POLICY_II_TOL)
@@ -399,8 +259,8 @@ def _policy_ii(u, rows, cons, targets):
 
 
 def _margins_of(u, targets, per_point):
-    u = _in_box(u)
-    p = Pendulums(**_physical(u, targets), g_mps2=targets.g_mps2)
+    u = in_box(u)
+    p = Pendulums(**physical_of(u, targets), g_mps2=targets.g_mps2)
     return performance(p, targets, math.exp(u[2]), per_point=per_point)
 
 
@@ -417,7 +277,7 @@ def _optimise(u0, basis, targets, cons, u_ref):
                                _margins_of(u_of(z), targets, per_point=True)])
 
     def feasible(z):
-        return _cons_vec(cons, u_of(z))
+        return constraint_values(cons, u_of(z))
 
     t0 = float(np.min(margins(np.zeros(k))))
     x0 = np.append(np.zeros(k), t0)
@@ -430,7 +290,7 @@ def _optimise(u0, basis, targets, cons, u_ref):
     if worst < float(np.min(margins(np.zeros(k)))) - 1e-9:  # the optimiser did not improve
         z = np.zeros(k)
         worst = float(np.min(margins(z)))
-    maximise = any(s.min_db is None for s, *_ in _bands(targets, math.exp(u_of(z)[2])))
+    maximise = any(s.min_db is None for s, *_ in performance_bands(targets, math.exp(u_of(z)[2])))
     cap = worst - 0.1 if maximise else targets.margin_db
     if maximise or worst >= cap:
         b = _slsqp(lambda zz: float(np.sum((u_of(zz) - u_ref) ** 2)), z,

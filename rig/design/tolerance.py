@@ -35,7 +35,8 @@ import numpy as np
 
 from rig._check import integer, number, positive, shown
 from rig.design.model import Pendulums
-from rig.design.solve import Design, _bands
+from rig.design.relations import performance_bands
+from rig.design.solve import Design
 from rig.errors import ConfigError
 
 __all__ = ["TOLERANCED", "Tolerance", "Tolerances", "parse_tolerances", "MonteCarlo",
@@ -179,7 +180,7 @@ def _outputs(d: Design):
     """(name, unit, band or target) of every evaluated output, in order."""
     outs = [("f_mode1_hz", "Hz", None), ("f_mode2_hz", "Hz", None), ("notch_hz", "Hz", None),
             ("notch_depth_db", "dB", None)]
-    for i, (s, lo, hi) in enumerate(_bands(d.targets, d.inputs.f1_hz)):
+    for i, (s, lo, hi) in enumerate(performance_bands(d.targets, d.inputs.f1_hz)):
         outs.append((f"suppression{i + 1}_db", "dB", (s, lo, hi)))
     for i, t in enumerate(d.targets.translation):
         outs.append((f"translation{i + 1}_db", "dB", t))
