@@ -50,7 +50,7 @@ def _write_text(path: Path, text: str, force: bool) -> None:
 @click.option("--samples", default=10000, show_default=True, type=click.IntRange(min=10),
               help="Monte Carlo samples (with --tolerances).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
-              help="Seed of the Monte Carlo.")
+              help="Seed of the Monte Carlo and of the virtual measurement.")
 @click.option("--mc-out", "mc_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the Monte Carlo's figure and samples (tolerances.png, .csv) here.")
 @click.option("--verify", is_flag=True,
@@ -116,7 +116,7 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_
     if verify:
         from daq.cli_design_verify import verify_design
 
-        ver = verify_design(d, scene_text, seed=max(seed, 1), records=verify_records,
+        ver = verify_design(d, scene_text, seed=seed, records=verify_records,
                             record_s=verify_record_s)
         mc_text += ver.markdown()
     if report_path is not None:

@@ -374,6 +374,9 @@ def _assemble(u, targets, rows, excluded, cons, optimised, notes) -> Design:
     perf = tuple(PerformanceCheck(w, v, lim, m) for w, v, lim, m in
                  performance(p, targets, f1, per_point=False))
     notes += _degeneracies(params, fm[0], targets)
+    if targets.total_mass_free:
+        notes.append("total_mass_kg free: no response depends on it (with l = r1 it scales the "
+                     "masses, inertias and damping together); 0.1 kg taken")
     binding = [label for label, f in cons if f(u) <= _ACTIVE]
     if optimised and perf:
         worst = min(perf, key=lambda c: c.margin_db)

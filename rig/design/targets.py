@@ -113,6 +113,7 @@ class Targets:
     variables: dict = field(default_factory=dict)  # name -> VariableTarget, every VARIABLES key
     policy: str = "i"
     total_mass_kg: float = 0.1
+    total_mass_free: bool = False
     q1: float = 530.0
     q2: float = 100.0
     g_mps2: float = G_STANDARD
@@ -208,9 +209,13 @@ def targets_from_data(data: dict, *, half_units: dict | None = None,
         if not isinstance(design[key], str) or not design[key]:
             raise ConfigError(f"design.{key} = {shown(design[key])} is invalid: expected a "
                               "non-empty string")
+    mass = t.get("total_mass_kg", 0.1)
+    mass_free = mass == "free"
     return Targets(
-        variables=variables, policy=policy,
-        total_mass_kg=positive("targets.total_mass_kg", t.get("total_mass_kg", 0.1), unit="kg"),
+        variables=variables, policy=policy, total_mass_free=mass_free,
+        total_mass_kg=0.1 if mass_free else positive(
+            "targets.total_mass_kg", mass, unit="kg",
+            valid='a finite number > 0 kg, or "free" (it only scales the pendulum)'),
         q1=positive("targets.q1", t.get("q1", 530.0), allow_inf=True),
         q2=positive("targets.q2", t.get("q2", 100.0), allow_inf=True),
         g_mps2=positive("targets.g_mps2", t.get("g_mps2", G_STANDARD), unit="m/s^2"),
