@@ -85,7 +85,7 @@ def test_verify_measures_what_was_designed():
     their standard deviations of the design's exact modes once the fit method's own bias (its
     fit of the noiseless E[H1]) is taken off, the rotation reading within 5 of its standard
     deviation (Bendat-Piersol with line correlation) of the model's mean over the same lines."""
-    from daq.cli_design_verify import verify_design
+    from daq.cli.design_verify import verify_design
     from rig.design import design, design_scene_toml, parse_targets
 
     d = design(parse_targets((ROOT / "examples/design/suppression_targets.toml").read_text()))

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli_common import force_option
+from daq.cli.common import force_option
 from rig._io import atomic_output, check_writable
 
 
@@ -114,7 +114,7 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_
         written += write_tradeoffs(d, tradeoffs_dir, force=force)
     ver = None
     if verify:
-        from daq.cli_design_verify import verify_design
+        from daq.cli.design_verify import verify_design
 
         ver = verify_design(d, scene_text, seed=seed, records=verify_records,
                             record_s=verify_record_s)
