@@ -9,6 +9,8 @@ import math
 import tomllib
 from dataclasses import dataclass
 
+from rig.errors import ConfigError
+
 __all__ = ["Verification", "verify_design"]
 
 
@@ -94,8 +96,9 @@ def _band(d, rate_hz: float) -> tuple[float, float]:
     else:
         band = (start, min(3.3 * start, top))
     if band[1] <= 1.05 * band[0]:
-        raise RuntimeError(f"no band above the upper mode and the notch ({start:.3g} Hz) below "
-                           f"0.4 x the sample rate ({top:.3g} Hz) to read the rotation in")
+        raise ConfigError(f"--verify: no band above the upper mode and the notch ({start:.3g} Hz)"
+                          f" within the target band and below 0.4 x the sample rate "
+                          f"({top:.3g} Hz) to read the rotation in")
     return band
 
 
@@ -138,7 +141,8 @@ def verify_design(d, scene_text: str, *, seed: int = 1, records: int | None = No
         modes.append((fd, qd, m.f_hz, m.f_std_hz, m.q, m.q_std, f"{key} fit", bias))
     r = a.rotation
     if r is None:
-        raise RuntimeError("the analysis made no rotation reading: " + "; ".join(a.notes))
+        raise ConfigError("--verify: the analysis made no rotation reading: "
+                          + "; ".join(a.notes))
     notes = list(a.notes)
     if raised:
         notes.insert(0, f"source span raised to {src:.4g} Hz to drive the band read")

@@ -297,9 +297,11 @@ def _wilson(k: int, n: int) -> tuple[float, float]:
 def monte_carlo(d: Design, tol: Tolerances, *, samples: int, seed: int = 0) -> MonteCarlo:
     """N draws of the tolerances around design ``d``, evaluated at once (module docstring)."""
     values = samples_of(d, tol, samples, seed)
-    p = _pendulums(d, {k: np.where(np.isfinite(v), v, 0.0) for k, v in values.items()})
-    physical = p.physical & (values["q1"] > 0) & (values["q2"] > 0)
-    safe = _pendulums(d, {k: np.where(physical, v, _nominal(d)[k]) for k, v in values.items()})
+    nominal = _nominal(d)
+    q_ok = (values["q1"] > 0) & (values["q2"] > 0)  # a drawn Q <= 0 is no pendulum
+    p = _pendulums(d, {k: np.where(q_ok, v, nominal[k]) for k, v in values.items()})
+    physical = p.physical & q_ok
+    safe = _pendulums(d, {k: np.where(physical, v, nominal[k]) for k, v in values.items()})
     res = evaluate(d, safe)
     for k in res:  # a non-rigid sample has no outputs
         res[k] = np.where(physical, res[k], np.nan)

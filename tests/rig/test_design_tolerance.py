@@ -98,3 +98,12 @@ def test_unphysical_draws_fail_and_give_no_numbers(case):
 def test_bad_tolerance_files_name_the_key(text, pattern):
     with pytest.raises(ConfigError, match=pattern):
         parse_tolerances(text)
+
+
+def test_a_normal_q_that_crosses_zero_fails_its_samples_only(case):
+    d, _ = case
+    tol = parse_tolerances('[tolerances]\nq2 = { dist = "normal", rel = 0.8 }\n')
+    mc = monte_carlo(d, tol, samples=2000, seed=5)
+    bad = mc.samples["q2"] <= 0
+    assert bad.any() and np.array_equal(~mc.physical, bad)
+    assert np.isfinite(mc.outputs["f_mode1_hz"][~bad]).all()
