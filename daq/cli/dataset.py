@@ -160,3 +160,22 @@ def export_cmd(ds_dir, out_dir, fmt, window_s, hop_s, split_text, split_by, trut
         click.echo(f"{name}: {res.rows[name]} rows from {len(res.runs[name])} runs in "
                    f"{len(files)} shard(s)")
     click.echo(f"wrote {res.out_dir} (card: {res.card.name})")
+
+
+@dataset.command("index")
+@click.argument("ds_dir", metavar="DIR", type=click.Path(exists=True, file_okay=False,
+                                                         path_type=Path))
+@click.option("--chunks-url", metavar="URL",
+              help="Where readers find the run files: a folder URL ending in '/' "
+                   "(s3://bucket/ds/runs/ after copying DIR/runs there) [default: "
+                   "file://DIR/runs/].")
+@click.option("--force", is_flag=True, help="Replace an existing index.")
+def index_cmd(ds_dir, chunks_url, force):
+    """Index the finished dataset DIR as a Zarr v3 store of virtual references to its run
+    files' chunks (an Icechunk repository, DIR/index.icechunk; nothing is copied), which
+    xarray.open_zarr reads as one dataset. Needs pendulum-daq[zarr]."""
+    from processing.dataset.zarr_index import write_zarr_index
+
+    out = write_zarr_index(ds_dir, chunks_url=chunks_url, force=force)
+    click.echo(f"wrote {out} (xarray.open_zarr(icechunk session store); "
+               "processing.dataset.open_zarr_index)")

@@ -32,6 +32,7 @@ import numpy as np
 from rig.errors import ConfigError
 
 __all__ = ["ExportSettings", "ExportResult", "export_dataset", "parse_split", "assign_splits",
+           "manifest_runs",
            "FORMATS"]
 
 FORMATS = ("parquet", "npz")
@@ -145,7 +146,7 @@ def assign_splits(keys, split, seed: int) -> dict:
     return out
 
 
-def _manifest_rows(ds_dir: Path) -> tuple[list[dict], list[str], int]:
+def manifest_runs(ds_dir: Path) -> tuple[list[dict], list[str], int]:
     """The complete runs of the dataset: [{run, seed, file, params}], parameter keys, seed."""
     path = ds_dir / "manifest.h5"
     if not path.is_file():
@@ -222,7 +223,7 @@ def export_dataset(ds_dir: str | Path, out_dir: str | Path, settings: ExportSett
     exist or be empty). ``command``: how the dataset was made, for the card."""
     ds_dir, out_dir = Path(ds_dir), Path(out_dir)
     s = settings
-    rows, keys, seed = _manifest_rows(ds_dir)
+    rows, keys, seed = manifest_runs(ds_dir)
     if s.split_by is not None and s.split_by not in keys:
         raise ConfigError(f"split_by = {s.split_by!r} is not a varied parameter of this dataset;"
                           f" valid: {', '.join(keys) or '(none: the sweep varies nothing)'}")

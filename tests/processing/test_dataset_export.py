@@ -177,3 +177,61 @@ def test_the_cli_export_prints_each_split_and_writes_a_card(dataset_dir, tmp_pat
     card = (tmp_path / "cli" / "README.md").read_text()
     assert card.startswith("---\nconfigs:") and "| x | m |" in card
     assert "daq dataset export" in card and "--split train=0.8,test=0.2" in card
+
+
+# -- the Zarr v3 index: virtual references read in place by xarray.open_zarr ------------------
+
+def test_zarr_index_reads_the_run_files_values_in_place_through_xarray_open_zarr(dataset_dir):
+    import xarray as xr
+
+    from processing.dataset.zarr_index import INDEX, open_zarr_index, write_zarr_index
+
+    index = write_zarr_index(dataset_dir, force=True)
+    codes = open_zarr_index(dataset_dir, decode=False)
+    assert codes.sizes["run"] == len(LEVELS)
+    np.testing.assert_array_equal(codes["source.level_vrms"].values, LEVELS)
+    for r in (0, 4):
+        with h5py.File(dataset_dir / "runs" / f"run_{r:06d}.h5", "r") as h:
+            for c in ("a", "x", "y"):  # the stored int16 codes, through gzip and fletcher32
+                np.testing.assert_array_equal(codes[c].sel(run=r).values, h[f"entry/data/{c}"])
+            np.testing.assert_array_equal(codes["truth_mirror_x_m"].sel(run=r).values,
+                                          h["entry/truth/mirror_x_m"])
+            np.testing.assert_array_equal(codes["model_h_t_real"].sel(run=r).values,
+                                          h["entry/model/h_t_real"])
+    # decoded like the manifest: volts through the codes' scale_factor
+    volts = open_zarr_index(dataset_dir)
+    man = xr.open_dataset(dataset_dir / "manifest.h5", engine="h5netcdf")
+    np.testing.assert_array_equal(volts["y"].values, man["y"].values)
+    # nothing copied: the repository holds references, not the chunks
+    data_bytes = sum(f.stat().st_size for f in (dataset_dir / "runs").glob("*.h5"))
+    index_bytes = sum(f.stat().st_size for f in index.rglob("*") if f.is_file())
+    assert index_bytes < 0.1 * data_bytes, (index_bytes, data_bytes)
+    assert index.name == INDEX
+
+
+def test_zarr_index_names_the_files_where_readers_will_find_them(dataset_dir, tmp_path):
+    import shutil
+
+    from processing.dataset.zarr_index import open_zarr_index, write_zarr_index
+
+    elsewhere = tmp_path / "served" / "runs"
+    shutil.copytree(dataset_dir / "runs", elsewhere)
+    url = f"file://{elsewhere}/"
+    write_zarr_index(dataset_dir, chunks_url=url, force=True)
+    moved = open_zarr_index(dataset_dir, chunks_url=url, decode=False)
+    with h5py.File(elsewhere / "run_000002.h5", "r") as h:
+        np.testing.assert_array_equal(moved["a"].sel(run=2).values, h["entry/data/a"])
+    write_zarr_index(dataset_dir, force=True)  # back to the default for the other tests
+
+
+def test_zarr_index_cli_refuses_to_replace_an_index_and_a_url_without_a_folder(dataset_dir,
+                                                                              tmp_path):
+    from processing.dataset.zarr_index import write_zarr_index
+
+    write_zarr_index(dataset_dir, force=True)
+    p = _daq("dataset", "index", dataset_dir, cwd=tmp_path)
+    assert p.returncode == 1 and "index.icechunk exists" in p.stderr, p.stderr
+    p = _daq("dataset", "index", dataset_dir, "--force", "--chunks-url", "s3://bucket/runs",
+             cwd=tmp_path)
+    assert p.returncode == 1 and "must end with '/'" in p.stderr, p.stderr
+    assert "Traceback" not in p.stderr
