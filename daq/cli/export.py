@@ -21,17 +21,26 @@ from rig._io import check_writable
 @click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write every record of every channel in engineering units as UFF 58 time "
                    "responses (.uff/.unv, daq.uff).")
+@click.option("--oma", "oma_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the responses x [m], y [rad] only, records joined, as an output-only "
+                   "(OMA) data set (.npz: data, fs, and the bench's exact modes) that pyOMA2's "
+                   "SingleSetup(data, fs) takes (daq.oma).")
 @force_option
-def export(run, out_path, units, uff_path, force):
+def export(run, out_path, units, uff_path, oma_path, force):
     """Export the run file RUN's channels (finished records) in engineering units: to a netCDF
-    file (--out) and/or to UFF 58 time records (--uff). The run file is only read."""
+    file (--out), to UFF 58 time records (--uff) and/or as an output-only data set (--oma). The
+    run file is only read."""
     from daq.eu import write_eu_file
     from daq.hdf5 import read_run
     from daq.uff import write_time_uff
 
-    outputs = [p for p in (out_path, uff_path) if p is not None]
+    outputs = [p for p in (out_path, uff_path, oma_path) if p is not None]
     if not outputs:
-        raise click.UsageError("nothing to export: give --out FILE.nc and/or --uff FILE.uff")
+        raise click.UsageError("nothing to export: give --out FILE.nc, --uff FILE.uff and/or "
+                               "--oma FILE.npz")
+    if oma_path is not None and oma_path.suffix != ".npz":
+        raise click.BadParameter(f"{str(oma_path)!r}: an output-only data set is a NumPy .npz "
+                                 "file", param_hint="--oma")
     seen = {run.resolve()}
     for p in outputs:
         if p.resolve() in seen:
@@ -48,3 +57,9 @@ def export(run, out_path, units, uff_path, force):
         write_time_uff(recording, uff_path, source=run.name, force=force)
         click.echo(f"wrote {uff_path}: {recording.records * len(recording.header.names)} UFF 58 "
                    "time records in engineering units")
+    if oma_path is not None:
+        from daq.oma import write_oma_file
+
+        write_oma_file(recording, oma_path, force=force)
+        click.echo(f"wrote {oma_path}: x, y of {recording.records} records joined, with the "
+                   "bench's exact modes (pyOMA2: SingleSetup(z['data'], z['fs']))")
