@@ -74,10 +74,10 @@ class CoherenceBudget:
     n_averages: float
 
 
-def lever_coefficients(lever) -> dict:
-    """The optical lever's second-order coefficients (module docstring, mechanism 1): ``{"x": D
-    cos(phi) [m/rad^2], "y": cos(2 phi) / (D cos(phi)) [1/m]}``, with which the calibrated
-    channels read ``x = dx - coef_x theta^2`` and ``y = theta - coef_y dx theta``."""
+def lever_quadratic_coefficients(lever) -> dict[str, float]:
+    """The optical lever's second-order terms (module docstring, mechanism 1) as coefficients:
+    the calibrated channels read ``x = dx - c_x theta^2`` and ``y = theta - c_y dx theta``,
+    ``c_x = D cos(phi)`` [m/rad^2], ``c_y = cos(2 phi) / (D cos(phi))`` [1/m]."""
     phi, dist = lever.phi_rad, lever.distance_m
     return {"x": dist * math.cos(phi), "y": math.cos(2 * phi) / (dist * math.cos(phi))}
 
@@ -114,7 +114,7 @@ def coherence_budget(header, settings, bench, *, n_fft: int, n_averages: float) 
     noise = {"a": (acc.sensitivity_vpmps2 * acc.noise_mps2_rthz / vpu["a"]) ** 2,
              "x": (lever.gain_vpm * lever.noise_m_rthz / vpu["x"]) ** 2,
              "y": (lever.gain_vpm * lever.noise_m_rthz / vpu["y"]) ** 2}
-    coef = lever_coefficients(lever)
+    coef = lever_quadratic_coefficients(lever)
 
     f = np.arange(n_fft // 2 + 1) * (fs / n_fft)
     s_v = source.design_psd(f)

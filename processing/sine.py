@@ -18,7 +18,7 @@ exponentials are orthogonal, so DC and the other harmonics do not leak into ``Y_
   estimate the exact linear chain gives with the step's transient (the settling bias), and the
   optical lever's second-order prediction of the 2f components (x: ``-coef_x Theta^2 / 2``, y:
   ``-coef_y X Theta / 2`` for the mirror's phasors X, Theta at f:
-  :func:`processing.coherence_model.lever_coefficients`), through the filter at 2f.
+  :func:`processing.coherence_model.lever_quadratic_coefficients`), through the filter at 2f.
 
 Harmonics at or above half the output rate are not measured (NaN).
 
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from processing.coherence_model import lever_coefficients
+from processing.coherence_model import lever_quadratic_coefficients
 
 DB = 20.0 / math.log(10.0)
 
@@ -143,7 +143,7 @@ def analyze_point(record, truth, chain, lever, harmonics: int = 5) -> SinePointR
 
     g1, g2 = filter_response(chain, p.frequency_hz), filter_response(chain, 2 * p.frequency_hz)
     dx, th = steady[1] / g1, steady[2] / g1
-    cf = lever_coefficients(lever)
+    cf = lever_quadratic_coefficients(lever)
     lever_2f = np.array([-cf["x"] * th * th / 2, -cf["y"] * dx * th / 2]) * g2
     if 2 * p.frequency_hz >= rate / 2:
         lever_2f[:] = np.nan

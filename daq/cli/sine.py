@@ -15,7 +15,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli_common import force_option, set_option
+from daq.cli.common import force_option, set_option
 from rig.errors import ConfigError
 
 
