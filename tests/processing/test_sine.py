@@ -30,9 +30,10 @@ def _band(fmin, fmax, **kw):
                                                    **{**ACCURACY, **kw}), seed=2009)
 
 
-@pytest.mark.parametrize("fmin, fmax, target", [(2.40, 2.56, 2.4794), (4.55, 4.75, 4.6608)],
+@pytest.mark.parametrize("fmin, fmax, target, refined", [(2.40, 2.56, 2.4794, 4),
+                                                          (4.55, 4.75, 4.6608, 1.6)],
                          ids=["peak", "notch"])
-def test_sweep_matches_exact_response_at_peak_and_notch(fmin, fmax, target):
+def test_sweep_matches_exact_response_at_peak_and_notch(fmin, fmax, target, refined):
     # the grid's step here is (fmax/fmin)^(1/49): ~3 mHz at the peak, ~4 mHz at the notch;
     # auto resolution refines it where the response changes fast
     scene, sweep = _band(fmin, fmax)
@@ -51,9 +52,10 @@ def test_sweep_matches_exact_response_at_peak_and_notch(fmin, fmax, target):
         # auto level: the mirror's rotation within 20 % of 3e-4 rad, or the level at its cap
         y = abs(p.harmonics[2, 0])
         assert abs(y / 3e-4 - 1) <= 0.2 or p.level_vrms == pytest.approx(1.0), (p.frequency_hz, y)
-    # auto resolution: steps well below the grid's where the response turns fast
+    # auto resolution: steps below the grid's where the response turns fast (halved twice
+    # at the Q ~ 300 peak, at least once in the notch, whose 2 dB takes ~4 mHz)
     grid_step = fmin * ((fmax / fmin) ** (1 / 49) - 1)
-    assert np.min(np.diff(f)) < grid_step / 4
+    assert np.min(np.diff(f)) < grid_step / refined
     assert np.all(np.diff(f) > 0)  # up, in order
 
 
