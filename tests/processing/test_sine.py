@@ -170,3 +170,59 @@ def test_sweep_down_runs_the_grid_in_reverse():
     f = sweep.column("frequency_hz")
     assert f[0] == pytest.approx(2.0, rel=1e-3) and f[-1] == pytest.approx(1.0, rel=1e-3)
     assert np.all(np.diff(f) < 0)
+
+
+def test_sine_file_is_readable_while_the_sweep_writes_it(tmp_path):
+    # a SWMR reader opens the growing file after each point and finds at least
+    # points_complete rows in every per-point dataset
+    import h5py
+
+    from daq.sine_file import SineFileSink
+
+    file_sink = SineFileSink(tmp_path / "s.h5")
+    seen = []
+
+    class Follower:
+        def start(self, info):
+            pass
+
+        def point(self, row, record):
+            with h5py.File(file_sink.path, "r", swmr=True) as f:
+                n = int(f["entry/points_complete"][()])
+                rows = f["entry/sweep/h_t_gain_db"].shape[0]
+                seen.append((n, rows, f["entry/status"][()]))
+
+        def stop(self, status):
+            pass
+
+    scene = rig.load_scene("ishizaki2009", ["acquisition.model=linear"])
+    measure_sine(scene, SineSettings(fmin_hz=1.0, fmax_hz=2.0, points=3, level_vrms=0.05),
+                 seed=1, sinks=[file_sink, Follower()])
+    assert [s[0] for s in seen] == [1, 2, 3] and all(r >= n for n, r, _ in seen)
+    assert all(s[2] == b"acquiring" for s in seen)
+    with h5py.File(tmp_path / "s.h5", "r") as f:
+        assert f["entry/status"][()] == b"complete" and int(f["entry/points_complete"][()]) == 3
+
+
+def test_interrupted_sweep_keeps_its_finished_points(tmp_path):
+    from daq.sine_file import SineFileSink, read_sine
+
+    class CtrlC:
+        def start(self, info):
+            self.n = 0
+
+        def point(self, row, record):
+            self.n += 1
+            if self.n == 2:
+                raise KeyboardInterrupt
+
+        def stop(self, status):
+            pass
+
+    scene = rig.load_scene("ishizaki2009", ["acquisition.model=linear"])
+    with pytest.raises(KeyboardInterrupt):
+        measure_sine(scene, SineSettings(fmin_hz=1.0, fmax_hz=2.0, points=4, level_vrms=0.05),
+                     seed=1, sinks=[SineFileSink(tmp_path / "s.h5"), CtrlC()])
+    d = read_sine(tmp_path / "s.h5")
+    assert d["status"] == "interrupted" and d["points"] == 2  # the file sink wrote both
+    assert list(tmp_path.iterdir()) == [tmp_path / "s.h5"]  # no partial file left
