@@ -11,7 +11,9 @@ exponentials are orthogonal, so DC and the other harmonics do not leak into ``Y_
 - their random error: the residual after DC and harmonics 1..H has variance ``s_c^2`` (``N - 2H
   - 1`` degrees of freedom), so each part of ``Y_c1`` has the standard deviation ``s_c sqrt(2 /
   N)``, and the ratio's relative error (1 sigma, in gain and, in radians, in phase) is
-  ``sqrt(sum_c (s_c sqrt(2/N) / |Y_c1|)^2)`` over its two channels;
+  ``sqrt(sum_c (s_c sqrt(2/N) / |Y_c1|)^2)`` over its two channels (the residual also holds
+  what is left of the step's transient and harmonics above H: conservative after a short
+  settle);
 - the fundamental's share of the window's power per channel (the coherence-like ratio),
   ``|Y_c1|^2 / 2`` over the window's variance;
 - the truth beside it (:func:`rig.bench.sine.settling_bias`): the exact steady state and the
