@@ -1,10 +1,12 @@
 """Lazy re-exports for a package's ``__init__.py`` (PEP 562): a public name is imported from its
 module on first use and kept in the package's namespace, so importing the package costs no more
-than its directory."""
+than its directory. A public submodule is an attribute too, imported on first use, so
+``import daq; daq.hdf5.read_run`` works as written."""
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
 
 
 def lazy_exports(package: str, exports: dict[str, tuple[str, str]], namespace: dict):
@@ -15,7 +17,9 @@ def lazy_exports(package: str, exports: dict[str, tuple[str, str]], namespace: d
         try:
             module, attr = exports[name]
         except KeyError:
-            raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
+            if name.startswith("_") or importlib.util.find_spec(f"{package}.{name}") is None:
+                raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
+            return importlib.import_module(f"{package}.{name}")  # sets namespace[name] itself
         value = getattr(importlib.import_module(module), attr)
         namespace[name] = value
         return value
