@@ -141,10 +141,10 @@ class Hdf5Sink(Sink):
     path : the file to write.
     force : allow replacing an existing file (only once the new run is complete).
     compression_level : gzip level (with shuffle) of the channels and the clip and saturation
-        flags; 1 (default): the paper's run file 0.44 % larger than at level 4 for ~8 % less
-        CPU writing it (BENCHMARKS.md; its 12 MB of truth are not compressed).
+        flags; 1 (default): files slightly larger than at level 4 for less CPU writing them
+        (BENCHMARKS.md has both figures).
     truth_compression_level : gzip level of the truth; 0 (default): none -- float64 samples of
-        noise-driven signals shrink by ~11 % for ~0.03 s per 10^5 samples written.
+        noise-driven signals shrink little for the CPU their compression costs.
 
     After :meth:`stop`, :attr:`path` is the file that holds the run (None if none was kept).
     """
