@@ -9,8 +9,8 @@
 Extra arguments go to the job's last command: ``python3 tasks.py test -k analysis``,
 ``python3 tasks.py experiment --window uniform`` (to ``daq analyze``).
 
-The environment is ``.venv`` beside this file, created (and the package installed into it with its
-test and dask extras) on first use and refreshed when ``pyproject.toml`` changes; ``test`` also
+The environment is ``.venv`` beside this file, created (and the package installed into it with
+every extra: EXTRAS) on first use and refreshed when ``pyproject.toml`` changes; ``test`` also
 makes ``.venv-compat`` (an older h5py, to read the project's files with). Nothing outside this
 directory is installed except by ``setup-system``, which CI runs (``.ci/run``); without its
 packages the tests that need them skip, saying which package is missing.
@@ -35,8 +35,13 @@ def run(*cmd, **kw) -> None:
     subprocess.run([str(c) for c in cmd], check=True, cwd=ROOT, **kw)
 
 
+#: the package's extras ``.venv`` gets: every optional feature, and what the tests use
+EXTRAS = ("test", "plot", "uff", "xarray", "dask")
+
+
 def ensure_venv() -> None:
-    want = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+    pyproject = (ROOT / "pyproject.toml").read_bytes()
+    want = hashlib.sha256(pyproject + repr(EXTRAS).encode()).hexdigest()
     if STAMP.exists() and STAMP.read_text() == want and PY.exists():
         return
     if not PY.exists():
@@ -48,7 +53,7 @@ def ensure_venv() -> None:
             run(sys.executable, "-m", "venv", "--clear", "--without-pip", VENV)
     has_pip = subprocess.run([str(PY), "-m", "pip", "--version"], capture_output=True).returncode == 0
     pip = [PY, "-m", "pip"] if has_pip else [sys.executable, "-m", "pip", "--python", PY]
-    run(*pip, "install", "--disable-pip-version-check", "-q", "-e", ".[test,dask]")
+    run(*pip, "install", "--disable-pip-version-check", "-q", "-e", f".[{','.join(EXTRAS)}]")
     STAMP.write_text(want)
 
 
