@@ -1,5 +1,5 @@
 """Every "SPEC section N" the tree cites is a section of docs/spec.md, so a clone alone can follow
-each citation; and the README links nothing outside the clone."""
+each citation; and the README, BENCHMARKS.md and docs/ link nothing outside the clone."""
 
 import re
 from pathlib import Path
@@ -55,10 +55,16 @@ def test_every_spec_section_cited_in_the_tree_is_a_section_of_docs_spec():
     assert not missing, f"cited but not in docs/spec.md: {missing}"
 
 
-def test_readme_links_only_inside_the_clone():
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert "../shared" not in text
-    for target in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", text):
-        if re.match(r"[a-z]+://", target):
-            continue
-        assert (ROOT / target).exists(), f"README links {target!r}, which the clone lacks"
+def test_readme_docs_and_benchmarks_link_only_inside_the_clone():
+    pages = [ROOT / "README.md", ROOT / "BENCHMARKS.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    assert "../shared" not in (ROOT / "README.md").read_text(encoding="utf-8")
+    checked = 0
+    for page in pages:
+        text = page.read_text(encoding="utf-8")
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text):
+            if re.match(r"[a-z]+://", target):
+                continue
+            checked += 1
+            assert (page.parent / target).resolve().is_relative_to(ROOT), (page, target)
+            assert (page.parent / target).exists(), f"{page.relative_to(ROOT)} links {target!r}"
+    assert checked > 30
