@@ -36,7 +36,7 @@ def run(*cmd, **kw) -> None:
 
 
 #: the package's extras ``.venv`` gets: every optional feature, and what the tests use
-EXTRAS = ("test", "plot", "uff", "xarray", "dask")
+EXTRAS = ("test", "plot", "uff", "xarray", "dask", "ml", "zarr")
 
 
 def ensure_venv() -> None:
