@@ -3,8 +3,7 @@
 A sweep file names a base scene, the settings every run shares and the parameters that vary::
 
     seed = 2026                          # the sweep seed (0 <= seed < 2**63)
-    scene = "ishizaki2009"               # base scene: a preset name or a scene TOML file
-                                         # (relative to the sweep file)
+    scene = "ishizaki2009"               # base scene: a preset or a TOML file (relative to this)
     set = ["acquisition.records=30"]     # --set-style overrides applied to every run
 
     [grid]                               # parameters on a grid
@@ -26,8 +25,7 @@ A sweep file names a base scene, the settings every run shares and the parameter
     frf = true                           # H_t, Theta_2 with coherence and relative error
     modal = true                         # the modal fits' f, Q and their standard deviations
     expected = true                      # the exact model and E[H1] at the analyzer's lines
-    analysis = true                      # false: no analysis at all (signals, truth and model
-                                         # only, at the acquisition's own throughput)
+    analysis = true                      # false: no analysis (signals, truth and model only)
 
 Parameters are scene keys (``section.key``, see :mod:`rig.scene`), written as quoted dotted keys
 or as nested tables (``[grid.pendulum] q1 = [...]``). Without ``[grid]`` and ``[random]`` the

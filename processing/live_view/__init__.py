@@ -53,3 +53,8 @@ from processing.live_view.stream import (MEMORY_LIMIT, TIMELINE, LiveViewError, 
 __all__ = ["ViewerOptions", "ViewerStream", "LiveView", "LiveViewWarning", "LiveViewError",
            "acquisition_blueprint", "replay", "show_trajectory", "screenshot",
            "screenshot_command", "recording_summary", "viewer_executable"]
+
+
+from rig._exports import submodule_getattr  # noqa: E402
+
+__getattr__ = submodule_getattr('processing.live_view')  # a public submodule is an attribute on first use

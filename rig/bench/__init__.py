@@ -54,3 +54,8 @@ __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "buil
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
            "model_info", "linear_method", "select_model", "predict_linearisation_error", "MODELS",
            "NONLINEAR_METHODS", "STREAMS"]
+
+
+from rig._exports import submodule_getattr  # noqa: E402
+
+__getattr__ = submodule_getattr('rig.bench')  # a public submodule is an attribute on first use
