@@ -29,26 +29,6 @@ class _SweepProgressLine:
             click.echo("", err=True)
 
 
-@contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """SIGTERM (``kill PID``) stops a sweep like Ctrl-C: finished runs stay, the manifest is
-    written."""
-    import signal
-
-    def handler(signum, frame):
-        raise KeyboardInterrupt
-
-    try:
-        old = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
-
-
 @click.command()
 @click.argument("sweep_file", metavar="SWEEP.toml",
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
@@ -68,6 +48,8 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
 
     Rerunning the same command skips finished runs and redoes the rest; Ctrl-C stops cleanly.
     """
+    from daq.cli.errors import EXIT_PARTIAL
+    from daq.signals import exit_status, signal_name, stop_signals_interrupt
     from processing.dataset import (SweepInterrupted, dask_executor, default_workers,
                                     describe_plan, load_sweep, plan_runs, run_sweep)
 
@@ -85,17 +67,17 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
         if dry_run:
             return
         bar = _SweepProgressLine()
-        stack.enter_context(_sigterm_as_interrupt())
+        stack.enter_context(stop_signals_interrupt())  # SIGTERM, SIGHUP stop it like Ctrl-C
         try:
             result = run_sweep(sweep, out_dir, executor=executor, workers=slots, force=force,
                                progress=bar, planned=planned)
         except SweepInterrupted as exc:
             bar.close()
             r = exc.result
-            click.echo(f"interrupted: {r.complete} of {r.total} runs complete, {r.failed} "
-                       f"failed, {r.missing} missing (listed in {r.table}); run the same "
-                       "command again to finish", err=True)
-            raise click.exceptions.Exit(130) from None
+            click.echo(f"interrupted ({signal_name(exc)}): {r.complete} of {r.total} runs "
+                       f"complete, {r.failed} failed, {r.missing} missing (listed in {r.table}); "
+                       "run the same command again to finish", err=True)
+            raise click.exceptions.Exit(exit_status(exc)) from None
         bar.close()
     click.echo(f"{result.complete} of {result.total} runs complete ({result.skipped} already "
                f"there), {result.failed} failed, {result.missing} missing in "
@@ -105,3 +87,8 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
             click.echo(f"  run {r['index']} failed: {r['error']}")
     click.echo(f"wrote {result.manifest} (xarray.open_dataset(..., engine=\"h5netcdf\")) and "
                f"{result.table}")
+    if result.failed or result.missing:
+        click.echo(f"partial sweep: {result.failed + result.missing} of {result.total} runs "
+                   f"failed or missing (listed in {result.table}); exit status {EXIT_PARTIAL}",
+                   err=True)
+        raise click.exceptions.Exit(EXIT_PARTIAL)

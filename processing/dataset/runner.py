@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from rig._io import process_alive
 from rig.errors import ConfigError
 
 from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table
@@ -106,11 +107,14 @@ class SweepResult:
 
 
 class SweepInterrupted(KeyboardInterrupt):
-    """The sweep was interrupted; ``result`` is the :class:`SweepResult` (manifest written)."""
+    """The sweep was interrupted; ``result`` is the :class:`SweepResult` (manifest written),
+    ``signum`` the signal that stopped it (that of :class:`daq.signals.Stopped`; 2, SIGINT, for
+    a plain KeyboardInterrupt)."""
 
-    def __init__(self, result: SweepResult):
+    def __init__(self, result: SweepResult, signum: int = 2):
         super().__init__(f"sweep interrupted: {result.complete} of {result.total} runs complete")
         self.result = result
+        self.signum = signum
 
 
 # -- planning --------------------------------------------------------------------------------
@@ -276,25 +280,8 @@ def _clean_partials(runs_dir: Path) -> None:
             h, pid = parts[-5], int(parts[-4])
         except (IndexError, ValueError):
             continue
-        if h == host and not _writer_alive(pid):
+        if h == host and not process_alive(pid):
             p.unlink(missing_ok=True)
-
-
-def _writer_alive(pid: int) -> bool:
-    """Whether process ``pid`` may still write: it exists and is not a zombie (a killed worker
-    stays one until its new parent reaps it, which a container's init may do late; it writes
-    nothing more)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:  # gone meanwhile, or no /proc (not Linux: it exists, so it may write)
-        return not Path("/proc").is_dir()
-    return stat[stat.rindex(")") + 2:].split()[0] != "Z"  # "pid (comm) state ..."
 
 
 # -- running ---------------------------------------------------------------------------------
@@ -410,7 +397,7 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
                                        eta_s=left / rate * 60 if rate > 0 else None))
 
         inflight: dict = {}
-        interrupted = False
+        interrupted, signum = False, 2
         ex = factory() if todo else None
         window = workers  # in flight = running: a dead worker charges only the runs it could hold
         attempts = collections.Counter()
@@ -452,8 +439,8 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
                                              "of memory)"}, job["spec_hash"])
                         else:
                             todo.appendleft(job)
-        except KeyboardInterrupt:
-            interrupted = True
+        except KeyboardInterrupt as exc:
+            interrupted, signum = True, getattr(exc, "signum", 2)
             for fut in list(inflight):
                 fut.cancel()
             if ex is not None:
@@ -479,6 +466,6 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
                              results=dict(results), wall_s=time.perf_counter() - t0,
                              interrupted=interrupted)
     if interrupted:
-        raise SweepInterrupted(result)
+        raise SweepInterrupted(result, signum)
     return result
 

@@ -38,12 +38,14 @@ def _on_sigint(signum, frame):
 
 def worker_init() -> None:
     """Initializer of local pool workers: die with the parent (Linux ``PR_SET_PDEATHSIG``), so
-    that a killed sweep leaves no worker writing behind it; one BLAS thread; a Ctrl-C interrupts
-    the run in progress (its temporary file is removed) and is ignored by an idle worker (the
-    parent shuts the pool down)."""
+    that a killed sweep leaves no worker writing behind it; one BLAS thread; a Ctrl-C (or a
+    SIGTERM or SIGHUP to the process group) interrupts the run in progress (its temporary file
+    is removed) and is ignored by an idle worker (the parent shuts the pool down)."""
     import signal
 
-    signal.signal(signal.SIGINT, _on_sigint)
+    for s in (signal.SIGINT, getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)):
+        if s is not None:
+            signal.signal(s, _on_sigint)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     try:
