@@ -8,7 +8,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from rig._io import check_writable
+from rig._io import check_writable, remove_stale_temps, temp_beside
 from processing.live_view.stream import LiveViewError, viewer_executable
 
 
@@ -45,18 +45,21 @@ def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
     :func:`screenshot_command`)."""
     png = Path(png)
     check_writable(png, force=force)
-    tmp = png.with_name(png.name + ".part.png")
-    cmd, env = screenshot_command(Path(rrd), tmp, size)
+    remove_stale_temps(png)
+    tmp = temp_beside(png, ".part.png")
     try:
-        p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        raise LiveViewError(f"the viewer did not render within {timeout_s:g} s") from None
-    if p.returncode != 0 or not tmp.exists():
-        tail = (p.stderr or p.stdout).strip().splitlines()[-3:]
+        cmd, env = screenshot_command(Path(rrd), tmp, size)
+        try:
+            p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            raise LiveViewError(f"the viewer did not render within {timeout_s:g} s") from None
+        if p.returncode != 0 or tmp.stat().st_size == 0:
+            tail = (p.stderr or p.stdout).strip().splitlines()[-3:]
+            raise LiveViewError(f"the viewer could not render a screenshot (exit "
+                                f"{p.returncode}): " + " | ".join(tail))
+        os.replace(tmp, png)
+    finally:
         tmp.unlink(missing_ok=True)
-        raise LiveViewError(f"the viewer could not render a screenshot (exit {p.returncode}): "
-                            + " | ".join(tail))
-    os.replace(tmp, png)
     return png
 
 
