@@ -85,3 +85,39 @@ def verified_records(run: Path, allow_incomplete: bool):
     click.echo(f"warning: {fc.line()}; analysing the {len(fc.valid_records)} records that "
                f"verify", err=True)
     return fc.valid_records
+
+
+def warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` of the CLI: ``warning: <message>`` on one line of stderr (no
+    source file, line or warning class)."""
+    click.echo(f"warning: {str(message).strip()}", err=True)
+
+
+def display_missing() -> bool:
+    """True on Linux without a display (DISPLAY and WAYLAND_DISPLAY unset): no viewer window
+    can open there."""
+    import os
+    import sys
+
+    return (sys.platform.startswith("linux") and not os.environ.get("DISPLAY")
+            and not os.environ.get("WAYLAND_DISPLAY"))
+
+
+NO_DISPLAY = ("there is no display here (DISPLAY and WAYLAND_DISPLAY are unset) to open a viewer "
+              "window: save the stream with --rrd FILE.rrd (open it later with 'rerun "
+              "FILE.rrd'), stream to a viewer elsewhere with --connect URL")
+
+
+def check_viewer_url(url: str) -> None:
+    """Refuse, before any work, a ``--connect`` URL where no rerun viewer answers (bounded:
+    :data:`processing.viewer_url.ANSWER_TIMEOUT_S`)."""
+    from processing.viewer_url import host_port, viewer_silence
+
+    try:
+        host_port(url)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--connect") from None
+    why = viewer_silence(url)
+    if why is not None:
+        raise click.ClickException(f"--connect {url}: no rerun viewer there ({why}); start one "
+                                   "(rerun --port PORT) or leave out --connect")
