@@ -18,12 +18,18 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 
 from rig.errors import ConfigError
 
-__all__ = ["local_pool", "dask_executor", "default_workers", "DASK_MISSING"]
+__all__ = ["local_pool", "dask_executor", "default_workers", "worker_limit", "WORKER_BYTES",
+           "DASK_MISSING"]
 
 #: Seconds a Dask scheduler has to answer (connect and handshake) before it is given up.
 CONNECT_TIMEOUT_S = 10.0
 DASK_MISSING = ("--scheduler needs Dask distributed, the optional extra of pendulum-daq: "
                 "pip install 'pendulum-daq[dask]' (or 'dask[distributed]')")
+
+
+#: Memory a local worker takes once its imports and kernels are loaded [bytes] (an upper
+#: figure: numba, h5py, scipy and a run's arrays).
+WORKER_BYTES = 300_000_000
 
 
 def default_workers() -> int:
@@ -32,6 +38,38 @@ def default_workers() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not Linux
         return max(1, os.cpu_count() or 1)
+
+
+def available_memory_bytes() -> int | None:
+    """Memory available to new processes (Linux MemAvailable) [bytes]; None if unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def worker_limit(asked: int | None) -> tuple[int, str]:
+    """The local workers to run: ``asked`` (default: the cores) capped at the cores and at the
+    available memory (:data:`WORKER_BYTES` each), and why it was capped ("" if not)."""
+    cores = default_workers()
+    mem = available_memory_bytes()
+    by_mem = None if mem is None else max(1, mem // WORKER_BYTES)
+    n = cores if asked is None else asked
+    why = ""
+    if n > cores:
+        why = (f"--workers {asked} is more than the {cores} cores: more processes than cores "
+               "share them and run slower")
+        n = cores
+    if by_mem is not None and n > by_mem:
+        why = (f"{'--workers ' + str(asked) if asked else str(n) + ' workers'} need about "
+               f"{n * WORKER_BYTES / 1e9:.1f} GB ({WORKER_BYTES / 1e6:.0f} MB each) but "
+               f"{mem / 1e9:.1f} GB is available")
+        n = by_mem
+    return n, why
 
 
 def local_pool(workers: int) -> Executor:
