@@ -301,3 +301,122 @@ def test_ctrl_c_with_only_an_rrd_says_the_recording_holds_the_finished_records(t
     assert err.strip().endswith(f"records; {rrd} holds the live view of them (rerun "
                                 "recording)"), err
     assert rrd.stat().st_size > 2_000_000 and temporaries(tmp_path) == []
+
+
+# -- resources: sweeps -----------------------------------------------------------------------------
+
+def test_a_grid_beyond_the_largest_sweep_is_refused_before_its_values_are_made(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(SWEEP.format(
+        body='[grid]\n"pendulum.q1" = { linspace = [300.0, 800.0], num = 100000000 }'))
+    t = time.monotonic()
+    res = daq("dataset", path, "--out", tmp_path / "ds", "--dry-run", cwd=tmp_path, timeout=60)
+    assert res.returncode == 1
+    assert res.stderr.strip() == ("Error: grid.pendulum.q1.num = 100000000 is invalid: a sweep "
+                                  "has at most 100000 runs (split it into several sweeps)")
+    assert time.monotonic() - t < 30
+
+
+def test_a_cross_grid_beyond_the_largest_sweep_is_refused_at_once(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(SWEEP.format(
+        body='[grid]\n"pendulum.q1" = { linspace = [300.0, 800.0], num = 1000 }\n'
+             '"pendulum.q2" = { linspace = [80.0, 120.0], num = 1000 }'))
+    t = time.monotonic()
+    res = daq("dataset", path, "--out", tmp_path / "ds", "--dry-run", cwd=tmp_path, timeout=60)
+    assert res.returncode == 1 and "the sweep has 1000000 runs: expected at most 100000" in \
+        res.stderr
+    assert time.monotonic() - t < 30
+
+
+def test_workers_beyond_the_cores_are_capped_with_a_warning_and_a_real_time_estimate(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(SWEEP.format(body='[random]\ncount = 3\n"pendulum.q2" = '
+                                      '{ uniform = [80.0, 120.0] }'))
+    res = daq("dataset", path, "--out", tmp_path / "ds", "--dry-run", "--workers", "1000",
+              cwd=tmp_path, timeout=60)
+    assert res.returncode == 0, res.stderr
+    cores = len(os.sched_getaffinity(0))
+    assert f"warning: --workers 1000 is more than the {cores} cores" in res.stderr
+    est = [ln for ln in res.stdout.splitlines() if ln.startswith("estimated time: ")]
+    assert est and not est[0].startswith("estimated time: 0 s") and " on 1000 " not in est[0]
+
+
+def test_a_dry_run_shows_progress_while_it_checks_many_parameter_sets(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(SWEEP.format(
+        body='[grid]\n"pendulum.q1" = { linspace = [300.0, 800.0], num = 2000 }'))
+    res = daq("dataset", path, "--out", tmp_path / "ds", "--dry-run", cwd=tmp_path, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert "checking the runs' parameter sets: " in res.stderr and " of 2000" in res.stderr
+    assert "sweep s: 2000 runs (2000 valid" in res.stdout
+
+
+def test_force_with_a_smaller_sweep_removes_the_run_files_it_does_not_list(tmp_path):
+    path = tmp_path / "s.toml"
+    out = tmp_path / "ds"
+    path.write_text(SWEEP.format(body='[grid]\n"pendulum.q1" = [300.0, 400.0, 500.0]'))
+    res = daq("dataset", path, "--out", out, "--workers", "1", cwd=tmp_path, timeout=300)
+    assert res.returncode == 0, res.stderr
+    path.write_text(SWEEP.format(body='[grid]\n"pendulum.q1" = [300.0, 400.0]'))
+    res = daq("dataset", path, "--out", out, "--workers", "1", "--force", cwd=tmp_path,
+              timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert ("removed 1 run files of the earlier plan that this sweep does not list "
+            "(run_000002.h5)") in res.stdout
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["run_000000.h5",
+                                                                 "run_000001.h5"]
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A real 6 MiB file system (tmpfs), unmounted afterwards."""
+    import shutil
+
+    d = tmp_path / "disk"
+    d.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("a small tmpfs needs root and mount(8) to test a full disk for real")
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=6m", "tmpfs", str(d)],
+                         capture_output=True, text=True)
+    if res.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({res.stderr.strip()})")
+    try:
+        yield d
+    finally:
+        subprocess.run(["umount", "-l", str(d)], capture_output=True)
+
+
+def test_a_full_disk_mid_sweep_gives_one_line_per_failed_run_and_no_temporary_file(
+        small_disk, tmp_path):
+    """The disk (6 MiB, room for the sweep's first runs) is filled by another file after the
+    second run lands: no worker traceback, a line per failed run, no temporary file."""
+    path = tmp_path / "s.toml"
+    path.write_text(SWEEP.format(body='[random]\ncount = 12\n"pendulum.q2" = '
+                                      '{ uniform = [80.0, 120.0] }'))
+    out = small_disk / "ds"
+    p = start("dataset", path, "--out", out, "--workers", "2", cwd=tmp_path)
+    wait_for(lambda: (out / "runs" / "run_000001.h5").exists() or p.poll() is not None, 300)
+    with open(small_disk / "filler", "wb", buffering=0) as fh:
+        with pytest.raises(OSError):
+            while True:
+                fh.write(b"\0" * 65536)
+    stdout, stderr = p.communicate(timeout=300)
+    assert p.returncode in (1, 4), stderr
+    assert "Traceback" not in stderr and "Exception ignored" not in stderr, stderr[-3000:]
+    errors = [ln for ln in stderr.splitlines() if not ln.startswith("runs: ")]
+    assert len(errors) == 1, errors
+    assert ("disk is full" in errors[0] or "partial sweep" in errors[0]), errors
+    failed = [ln for ln in stdout.splitlines() if ln.startswith("  run ") and " failed: " in ln]
+    assert all(len(ln) < 600 for ln in failed)
+    if (out / "manifest.csv").exists():  # a line per run the manifest calls failed
+        import csv
+
+        with open(out / "manifest.csv", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        assert len(failed) == sum(r["status"] == "failed" for r in rows)
+    assert temporaries(out) == []
+    record_fault("disk full during daq dataset (a real tmpfs filled by another file)",
+                 records_lost=0, outcome="a line per failed run and one saying the disk is "
+                                         "full; finished runs kept, no temporary file, no "
+                                         "worker traceback")
