@@ -9,7 +9,8 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import fmt, force_option, model_lines, run_check, set_option, size_text
+from daq.cli.common import (fmt, force_option, model_lines, note_cold_kernels, run_check,
+                            set_option, size_text)
 from daq.cli.live import live_options, live_sinks, rrd_preflight
 from rig._io import check_writable
 
@@ -129,6 +130,7 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
 
         sinks = [PacingSink(pacer)]
     a = sc.acquisition
+    note_cold_kernels()
     bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a.records,
                                           record_s=a.record_s, settle_s=a.settle_s)
     try:

@@ -121,3 +121,26 @@ def check_viewer_url(url: str) -> None:
     if why is not None:
         raise click.ClickException(f"--connect {url}: no rerun viewer there ({why}); start one "
                                    "(rerun --port PORT) or leave out --connect")
+
+
+def note_cold_kernels() -> None:
+    """Say on stderr, before a run, that the simulation kernels will be compiled now (numba's
+    on-disk cache for these kernel sources is empty: a fresh install or changed kernels); the
+    compilation happens once, later runs load it."""
+    import os
+    import sys
+
+    import daq.acquisition  # noqa: F401 - registers the kernels, whose sources name the cache
+    from rig._jit import cache_dir
+
+    if "numba" in sys.modules:
+        return
+    path = Path(os.environ.get("NUMBA_CACHE_DIR") or cache_dir())
+    if not (path.is_dir() and any(path.rglob("*.nbi"))):
+        click.echo(f"compiling the simulation kernels, once (about {COMPILE_TEXT}; later runs "
+                   f"load them from {path})", err=True)
+
+
+#: How long the first compilation takes (BENCHMARKS.md "First run": ~1 min on a loaded 2-core
+#: host, a fresh NUMBA_CACHE_DIR, one acquisition).
+COMPILE_TEXT = "a minute"

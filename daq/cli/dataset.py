@@ -56,6 +56,7 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
 
     Rerunning the same command skips finished runs and redoes the rest; Ctrl-C stops cleanly.
     """
+    from daq.cli.common import note_cold_kernels
     from daq.cli.errors import EXIT_PARTIAL
     from daq.signals import exit_status, signal_name, stop_signals_interrupt
     from processing.dataset import (SweepInterrupted, SweepStopped, dask_executor,
@@ -79,6 +80,7 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
         click.echo(describe_plan(sweep, planned, workers=slots))
         if dry_run:
             return
+        note_cold_kernels()
         bar = _SweepProgressLine()
         stack.enter_context(stop_signals_interrupt())  # SIGTERM, SIGHUP stop it like Ctrl-C
         try:

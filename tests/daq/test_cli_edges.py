@@ -420,3 +420,31 @@ def test_a_full_disk_mid_sweep_gives_one_line_per_failed_run_and_no_temporary_fi
                  records_lost=0, outcome="a line per failed run and one saying the disk is "
                                          "full; finished runs kept, no temporary file, no "
                                          "worker traceback")
+
+
+# -- long silences ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("args", [["scene", "show", "rod-chain"],
+                                  ["acquire", "rod-chain", "--out", "r.h5"]])
+def test_a_pendulum_of_1000_bodies_is_refused_at_once_saying_why(tmp_path, args):
+    t = time.monotonic()
+    res = daq(*args, "--set", "pendulum.n=1000", cwd=tmp_path, timeout=60)
+    assert res.returncode == 1, res.stderr
+    assert res.stderr.strip() == ("Error: pendulum.n = 1000 is invalid: expected 1 <= n <= 200 "
+                                  "(the chain's modes are an O(n^3) eigenproblem solved when "
+                                  "the scene loads: seconds at 200 bodies, minutes at 1000)")
+    assert time.monotonic() - t < 30 and not (tmp_path / "r.h5").exists()
+
+
+def test_a_cold_kernel_cache_is_announced_before_the_run(tmp_path):
+    """With an empty numba cache the first line says the kernels are compiled, once; the run
+    is stopped as soon as it is seen (the compilation itself takes a minute)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    p = start("acquire", *SHORT, "--out", tmp_path / "r.h5", cwd=tmp_path, env=env)
+    try:
+        first = p.stderr.readline()
+    finally:
+        os.killpg(p.pid, signal.SIGTERM)
+        p.communicate(timeout=120)
+    assert first.startswith("compiling the simulation kernels, once (about a minute; later runs "
+                            f"load them from {tmp_path / 'cache'})"), first
