@@ -448,3 +448,24 @@ def test_a_cold_kernel_cache_is_announced_before_the_run(tmp_path):
         p.communicate(timeout=120)
     assert first.startswith("compiling the simulation kernels, once (about a minute; later runs "
                             f"load them from {tmp_path / 'cache'})"), first
+
+
+# -- the live view's screenshot ------------------------------------------------------------------------
+
+def test_a_screenshot_is_exactly_the_size_asked(run_file, tmp_path):
+    pytest.importorskip("processing.live_view")
+    from PIL import Image
+
+    from processing.live_view import LiveViewError, screenshot_command
+
+    try:
+        screenshot_command(tmp_path / "x.rrd", tmp_path / "x.png")
+    except LiveViewError as exc:
+        pytest.skip(f"no headless viewer here: {exc}")
+    png = tmp_path / "s.png"
+    res = daq("view", run_file, "--screenshot", png, "--size", "1280x720", cwd=tmp_path,
+              timeout=600)
+    assert res.returncode == 0, res.stderr
+    with Image.open(png) as im:
+        assert im.size == (1280, 720) and im.format == "PNG"
+    assert temporaries(tmp_path) == []
