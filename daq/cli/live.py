@@ -34,6 +34,8 @@ def viewer_stream(live, connect, rrd, force):
     """A :class:`processing.live_view.ViewerStream`, or None without a live option."""
     if not (live or connect or rrd):
         return None
+    if live and display_missing():
+        raise click.ClickException(f"--live: {NO_DISPLAY}")
     from processing.live_view import ViewerOptions, ViewerStream
 
     try:

@@ -256,7 +256,8 @@ def test_view_connect_to_a_dead_url_fails_with_a_sentence(run_file, tmp_path):
 
 # -- the live view without a display -------------------------------------------------------------
 
-@pytest.mark.parametrize("args", [["view", "{run}"], ["acquire", *SHORT, "--live"]])
+@pytest.mark.parametrize("args", [["view", "{run}"], ["acquire", *SHORT, "--live"],
+                                  ["simulate", "double-rod", "--duration", "1", "--live"]])
 def test_a_viewer_window_without_a_display_is_refused_at_once_saying_what_to_do(
         run_file, tmp_path, args):
     t = time.monotonic()
