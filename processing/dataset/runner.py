@@ -331,9 +331,11 @@ class SweepStopped(ConfigError):
 
 def _stopped(exc: OSError, out_dir: Path, total: int, results: dict, manifest) -> SweepStopped:
     """The error of a sweep stopped because its journal or manifest could not be written."""
-    from daq.resources import is_disk_full
+    import errno
 
-    what = ("the disk is full" if is_disk_full(exc) else
+    full = (getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT)
+            or "No space left on device" in str(exc))
+    what = ("the disk is full" if full else
             f"{getattr(exc, 'filename', None) or out_dir}: {exc.strerror or exc}")
     done = sum(r["status"] == "complete" for r in results.values())
     index = "the manifest lists them" if manifest is not None else "no manifest was written"
