@@ -72,7 +72,8 @@ RANDOM_KINDS = ("uniform", "loguniform", "normal")
 KEEP_DEFAULTS = {"truth": True, "spectra": True, "frf": True, "modal": True, "expected": True}
 _TOP = ("seed", "scene", "set", "name", "description", "grid", "random", "analysis", "keep")
 #: The largest sweep accepted: planning checks every run's scene (a few ms each) and keeps its
-#: settings, so 100,000 runs take minutes and ~1 GB to plan; split a larger sweep into several.
+#: settings, so 100,000 runs take minutes and about half a GB to plan (BENCHMARKS.md "First
+#: run"); split a larger sweep into several.
 MAX_RUNS = 100_000
 
 
