@@ -57,6 +57,16 @@ def run_file(tmp_path_factory):
     return d / "run.h5"
 
 
+@pytest.fixture(scope="module")
+def long_run_file(tmp_path_factory):
+    """The paper's 30 records of 100 s: an export of it takes seconds (room for a signal)."""
+    d = tmp_path_factory.mktemp("long")
+    res = daq("acquire", "ishizaki2009", "--seed", "4", "--out", d / "run.h5", "-q", cwd=d,
+              timeout=600)
+    assert res.returncode == 0, res.stderr
+    return d / "run.h5"
+
+
 @pytest.fixture
 def silent_listener():
     """A TCP port that accepts connections into its backlog and never answers."""
@@ -110,10 +120,10 @@ def test_a_sweep_whose_runs_failed_exits_4_with_a_line_saying_so(tmp_path):
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_an_interrupted_export_exits_128_plus_n_with_one_line_and_no_temporary_file(
-        run_file, tmp_path, sig):
+        long_run_file, tmp_path, sig):
     """The signal arrives while the output is written (its temporary file exists)."""
     d = tmp_path
-    p = start("export", run_file, "--uff", d / "out.uff", cwd=d)
+    p = start("export", long_run_file, "--uff", d / "out.uff", cwd=d)
     wait_for(lambda: temporaries(d) or p.poll() is not None, 120)
     if p.poll() is not None:
         pytest.skip("the export finished before it could be interrupted")
