@@ -38,9 +38,16 @@ def main(ctx, debug):
     """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer).
 
     Exit status: 0 done; 1 an error (one line); 2 a usage error; 3 a run not as asked (over
-    its error budget or saturated; acquire --allow-over-budget); 128+N ended by signal N.
+    its error budget or saturated; acquire --allow-over-budget); 4 a sweep with failed or
+    missing runs (dataset); 128+N ended by signal N.
     """
     ctx.meta["daq.debug"] = debug
+    if not debug:
+        import warnings
+
+        from daq.cli.common import warning_line
+
+        warnings.showwarning = warning_line
 
 
 for _command in (_scene_cmds.scene, _scene_cmds.model, _scene_cmds.simulate, _live_cmds.view,
