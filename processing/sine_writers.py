@@ -93,11 +93,13 @@ def sine_bode_figure(sweep, scene, *, title: str = ""):
     (markers) over the exact whole-chain model (:func:`rig.expected_response`, ``sampled=True``:
     what the points should read in their steady state), and below each the points' difference
     from it [dB] with the stated settling bias and the +-2 sigma random error."""
-    from matplotlib.figure import Figure
+    from rig.errors import import_extra
 
-    import rig
+    import_extra("matplotlib", "plot", "drawing figures")
+    from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
 
+    import rig
     from processing.plots import decade_axis, phase_curve
 
     fm = _model_grid(sweep, scene)

@@ -147,6 +147,12 @@ def sine(scene_arg, out, fmin, fmax, points, auto_resolution, min_step, spacing,
         raise ConfigError(f"--plot {str(plot)!r}: expected a .png file")
     if uff_path is not None and uff_path.suffix.lower() not in (".uff", ".unv"):
         raise ConfigError(f"--uff {str(uff_path)!r}: expected a .uff or .unv file")
+    from rig.errors import import_extra
+
+    if plot is not None:  # an optional extra missing is said before the sweep runs
+        import_extra("matplotlib", "plot", "drawing figures (--plot)")
+    if uff_path is not None:
+        import_extra("pyuff", "uff", "writing UFF files (--uff)")
     sinks = []
     if out is not None:
         from daq.sine_file import SineFileSink
