@@ -226,3 +226,18 @@ def test_interrupted_sweep_keeps_its_finished_points(tmp_path):
     d = read_sine(tmp_path / "s.h5")
     assert d["status"] == "interrupted" and d["points"] == 2  # the file sink wrote both
     assert list(tmp_path.iterdir()) == [tmp_path / "s.h5"]  # no partial file left
+
+
+@pytest.mark.parametrize("module, option, extra", [("matplotlib", "--plot", "plot"),
+                                                    ("pyuff", "--uff", "uff")])
+def test_missing_extra_is_named_before_the_sweep(tmp_path, module, option, extra):
+    code = (f"import sys; sys.modules[{module!r}] = None\n"
+            "from daq.cli import run\n"
+            f"sys.argv = ['daq', 'sine', 'ishizaki2009', '--out', 's.h5', {option!r}, "
+            f"'out.{'png' if extra == 'plot' else 'uff'}']\n"
+            "run()\n")
+    res = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert f"pip install 'pendulum-daq[{extra}]'" in res.stderr.strip().splitlines()[-1]
+    assert not list(tmp_path.iterdir())  # nothing simulated, nothing written
