@@ -2,7 +2,8 @@
 composes rig, daq and processing. This module is the group (and ``daq check``); each command
 group is a module of its own: :mod:`daq.cli_scene` (scene, model, simulate),
 :mod:`daq.cli_acquire` (acquire, inspect), :mod:`daq.cli_live` (the live view, view),
-:mod:`daq.cli_analyze` (analyze, dataset, export); shared options in :mod:`daq.cli_common`.
+:mod:`daq.cli_analyze` (analyze, dataset, export), :mod:`daq.cli_serve` (serve: the virtual
+35670A); shared options in :mod:`daq.cli_common`.
 
 Errors become one line and exit status 1 in one place, the group's class
 (:class:`daq.cli_errors.ErrorsAsMessages`); ``daq --debug`` lets them through.
@@ -22,6 +23,7 @@ from daq.cli_analyze import analyze, dataset, export
 from daq.cli_errors import ErrorsAsMessages
 from daq.cli_live import view
 from daq.cli_scene import model, scene, simulate
+from daq.cli_serve import serve
 
 
 @click.group(cls=ErrorsAsMessages, context_settings={"help_option_names": ["-h", "--help"]})
@@ -38,7 +40,8 @@ def main(ctx, debug):
     ctx.meta["daq.debug"] = debug
 
 
-for _command in (scene, model, simulate, view, acquire, inspect, analyze, dataset, export):
+for _command in (scene, model, simulate, view, acquire, inspect, analyze, dataset, export,
+                 serve):
     main.add_command(_command)
 
 
