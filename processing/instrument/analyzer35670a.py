@@ -112,7 +112,7 @@ class Analyzer35670A:
         self._opc_pending = False
         self.measurements = 0
         self.result = None
-        self._reset()
+        self.reset()
 
     # -- the outside ------------------------------------------------------------------------
 
@@ -138,6 +138,13 @@ class Analyzer35670A:
             self._abort.set()
             self._worker.join(timeout)
 
+    def request_opc(self) -> None:
+        """``*OPC``: set the operation-complete event bit now, or when the measurement ends."""
+        if self.measuring:
+            self._opc_pending = True
+        else:
+            self.status.event(1)
+
     @property
     def measuring(self) -> bool:
         return not self._idle.is_set()
@@ -149,7 +156,8 @@ class Analyzer35670A:
 
     # -- state ------------------------------------------------------------------------------
 
-    def _reset(self) -> None:
+    def reset(self) -> None:
+        """The preset state (*RST, SYST:PRES; see the module docstring)."""
         acq = self.scene.acquisition
         self.mode = "FFT"
         self.setup = FftSetup(ranges_v=(float(acq.range_a_v), float(acq.range_x_v),
@@ -162,16 +170,16 @@ class Analyzer35670A:
         self.display, self.beeper = True, True
         self.init_continuous = False
 
-    def _update(self, **changes) -> None:
+    def update(self, **changes) -> None:
         self.setup = dataclasses.replace(self.setup, **changes)
 
-    def _source(self, **changes) -> None:
-        self._update(source=dataclasses.replace(self.setup.source, **changes))
+    def update_source(self, **changes) -> None:
+        self.update(source=dataclasses.replace(self.setup.source, **changes))
 
-    def _input(self, n: int, **changes) -> None:
+    def update_input(self, n: int, **changes) -> None:
         self.inputs[n] = dataclasses.replace(self.inputs[n], **changes)
 
-    def _trace(self, n: int, **changes) -> None:
+    def update_trace(self, n: int, **changes) -> None:
         self.traces[n] = dataclasses.replace(self.traces[n], **changes)
 
     def _effective_setup(self) -> FftSetup:

@@ -74,16 +74,9 @@ def _opc(a):
     return "1"
 
 
-def _opc_set(a):
-    if a.measuring:
-        a._opc_pending = True
-    else:
-        a.status.event(1)
-
-
 def _rst(a):
     a.abort()
-    a._reset()
+    a.reset()
 
 
 def _cls(a):
@@ -108,7 +101,7 @@ def _common(a):
         Command("*OPT", query=q(lambda: '"AY6"')),
         Command("*RST", set=c(lambda: _rst(a))),
         Command("*CLS", set=c(lambda: _cls(a))),
-        Command("*OPC", set=c(lambda: _opc_set(a)), query=q(lambda: _opc(a))),
+        Command("*OPC", set=c(a.request_opc), query=q(lambda: _opc(a))),
         Command("*WAI", set=c(lambda: a.wait())),
         Command("*ESR", query=q(lambda: str(a.status.read_esr()))),
         Command("*ESE", **mask("ese")),
@@ -195,7 +188,7 @@ def _function(a, p):
     if f in ("burst-chirp", "user", "capture"):
         raise ScpiError(-221, f"source {_code(SOURCES, f)} is not emulated (RAND, BRAN, PCH, "
                         "PINK, SIN are)")
-    a._source(function=f)
+    a.update_source(function=f)
 
 
 def _level(a, p):
@@ -207,7 +200,7 @@ def _level(a, p):
         if a.setup.source.function not in ("sine", "periodic-chirp"):
             raise ScpiError(-221, "a peak level of a noise source is not defined: give VRMS")
         v = v / math.sqrt(2.0)
-    a._source(level_vrms=v)
+    a.update_source(level_vrms=v)
 
 
 def _offset(a, p):
@@ -219,12 +212,12 @@ def _offset(a, p):
 
 def _source(a):
     src = lambda: a.setup.source  # noqa: E731
-    freq = dict(set=lambda s, p: a._source(frequency_hz=_in_range(
+    freq = dict(set=lambda s, p: a.update_source(frequency_hz=_in_range(
                     "source frequency", _one(p).number({"": 1.0, "HZ": 1.0}), 1e-6, 102400.0,
                     " Hz")),
                 query=lambda s, p: (_none(p), _nr(src().frequency_hz))[1])
     return [
-        Command("OUTPut[:STATe]", **_flag(lambda s, v: a._source(enabled=v),
+        Command("OUTPut[:STATe]", **_flag(lambda s, v: a.update_source(enabled=v),
                                           lambda s: src().enabled)),
         Command("SOURce:FUNCtion[:SHAPe]", set=lambda s, p: _function(a, p),
                 query=lambda s, p: (_none(p), _code(SOURCES, src().function))[1]),
@@ -235,7 +228,7 @@ def _source(a):
                 query=lambda s, p: (_none(p), "0")[1]),
         Command("SOURce:FREQuency[:CW]", **freq),
         Command("SOURce:FREQuency:FIXed", **freq),
-        Command("SOURce:BURSt", set=lambda s, p: a._source(burst_percent=_in_range(
+        Command("SOURce:BURSt", set=lambda s, p: a.update_source(burst_percent=_in_range(
                     "burst", _one(p).number({"": 1.0, "PCT": 1.0}), 0.1, 100.0, " %")),
                 query=lambda s, p: (_none(p), _nr(src().burst_percent))[1]),
     ]
@@ -262,7 +255,7 @@ def _range(a, n, p):
     _in_range(f"input {n} range", db, -51, 27, " dBVpk")
     ranges = list(a.setup.ranges_v)
     ranges[n - 1] = 10.0 ** (db / 20.0)
-    a._update(ranges_v=tuple(ranges))
+    a.update(ranges_v=tuple(ranges))
 
 
 def _range_query(a, n):
@@ -280,7 +273,7 @@ def _autorange(a, n, on):
 def _xdcr(a, n, on):
     if n == 4 and on:
         raise ScpiError(-221, "input 4 (the source drive) has no transducer: it reads volts")
-    a._input(n, xdcr=on)
+    a.update_input(n, xdcr=on)
 
 
 def _labels(a, n):
@@ -298,7 +291,7 @@ def _inputs(a):
 
     return [
         Command("INPut#[:STATe]",
-                set=lambda s, p: a._input(s[0], on=_one(p).boolean()),
+                set=lambda s, p: a.update_input(s[0], on=_one(p).boolean()),
                 query=nq(lambda n: "1" if a.inputs[n].on else "0")),
         Command("INPut#:COUPling", set=lambda s, p: _coupling(a, s[0], p),
                 query=nq(lambda n: "DC")),
@@ -324,7 +317,7 @@ def _fixed_calibration(n):
 # -- [SENSe:]FREQuency -----------------------------------------------------------------------
 
 def _span(a, p):
-    a._update(span_hz=a.check_span(_one(p).number(_hz(), special={"MAX": 102400.0,
+    a.update(span_hz=a.check_span(_one(p).number(_hz(), special={"MAX": 102400.0,
                                                                    "MIN": 0.1953125})))
 
 
@@ -354,20 +347,20 @@ def _frequency(a):
 
     return [
         Command(f"{f}:SPAN", set=lambda s, p: _span(a, p), query=q(lambda: a.setup.span_hz)),
-        Command(f"{f}:SPAN:FULL", set=lambda s, p: (_none(p), a._update(
+        Command(f"{f}:SPAN:FULL", set=lambda s, p: (_none(p), a.update(
             span_hz=a.check_span(102400.0)))[1]),
         Command(f"{f}:STOP", set=lambda s, p: _span(a, p), query=q(lambda: a.setup.span_hz)),
         Command(f"{f}:STARt", set=lambda s, p: _start(a, p), query=q(lambda: 0.0)),
         Command(f"{f}:CENTer", set=lambda s, p: _center(a, p),
                 query=q(lambda: a.setup.span_hz / 2)),
-        Command(f"{f}:RESolution", set=lambda s, p: a._update(lines=a.lines_for(
+        Command(f"{f}:RESolution", set=lambda s, p: a.update(lines=a.lines_for(
                     _in_range("lines", _one(p).number(), 1, math.inf))),
                 query=lambda s, p: (_none(p), str(a.setup.lines))[1]),
         Command("[SENSe]:WINDow#[:TYPE]",
-                set=lambda s, p: a._update(window=_one(p).choice(_windows())),
+                set=lambda s, p: a.update(window=_one(p).choice(_windows())),
                 query=lambda s, p: (_none(p), _code(_windows(), a.setup.window))[1]),
         Command("[SENSe]:SWEep:OVERlap",
-                set=lambda s, p: a._update(overlap=_in_range(
+                set=lambda s, p: a.update(overlap=_in_range(
                     "overlap", _one(p).number({"": 1.0, "PCT": 1.0}), 0.0, 99.0, " %") / 100),
                 query=lambda s, p: (_none(p), _nr(round(a.setup.overlap * 100, 12)))[1]),
     ]
@@ -393,7 +386,7 @@ def _averaging(a):
         Command("[SENSe]:AVERage[:STATe]", **_flag(lambda s, v: setattr(a, "aver_on", v),
                                                    lambda s: a.aver_on)),
         Command("[SENSe]:AVERage:COUNt",
-                set=lambda s, p: a._update(averages=int(_in_range(
+                set=lambda s, p: a.update(averages=int(_in_range(
                     "average count", _one(p).integer(), 1, 9999999))),
                 query=lambda s, p: (_none(p), str(a.setup.averages))[1]),
         Command("[SENSe]:AVERage:TYPE",
@@ -442,13 +435,13 @@ def _feed(a, n, p):
     if feed is None:
         raise ScpiError(-224, f"feed {par.text} is not emulated (XFR:POW n, XFR:POW:RAT m,n, "
                         "XFR:POW:COH m,n, XFR:POW:CROS m,n, XTIM:VOLT n)")
-    a._trace(n, feed=feed)
+    a.update_trace(n, feed=feed)
 
 
 def _calc_form(a, n, p):
     par = _one(p)
     try:
-        a._trace(n, form=par.choice(FORMS))
+        a.update_trace(n, form=par.choice(FORMS))
     except ScpiError:
         if par.text.upper() in {x.upper() for x in _NOT_EMULATED_FORMS} | {"NYQ", "POL", "GDEL"}:
             raise ScpiError(-221, f"format {par.text} is not emulated (MLOG, MLIN, PHAS, UPH, "
@@ -461,7 +454,7 @@ def _volt_unit(a, n, p):
     u = (par.string() if par.is_string else par.text).strip().upper()
     if u not in VOLT_UNITS:
         raise ScpiError(-224, f"unit {u}: expected one of {', '.join(VOLT_UNITS)}")
-    a._trace(n, volt_unit=u)
+    a.update_trace(n, volt_unit=u)
 
 
 def _points(a, n):

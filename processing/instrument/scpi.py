@@ -28,6 +28,7 @@ from __future__ import annotations
 import collections
 import math
 import re
+import threading
 from dataclasses import dataclass
 from typing import Callable
 
@@ -77,18 +78,22 @@ class ErrorQueue:
     def __init__(self, capacity: int = 30):
         self.capacity = capacity
         self._q: collections.deque[ScpiError] = collections.deque()
+        self._lock = threading.Lock()  # a measurement thread reports its errors too
 
     def push(self, err: ScpiError) -> None:
-        if len(self._q) >= self.capacity:
-            self._q[-1] = ScpiError(-350)
-            return
-        self._q.append(err)
+        with self._lock:
+            if len(self._q) >= self.capacity:
+                self._q[-1] = ScpiError(-350)
+                return
+            self._q.append(err)
 
     def pop(self) -> str:
-        return self._q.popleft().entry() if self._q else '0,"No error"'
+        with self._lock:
+            return self._q.popleft().entry() if self._q else '0,"No error"'
 
     def clear(self) -> None:
-        self._q.clear()
+        with self._lock:
+            self._q.clear()
 
     def __len__(self) -> int:
         return len(self._q)
