@@ -24,6 +24,7 @@ transducer units from the scene.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import threading
 from dataclasses import dataclass
@@ -319,7 +320,9 @@ class Analyzer35670A:
     # -- identity ---------------------------------------------------------------------------
 
     @staticmethod
+    @functools.cache
     def identity() -> str:
+        """``*IDN?``: maker, model, serial, firmware (which says the instrument is emulated)."""
         try:
             version = metadata.version("pendulum-daq")
         except metadata.PackageNotFoundError:  # pragma: no cover - run from a source tree

@@ -252,8 +252,18 @@ class CommandTable:
 
     def __init__(self, commands):
         self._commands = [(c, _nodes(c.pattern)) for c in commands]
+        self._found: dict = {}  # tokens -> (command, suffixes): headers repeat in every script
 
     def find(self, tokens: list[str]) -> tuple[Command, tuple[int, ...]]:
+        key = tuple(tokens)
+        got = self._found.get(key)
+        if got is None:
+            got = self._search(tokens)
+            if len(self._found) < 4096:
+                self._found[key] = got
+        return got
+
+    def _search(self, tokens: list[str]) -> tuple[Command, tuple[int, ...]]:
         bad_suffix = None
         for cmd, nodes in self._commands:
             got = _match(nodes, tokens, ())

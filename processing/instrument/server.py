@@ -87,6 +87,7 @@ class ScpiServer:
 
     def _serve(self, conn: socket.socket) -> str:
         conn.setblocking(False)
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # an answer leaves at once
         buf, skipping = bytearray(), False
         with selectors.DefaultSelector() as sel:
             sel.register(conn, selectors.EVENT_READ)
