@@ -274,6 +274,36 @@ def test_time_trace_of_the_drive_has_the_time_record_and_the_source_level(visa):
     assert _errors(visa) == []
 
 
+def test_formats_units_and_byte_order_describe_one_trace(visa):
+    """MLOG, MLIN, PHAS, UPH, REAL and IMAG of one ratio agree; transducer units off read the
+    ratio in V/V (the calibrations' ratio, XDCR:SENS?); FORM:BORD SWAP is little-endian; ASC,n
+    has n digits."""
+    visa.write(":FREQ:RES 100;:AVER:COUN 2;:OUTP ON;:CALC1:FEED 'XFR:POW:RAT 2,1';:INIT;*WAI")
+
+    def read(form, order="NORM"):
+        visa.write(f":CALC1:FORM {form};:FORM REAL,64;:FORM:BORD {order}")
+        return np.asarray(visa.query_binary_values(":CALC1:DATA?", datatype="d",
+                                                   is_big_endian=order == "NORM"))[1:]
+
+    re, im = read("REAL"), read("IMAG")
+    np.testing.assert_array_equal(read("REAL", "SWAP"), re)
+    h = re + 1j * im
+    np.testing.assert_allclose(read("MLIN"), np.abs(h), rtol=1e-15)
+    np.testing.assert_allclose(read("MLOG"), 20 * np.log10(np.abs(h)), rtol=1e-12)
+    np.testing.assert_allclose(read("PHAS"), np.degrees(np.angle(h)), rtol=1e-15)
+    uph = read("UPH")
+    np.testing.assert_allclose(np.mod(uph - read("PHAS") + 180, 360) - 180, 0, atol=1e-9)
+    assert np.max(np.abs(np.diff(uph))) < 180
+    sens = [float(visa.query(f":VOLT{n}:RANG:UNIT:XDCR:SENS?")) for n in (1, 2)]
+    visa.write(":VOLT1:RANG:UNIT:XDCR OFF;:VOLT2:RANG:UNIT:XDCR OFF")
+    np.testing.assert_allclose(read("MLIN"), np.abs(h) * sens[1] / sens[0], rtol=1e-13)
+    visa.write(":FORM:BORD NORM;:FORM ASC,6;:CALC1:FORM REAL")
+    first = visa.query(":CALC1:DATA?").split(",")[1]
+    assert len(first.lstrip("+-").split("E")[0].replace(".", "")) == 6
+    assert visa.query(":FORM?") == "ASC,6"
+    assert _errors(visa) == []
+
+
 def test_source_off_measures_noise_spectra_without_a_model_comparison(visa):
     visa.write(":FREQ:RES 100;:AVER:COUN 2;:OUTP OFF;:CALC1:FEED 'XFR:POW 2';:INIT;*WAI")
     visa.write("FORM REAL,64")
