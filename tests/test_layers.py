@@ -178,6 +178,10 @@ def test_every_listed_exception_is_still_needed():
     graph = import_graph(ROOT)
     stale = [f"{m} -> {t}" for m, t in EXCEPTIONS if t not in graph.get(m, ())]
     assert not stale, f"remove from EXCEPTIONS (no longer imported): {stale}"
+    composing = {_sublayer(m, SUBLAYERS) for m, ts in graph.items() if _sublayer(m, SUBLAYERS)
+                 for t in ts if t.split(".")[0] == "daq" and t not in DAQ_CONTRACT}
+    idle = sorted(set(SUBLAYERS) - composing)
+    assert not idle, f"remove from SUBLAYERS (they import only the run-file contract): {idle}"
     found = {tuple(c) for c in cycles(graph)}
     gone = [" <-> ".join(c) for c in KNOWN_CYCLES if c not in found]
     assert not gone, f"remove from KNOWN_CYCLES (no longer a cycle): {gone}"
