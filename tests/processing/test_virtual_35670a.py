@@ -397,3 +397,45 @@ def test_daq_serve_stops_on_sigterm_while_a_client_waits_in_opc():
     assert p.returncode == 143
     assert "Traceback" not in err
     assert err.strip().splitlines()[-1].startswith("stopped (SIGTERM) after 1 measurement")
+
+
+def test_daq_serve_out_keeps_each_measurements_run_file_whose_analysis_is_the_trace(tmp_path):
+    import daq
+    import processing
+    from processing.instrument.measurement import FftSetup, SourceSetup, analyzer_settings
+
+    p, resource = _serve("--out", str(tmp_path), "-q")
+    try:
+        rm = pyvisa.ResourceManager("@py")
+        inst = rm.open_resource(resource, read_termination="\n", write_termination="\n",
+                                timeout=60_000)
+        inst.write(":FREQ:RES 200;:AVER:COUN 3;:OUTP ON;:CALC1:FEED 'XFR:POW:RAT 3,1'")
+        inst.write(":CALC1:FORM IMAG;:INIT;*WAI;:FORM REAL,64")
+        im = np.asarray(inst.query_binary_values(":CALC1:DATA?", datatype="d",
+                                                 is_big_endian=True))
+        assert _errors(inst) == []
+        inst.close()
+        rm.close()
+        p.send_signal(signal.SIGINT)
+        p.communicate(timeout=20)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(10)
+    files = sorted(tmp_path.glob("*.h5"))
+    assert [f.name for f in files] == ["measurement_0001.h5"]
+    setup = FftSetup(lines=200, averages=3, source=SourceSetup(enabled=True))
+    a = processing.analyze(daq.read_run(files[0]), analyzer_settings(setup))
+    np.testing.assert_array_equal(im[1:], a.theta_2.h.imag[1:])
+
+
+def test_daq_serve_refuses_a_bad_address_and_a_busy_port_in_one_line():
+    bad = subprocess.run([sys.executable, "-m", "daq.cli", "serve", SCENE, "--scpi", "nowhere"],
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "'nowhere' is not HOST:PORT" in bad.stderr
+    with socket.create_server(("127.0.0.1", 0)) as busy:
+        port = busy.getsockname()[1]
+        r = subprocess.run([sys.executable, "-m", "daq.cli", "serve", SCENE, "--scpi",
+                            f"127.0.0.1:{port}"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1
+    assert f"cannot listen on 127.0.0.1:{port}" in r.stderr and "Traceback" not in r.stderr
