@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from daq.cli_common import set_option
+from daq.cli.common import set_option
 
 DEFAULT_ADDRESS = "127.0.0.1:5025"
 
