@@ -191,9 +191,12 @@ def test_unknown_and_invalid_commands_answer_real_scpi_errors_in_order(visa):
     visa.write("FREQ:SPAN")
     visa.write("FREQ:SPAN 10 PARSEC")
     visa.write("FREQ:STAR 1 HZ")
+    visa.write("*IDN? 1")
+    visa.write(":AVER OFF;:INIT")  # one average: no coherence
     errs = _errors(visa)
     codes = [int(e.split(",")[0]) for e in errs]
-    assert codes == [-113, -114, -221, -222, -221, -221, -224, -109, -131, -221], errs
+    assert codes == [-113, -114, -221, -222, -221, -221, -224, -109, -131, -221, -108, -221], errs
+    assert "1 average" in errs[-1]
     assert "simulation_rate_hz" in errs[2] and "largest span is 100 Hz" in errs[2]
     assert "SINE" in errs[4]
     esr = int(visa.query("*ESR?"))
