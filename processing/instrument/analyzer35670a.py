@@ -92,8 +92,8 @@ class _AbortSink:
 class Analyzer35670A:
     """The emulated instrument over ``scene`` (a resolved :class:`rig.scene.Scene`).
 
-    ``log(line)`` receives one line per measurement (started, done, failed) with the equivalent
-    ``daq`` commands; ``describe(setup, seed)`` may supply them.
+    ``log(line)`` receives a line per measurement (done, aborted, refused, failed) and, after
+    one that is done, the equivalent ``daq`` commands that ``describe(setup, seed)`` gives.
     """
 
     def __init__(self, scene, *, seed: int = 0, realtime: bool = False, out_dir=None,
@@ -248,17 +248,18 @@ class Analyzer35670A:
 
     def _measure(self, mode, setup, seed) -> None:
         n = self.measurements
-        if self.describe is not None:
-            self.log(f"measurement {n} (seed {seed}); the same with daq:\n"
-                     + self.describe(setup, seed))
         settle = float(self.scene.acquisition.settle_s)
         try:
             result = mode.run(self.scene, setup, seed=seed, sinks=self._sinks(n),
                               progress=self._progress(settle))
             self.result = result
             self._overloads(result)
-            self.log(f"measurement {n} done: {setup.averages} averages, {setup.lines} lines, "
-                     f"span {setup.span_hz:g} Hz")
+            if result.setup.ranges_v != setup.ranges_v:  # autoranged
+                self.update(ranges_v=result.setup.ranges_v)
+            self.log(f"measurement {n} done (seed {seed}): {setup.averages} averages, "
+                     f"{setup.lines} lines, span {setup.span_hz:g} Hz")
+            if self.describe is not None:
+                self.log("the same with daq:\n" + self.describe(result.setup, seed))
         except Aborted:
             self.log(f"measurement {n} aborted")
         except ModeConflict as exc:

@@ -253,9 +253,9 @@ def _range(a, n, p):
         20.0 * math.log10(v) if v > 0 else -math.inf)
     db = math.ceil(db - 1e-9)
     _in_range(f"input {n} range", db, -51, 27, " dBVpk")
-    ranges = list(a.setup.ranges_v)
-    ranges[n - 1] = 10.0 ** (db / 20.0)
-    a.update(ranges_v=tuple(ranges))
+    ranges, auto = list(a.setup.ranges_v), list(a.setup.autorange)
+    ranges[n - 1], auto[n - 1] = 10.0 ** (db / 20.0), False  # a set range ends autoranging
+    a.update(ranges_v=tuple(ranges), autorange=tuple(auto))
 
 
 def _range_query(a, n):
@@ -265,9 +265,13 @@ def _range_query(a, n):
 
 
 def _autorange(a, n, on):
-    if on:
-        raise ScpiError(-221, f"autorange of input {n} is not emulated: set the range "
-                        f"(VOLT{n}:RANG)")
+    if n == 4:
+        if on:
+            raise ScpiError(-221, "input 4 is the source drive, recorded without an ADC range")
+        return
+    auto = list(a.setup.autorange)
+    auto[n - 1] = on
+    a.update(autorange=tuple(auto))
 
 
 def _xdcr(a, n, on):
@@ -298,7 +302,7 @@ def _inputs(a):
         Command(f"{v}[:UPPer]", set=lambda s, p: _range(a, s[0], p),
                 query=nq(lambda n: _range_query(a, n))),
         Command(f"{v}:AUTO", set=lambda s, p: _autorange(a, s[0], _one(p).boolean()),
-                query=nq(lambda n: "0")),
+                query=nq(lambda n: "1" if n < 4 and a.setup.autorange[n - 1] else "0")),
         Command(f"{v}:UNIT:XDCR[:STATe]", set=lambda s, p: _xdcr(a, s[0], _one(p).boolean()),
                 query=nq(lambda n: "1" if a.inputs[n].xdcr else "0")),
         Command(f"{v}:UNIT:XDCR:LABel", query=nq(lambda n: f'"{_labels(a, n)}"'),

@@ -16,11 +16,16 @@ scene's DAC rate is refused, naming the limit. The random source is band-limited
 and chirp and burst periods are one time record, as the instrument's source does. Without
 overlap each average is one record of one time record; with overlap ``o`` one record holds
 the overlapped time records. :func:`bench_overrides` and :func:`analyzer_settings` give the
-``daq acquire --set ...`` and ``daq analyze`` options of the same measurement.
+``daq acquire --set ...`` and ``daq analyze`` options of the same measurement. An autoranging
+input's range is found by measuring: after a measurement that clipped it, its range rises by
+10 dB and the measurement is repeated; then the range becomes the smallest whole dBVpk above
+the recorded peak (the same seed: the same signals) and, if it changed, the measurement is made
+once more with it (:data:`RANGES_DBVPK`; at most :data:`MAX_RANGING` measurements).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -35,6 +40,10 @@ __all__ = ["FftSetup", "SourceSetup", "ModeConflict", "MeasurementMode", "FftMod
 SPANS_HZ = tuple(102400.0 / 2 ** k for k in range(20))
 #: Its line counts.
 LINES = (100, 200, 400, 800, 1600)
+#: The inputs' ranges: whole dBVpk from -51 to +27.
+RANGES_DBVPK = (-51, 27)
+#: Measurements an autoranging INIT makes at most.
+MAX_RANGING = 10
 #: Input channels 1..4 -> the run's channel names (4: the source drive, a truth field).
 CHANNELS = {1: "a", 2: "x", 3: "y", 4: "source_v"}
 
@@ -69,7 +78,7 @@ class SourceSetup:
 class FftSetup:
     """One FFT measurement's settings (SI units): span [Hz], lines, window, averaging
     ("rms", "vector", "exponential"), averages, overlap fraction, source, ADC ranges per
-    channel 1..3 [V peak]."""
+    channel 1..3 [V peak] and whether each autoranges."""
 
     span_hz: float = 12.5
     lines: int = 800
@@ -79,6 +88,7 @@ class FftSetup:
     overlap: float = 0.0
     source: SourceSetup = field(default_factory=SourceSetup)
     ranges_v: tuple = (1.0, 10.0, 10.0)
+    autorange: tuple = (False, False, False)
 
     @property
     def rate_hz(self) -> float:
@@ -267,13 +277,38 @@ class FftMode:
             bench_scene = load_scene(scene.to_dict(), bench_overrides(scene, setup))
         except RigError as exc:
             raise ModeConflict(str(exc)) from None
-        mem = MemorySink()
-        acquire(bench_scene, seed=seed, sinks=[*sinks, mem], progress=progress)
+        for _ in range(MAX_RANGING):
+            mem = MemorySink()
+            acquire(bench_scene, seed=seed, sinks=[*sinks, mem], progress=progress)
+            ranges = _autoranged(mem.recording, setup)
+            if ranges == setup.ranges_v:
+                break
+            setup = dataclasses.replace(setup, ranges_v=ranges)
+            bench_scene = load_scene(scene.to_dict(), bench_overrides(scene, setup))
         analysis = None
         if setup.source.enabled and setup.source.level_vrms > 0:
             analysis = analyze(mem.recording, analyzer_settings(setup),
                                source="SCPI measurement")
         return FftResult(setup, mem.recording, analysis, seed)
+
+
+def _autoranged(recording, setup: FftSetup) -> tuple:
+    """The ranges the autoranging inputs take after ``recording`` (module docstring)."""
+    lo, hi = RANGES_DBVPK
+    out = []
+    for name, rng, auto in zip("axy", setup.ranges_v, setup.autorange):
+        if not auto:
+            out.append(rng)
+            continue
+        k = recording.header.names.index(name)
+        db = round(20 * math.log10(rng))
+        if recording.clip_counts()[:, k].any():
+            db = min(hi, db + 10)
+        else:
+            peak = float(np.max(np.abs(recording.volts(name))))
+            db = max(lo, min(hi, math.ceil(20 * math.log10(max(peak, 1e-300)) + 1e-9)))
+        out.append(10.0 ** (db / 20.0))
+    return tuple(out)
 
 
 #: INST:SEL name -> mode (an absent name is a settings conflict: not emulated yet).

@@ -237,6 +237,22 @@ def test_status_follows_the_measurement_and_overload_flags_follow_the_range(visa
     assert _errors(visa) == []
 
 
+def test_autorange_finds_the_smallest_range_that_holds_the_signal(visa):
+    visa.write(":FREQ:SPAN 12.5;RES 100;:AVER:COUN 2;:OUTP ON")
+    visa.write(":VOLT1:RANG -51;:VOLT1:RANG:AUTO ON;:VOLT2:RANG 27;:VOLT2:RANG:AUTO ON")
+    visa.write(":VOLT1:RANG:UNIT:XDCR OFF;:CALC4:FEED 'XTIM:VOLT 1';:CALC4:FORM REAL;:INIT;*WAI")
+    assert visa.query("STAT:DEV:COND?") == "0"  # nothing clipped in the measurement kept
+    r1, r2 = (int(visa.query(f":VOLT{n}:RANG?")) for n in (1, 2))
+    assert -51 < r1 < 0 and r2 < 27
+    visa.write(":FORM REAL,64")
+    v = np.asarray(visa.query_binary_values(":CALC4:DATA?", datatype="d", is_big_endian=True))
+    # the last record's peak is within the range and, one record of two, not far below it
+    assert 20 * np.log10(np.max(np.abs(v))) <= r1 < 20 * np.log10(np.max(np.abs(v))) + 6
+    visa.write(":VOLT1:RANG 0")  # a set range ends autoranging
+    assert visa.query(":VOLT1:RANG:AUTO?;:VOLT2:RANG:AUTO?") == "0;1"
+    assert _errors(visa) == []
+
+
 def test_init_while_measuring_is_ignored_and_abort_ends_the_measurement(visa):
     visa.write(":FREQ:SPAN 12.5;RES 1600;:AVER:COUN 2000;:OUTP ON")
     visa.write(":INIT;:INIT")
