@@ -406,9 +406,10 @@ def test_daq_serve_stops_on_sigterm_while_a_client_waits_in_opc():
         port = int(resource.split("::")[2])
         with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
             s.sendall(b":FREQ:RES 100;:AVER:COUN 5;:OUTP ON;:INIT;*OPC?\n")
-            time.sleep(1.0)
+            time.sleep(1.0)  # paced: 300 s of settling in real time, *OPC? is waiting
             p.send_signal(signal.SIGTERM)
             _, err = p.communicate(timeout=20)
+            assert s.recv(100) == b""  # closed without an answer
     finally:
         if p.poll() is None:
             p.kill()
