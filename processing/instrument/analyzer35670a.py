@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
+from daq.sinks import Sink
 from processing.instrument import blocks
 from processing.instrument.measurement import LINES, MODES, FftSetup, ModeConflict, baseband_span
 from processing.instrument.scpi import Command, CommandTable, Engine, ErrorQueue, ScpiError
@@ -49,44 +50,31 @@ class Aborted(Exception):
 
 @dataclass(frozen=True)
 class InputSetup:
-    """One input: on/off, coupling, autorange, transducer (engineering) units."""
+    """One input: on (INP{n}) and its transducer (engineering) units on (its ADC range and
+    autorange are the measurement's: :class:`FftSetup`)."""
 
     on: bool = True
-    coupling: str = "DC"
-    autorange: bool = False
     xdcr: bool = True
 
 
 @dataclass(frozen=True)
 class TraceSetup:
+    """One trace (CALC{n}): its feed, format (CALC:FORM) and power unit (CALC:UNIT:VOLT)."""
+
     feed: Feed
     form: str = "MLOG"
     volt_unit: str = "V2"
 
 
-class _AbortSink:
+class _AbortSink(Sink):
     """A critical sink that ends the run at the next block once ``event`` is set."""
-
-    critical, target, path, block_s = True, None, None, None
 
     def __init__(self, event: threading.Event):
         self.event = event
 
-    def check(self):
-        pass
-
-    def start(self, header):
-        pass
-
     def block(self, block):
         if self.event.is_set():
             raise Aborted("measurement aborted")
-
-    def record(self, record):
-        pass
-
-    def stop(self, footer):
-        pass
 
 
 class Analyzer35670A:
@@ -104,7 +92,6 @@ class Analyzer35670A:
         self.modes = MODES if modes is None else modes
         self.status = Status()
         self.errors = ErrorQueue(30)
-        self._err_lock = threading.Lock()
         self.engine = Engine(CommandTable(self._commands()), self.errors, self._on_error)
         self._idle = threading.Event()
         self._idle.set()
