@@ -9,7 +9,8 @@ message's queries are joined with ``;`` and end in ``\\n`` (a binary block as it
 - a line longer than :data:`MAX_LINE` bytes is dropped whole with ``-363,"Input buffer
   overrun"``; a line that is not printable ASCII (binary, control characters) with
   ``-101,"Invalid character"``; the connection lives on;
-- an answer a client does not read within :data:`SEND_TIMEOUT_S` ends that client, as does a
+- an answer a client does not read within :data:`SEND_TIMEOUT_S` (``send_timeout_s``) ends that
+  client, as does a
   disconnect (mid-measurement too: the measurement goes on and the next client finds it);
 - an unexpected error in a command is ``-200,"Execution error"`` in the queue and one line on
   the console (``log``), never a traceback to either;
@@ -44,8 +45,10 @@ class ScpiServer:
     """Listen on ``host:port`` (port 0: a free one; :attr:`address` tells which)."""
 
     def __init__(self, instrument, host: str = "127.0.0.1", port: int = 5025, *,
-                 log=lambda line: None, max_line: int = MAX_LINE):
+                 log=lambda line: None, max_line: int = MAX_LINE,
+                 send_timeout_s: float = SEND_TIMEOUT_S):
         self.instrument, self.log, self.max_line = instrument, log, max_line
+        self.send_timeout_s = send_timeout_s
         self._stop = threading.Event()
         self.sock = socket.create_server((host, port), backlog=BACKLOG, reuse_port=False)
         self.sock.setblocking(False)
@@ -148,7 +151,7 @@ class ScpiServer:
             while view:
                 if not sel.select(_SLICE_S):
                     waited += _SLICE_S
-                    if waited >= SEND_TIMEOUT_S or self._stop.is_set():
+                    if waited >= self.send_timeout_s or self._stop.is_set():
                         return False
                     continue
                 try:

@@ -174,6 +174,7 @@ def test_long_short_forms_case_units_suffixes_and_header_paths(visa):
     visa.write("CALCulate3:FEED 'xfrequency:power:ratio 3,1';:calc3:form phase")
     assert q("CALC3:FEED?;FORM?") == '"XFR:POW:RAT 3,1";PHAS'
     assert q("INPut3:STATe?;:INP4?") == "1;1"
+    assert q("FREQ:SPAN 25;*CLS;RES 200;*OPC?;:FREQ:SPAN?;RES?") == "1;25;200"  # common: no path
     assert q("*IDN?").split(",")[1] == "35670A"
     assert "emulated" in q("*IDN?").split(",")[3]
     assert q("*OPT?") == '"AY6"'
@@ -192,10 +193,12 @@ def test_unknown_and_invalid_commands_answer_real_scpi_errors_in_order(visa):
     visa.write("FREQ:SPAN 10 PARSEC")
     visa.write("FREQ:STAR 1 HZ")
     visa.write("*IDN? 1")
+    visa.write(":SOUR:FUNC RAND;:SOUR:VOLT 0.1 VPK")  # a noise source has no peak level
     visa.write(":AVER OFF;:INIT")  # one average: no coherence
     errs = _errors(visa)
     codes = [int(e.split(",")[0]) for e in errs]
-    assert codes == [-113, -114, -221, -222, -221, -221, -224, -109, -131, -221, -108, -221], errs
+    assert codes == [-113, -114, -221, -222, -221, -221, -224, -109, -131, -221, -108, -221,
+                     -221], errs
     assert "1 average" in errs[-1]
     assert "simulation_rate_hz" in errs[2] and "largest span is 100 Hz" in errs[2]
     assert "SINE" in errs[4]
@@ -261,6 +264,36 @@ def test_init_while_measuring_is_ignored_and_abort_ends_the_measurement(visa):
     assert visa.query("*OPC?") == "1"
     assert time.perf_counter() - t0 < 10.0
     assert [int(e.split(",")[0]) for e in _errors(visa)] == [-213]
+
+
+def test_a_client_that_does_not_read_its_answers_is_dropped_and_the_next_served():
+    from processing.instrument.analyzer35670a import Analyzer35670A
+    from processing.instrument.server import ScpiServer
+    from rig.scene import load_scene
+
+    srv = ScpiServer(Analyzer35670A(load_scene(SCENE)), "127.0.0.1", 0, send_timeout_s=1.0)
+    t = threading.Thread(target=srv.serve_forever, daemon=True)
+    t.start()
+    try:
+        with socket.create_connection(srv.address, timeout=10) as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            line = b";".join([b"*IDN?"] * 10_000) + b"\n"  # 60 kB asking 660 kB
+            try:
+                for _ in range(30):  # 20 MB of answers, never read: more than the buffers
+                    s.sendall(line)
+            except OSError:
+                pass  # the server already dropped this client
+            time.sleep(2.0)
+            rm = pyvisa.ResourceManager("@py")
+            inst = rm.open_resource(srv.resource, read_termination="\n",
+                                    write_termination="\n", timeout=10_000)
+            assert "35670A" in inst.query("*IDN?")
+            inst.close()
+            rm.close()
+    finally:
+        srv.stop()
+        t.join(10)
+        srv.close()
 
 
 def test_a_client_that_leaves_mid_measurement_leaves_the_server_serving(server):
