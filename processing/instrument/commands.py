@@ -248,14 +248,20 @@ def _range(a, n, p):
         raise ScpiError(-221, "input 4 is the source drive, recorded without an ADC range")
     par = _one(p)
     unit = "".join(ch for ch in par.text.upper() if ch.isalpha() and ch != "E")
-    v = par.number({"": 1.0, "DBVP": 1.0, "DBVPK": 1.0, "VPK": 1.0, "V": 1.0})
-    db = v if unit in ("", "DBVP", "DBVPK") else (
-        20.0 * math.log10(v) if v > 0 else -math.inf)
+    v = par.number({"": 1.0, "DBVP": 1.0, "DBVPK": 1.0, "DBVRMS": 1.0, "VPK": 1.0, "V": 1.0,
+                    "VRMS": math.sqrt(2.0)})
+    if unit in ("", "DBVP", "DBVPK", "DBVRMS"):
+        db = v + (_RMS_TO_PEAK_DB if unit == "DBVRMS" else 0.0)
+    else:
+        db = 20.0 * math.log10(v) if v > 0 else -math.inf
     db = math.ceil(db - 1e-9)
     _in_range(f"input {n} range", db, -51, 27, " dBVpk")
     ranges, auto = list(a.setup.ranges_v), list(a.setup.autorange)
     ranges[n - 1], auto[n - 1] = 10.0 ** (db / 20.0), False  # a set range ends autoranging
     a.update(ranges_v=tuple(ranges), autorange=tuple(auto))
+
+
+_RMS_TO_PEAK_DB = 20.0 * math.log10(math.sqrt(2.0))
 
 
 def _range_query(a, n):
@@ -306,11 +312,18 @@ def _inputs(a):
         Command(f"{v}:UNIT:XDCR[:STATe]", set=lambda s, p: _xdcr(a, s[0], _one(p).boolean()),
                 query=nq(lambda n: "1" if a.inputs[n].xdcr else "0")),
         Command(f"{v}:UNIT:XDCR:LABel", query=nq(lambda n: f'"{_labels(a, n)}"'),
-                set=lambda s, p: _fixed_calibration(s[0])),
+                set=lambda s, p: _same_label(a, s[0], p)),
         Command(f"{v}:UNIT:XDCR:SENSitivity",
                 query=nq(lambda n: _nr(abs(a.scene_volts_per_unit()[n]))),
                 set=lambda s, p: _fixed_calibration(s[0])),
     ]
+
+
+def _same_label(a, n, p):
+    par = _one(p)
+    label = (par.string() if par.is_string else par.text).strip().upper()
+    if label != _labels(a, n):
+        _fixed_calibration(n)
 
 
 def _fixed_calibration(n):

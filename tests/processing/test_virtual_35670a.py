@@ -253,6 +253,8 @@ def test_autorange_finds_the_smallest_range_that_holds_the_signal(visa):
     assert 20 * np.log10(np.max(np.abs(v))) <= r1 < 20 * np.log10(np.max(np.abs(v))) + 6
     visa.write(":VOLT1:RANG 0")  # a set range ends autoranging
     assert visa.query(":VOLT1:RANG:AUTO?;:VOLT2:RANG:AUTO?") == "0;1"
+    # 1 V rms = 1.41 V peak = +3.01 dBVpk, rounded up; -7 dBVrms = -3.99 dBVpk
+    assert visa.query(":VOLT3:RANG 1 VRMS;:VOLT3:RANG?;:VOLT3:RANG -7 DBVRMS;RANG?") == "4;-3"
     assert _errors(visa) == []
 
 
