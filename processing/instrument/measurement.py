@@ -1,11 +1,13 @@
 """The analyzer's measurement modes: what ``INIT`` runs, as an acquisition and an analysis of
 this project (``daq.acquire`` into a ``daq.MemorySink``, then ``processing.analyze``).
 
-A mode is a :class:`MeasurementMode`: ``check(setup)`` refuses what the bench cannot carry
-(a :class:`ModeConflict` sentence, answered as ``-221,"Settings conflict"``), and
-``run(setup, seed=..., sinks=..., progress=...)`` measures and returns a result with
-``trace(feed, ...)``. :data:`MODES` maps ``INST:SEL`` names to modes; the FFT mode is
-:class:`FftMode`. Another mode (swept sine) plugs in by adding its entry.
+A mode is a :class:`MeasurementMode`: ``check(scene, setup)`` refuses what the bench cannot
+carry (a :class:`ModeConflict` sentence, answered as ``-221,"Settings conflict"``), and
+``run(scene, setup, seed=..., sinks=..., progress=...)`` measures and returns a result that the
+traces read (:mod:`processing.instrument.traces`: ``freqs_hz``, ``frf(out, in)``, ``cross``,
+``time_record``, ``volts_per_unit``; a feed a mode cannot give raises :class:`ModeConflict`).
+:data:`MODES` maps ``INST:SEL`` names to modes; the FFT mode is :class:`FftMode`. Another mode
+(swept sine) plugs in by adding its entry, with its setup and the commands that set it.
 
 FFT mode (the 35670A's semantics, SPEC section 6): a baseband span ``102.4 kHz / 2^k`` with
 ``lines`` in 100 .. 1600 gives the time record ``lines / span`` and the sample rate
