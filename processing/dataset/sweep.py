@@ -3,8 +3,7 @@
 A sweep file names a base scene, the settings every run shares and the parameters that vary::
 
     seed = 2026                          # the sweep seed (0 <= seed < 2**63)
-    scene = "ishizaki2009"               # base scene: a preset name or a scene TOML file
-                                         # (relative to the sweep file)
+    scene = "ishizaki2009"               # base scene: a preset or a TOML file (relative to this)
     set = ["acquisition.records=30"]     # --set-style overrides applied to every run
 
     [grid]                               # parameters on a grid
@@ -14,10 +13,8 @@ A sweep file names a base scene, the settings every run shares and the parameter
     "stage.reaction" = [true, false]                            # a list of values
 
     [random]                             # parameters drawn at random, ``count`` draws per grid point
-    count = 5
+    count = 5                            # kinds: uniform, loguniform, normal (+ bounds)
     "pendulum.q2" = { loguniform = [50.0, 200.0] }
-    "stage.damping_nspm" = { uniform = [0.5, 2.0] }
-    "accelerometer.noise_mps2_rthz" = { normal = [1e-5, 2e-6], bounds = [0.0, 1e-4] }
 
     [analysis]                           # processing.analyzer.AnalyzerSettings fields
     window = "hann"
@@ -28,8 +25,7 @@ A sweep file names a base scene, the settings every run shares and the parameter
     frf = true                           # H_t, Theta_2 with coherence and relative error
     modal = true                         # the modal fits' f, Q and their standard deviations
     expected = true                      # the exact model and E[H1] at the analyzer's lines
-    analysis = true                      # false: no analysis at all (signals, truth and model
-                                         # only, at the acquisition's own throughput)
+    analysis = true                      # false: no analysis (signals, truth and model only)
 
 Parameters are scene keys (``section.key``, see :mod:`rig.scene`), written as quoted dotted keys
 or as nested tables (``[grid.pendulum] q1 = [...]``). Without ``[grid]`` and ``[random]`` the
@@ -40,10 +36,8 @@ parameter varying fastest, then the draws of each point) has the seed
 do not depend on the sweep's size, the order the runs finish in or the engine.
 
 Validation (:func:`load_sweep`) raises :class:`rig.errors.ConfigError` naming the key, the value
-and what is valid, for anything wrong with the file itself (unknown key or section, wrong type,
-a grid with no values, bounds in the wrong order, a base scene that does not load). A parameter
-*set* that the scene rejects (e.g. a negative Q from a wide normal draw) is not an error of the
-file: that run is recorded as failed with the scene's message (:meth:`Sweep.plan`).
+and what is valid for anything wrong with the file itself; a parameter *set* the scene rejects
+(a negative Q from a wide normal draw) fails only that run, with the scene's message.
 """
 
 from __future__ import annotations
@@ -63,7 +57,7 @@ from rig._check import integer, number
 from rig.errors import ConfigError
 
 __all__ = ["Sweep", "Parameter", "RunSpec", "load_sweep", "parse_sweep", "run_seed",
-           "KEEP_DEFAULTS", "GRID_KINDS", "RANDOM_KINDS"]
+           "KEEP_DEFAULTS", "GRID_KINDS", "RANDOM_KINDS", "MAX_RUNS"]
 
 GRID_KINDS = ("values", "linspace", "logspace")
 RANDOM_KINDS = ("uniform", "loguniform", "normal")
@@ -71,7 +65,10 @@ RANDOM_KINDS = ("uniform", "loguniform", "normal")
 #: are the run format itself and are always kept).
 KEEP_DEFAULTS = {"truth": True, "spectra": True, "frf": True, "modal": True, "expected": True}
 _TOP = ("seed", "scene", "set", "name", "description", "grid", "random", "analysis", "keep")
-_MAX_RUNS = 1_000_000
+#: The largest sweep accepted: planning checks every run's scene (a few ms each) and keeps its
+#: settings, so 100,000 runs take minutes and about half a GB to plan (BENCHMARKS.md "First
+#: run"); split a larger sweep into several.
+MAX_RUNS = 100_000
 
 
 @dataclass(frozen=True)
@@ -312,6 +309,9 @@ def parse_sweep(data: dict, *, base_dir: str | Path = ".", source: str = "sweep"
     count = rand_raw.pop("count", 1)
     count = integer("random.count", count, minimum=1,
                     valid="an integer >= 1 (runs per grid point)")
+    if count > MAX_RUNS:
+        raise ConfigError(f"random.count = {count} is invalid: a sweep has at most {MAX_RUNS} "
+                          "runs (split it into several sweeps)")
     random = tuple(_random_parameter(k, v, base) for k, v in _flatten("random", rand_raw).items())
     keys = [p.key for p in grid] + [p.key for p in random]
     dup = sorted({k for k in keys if keys.count(k) > 1})
@@ -344,8 +344,9 @@ def parse_sweep(data: dict, *, base_dir: str | Path = ".", source: str = "sweep"
                   random=random, count=count, analysis=dict(analysis), keep=keep,
                   name=data.get("name", Path(source).stem if source != "sweep" else "sweep"),
                   description=data.get("description", ""), source=source, text=text)
-    if sweep.n_runs > _MAX_RUNS:
-        raise ConfigError(f"the sweep has {sweep.n_runs} runs: expected at most {_MAX_RUNS}")
+    if sweep.n_runs > MAX_RUNS:
+        raise ConfigError(f"the sweep has {sweep.n_runs} runs: expected at most {MAX_RUNS} "
+                          "(split it into several sweeps)")
     return sweep
 
 
@@ -442,6 +443,9 @@ def _grid_parameter(key: str, v, base) -> Parameter:
                           f"is a {spec.type}; give a list of values")
     num = v.get("num")
     num = integer(f"{where}.num", num, minimum=1)
+    if num > MAX_RUNS:  # refused before the values are made
+        raise ConfigError(f"{where}.num = {num} is invalid: a sweep has at most {MAX_RUNS} runs "
+                          "(split it into several sweeps)")
     lo, hi = _pair(f"{where}.{kind}", v[kind], positive=kind == "logspace", ordered=False)
     vals = np.linspace(lo, hi, num) if kind == "linspace" else np.geomspace(lo, hi, num)
     return Parameter(key, kind, values=tuple(float(x) for x in vals), args=(lo, hi, num))
