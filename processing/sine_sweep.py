@@ -33,7 +33,7 @@ columns), ``point(row, record)`` (:func:`processing.sine.point_row` and the
 :class:`daq.sine_file.SineFileSink`, is one); each sink's ``check()``, if it has one, runs
 before anything is simulated.
 
-Public API: :class:`SineSettings`, :class:`SineSweep`, :func:`measure_sine`, :func:`planned_grid`.
+Public API: :class:`SineSettings`, :class:`SineSweep`, :func:`measure_sine`.
 """
 
 from __future__ import annotations
@@ -137,11 +137,6 @@ class SineSettings:
         f = (np.geomspace if self.spacing == "log" else np.linspace)(self.fmin_hz,
                                                                       self.fmax_hz, self.points)
         return f if self.direction == "up" else f[::-1]
-
-
-def planned_grid(settings: SineSettings) -> np.ndarray:
-    """:meth:`SineSettings.grid`."""
-    return settings.grid()
 
 
 @dataclass(frozen=True, eq=False)
