@@ -221,7 +221,7 @@ class Hdf5Sink(Sink):
         run file (:data:`RUN_SUFFIXES`)."""
         path = check_writable(self.target, force=self.force)
         if path.suffix.lower() not in RUN_SUFFIXES:
-            raise ConfigError(f"--out {str(path)!r}: unknown extension {path.suffix!r}; "
+            raise ConfigError(f"run file {str(path)!r}: unknown extension {path.suffix!r}; "
                               f"a run file is HDF5: expected {', '.join(RUN_SUFFIXES)}")
 
     def start(self, header: Header) -> None:
@@ -230,8 +230,9 @@ class Hdf5Sink(Sink):
         # a sink may write another run (with force): the per-run state anew, the row shapes
         # keyed by HDF5 ids that the new file may reuse
         self._tmp, self._n, self._extents, self._rows = None, 0, None, {}
-        if target.exists():
-            self._hold_target(target)
+        if os.path.lexists(target):  # a file, or a link (dangling: replaced by the file)
+            if target.exists():
+                self._hold_target(target)
             fd, tmp = tempfile.mkstemp(prefix=f"{target.stem}.partial-", suffix=target.suffix,
                                        dir=target.parent)
             os.close(fd)

@@ -6,7 +6,8 @@ command group) is a module of its own: :mod:`daq.cli.scene` (scene, model, simul
 shared options in :mod:`daq.cli.common`.
 
 Errors become one line and exit status 1 in one place, the group's class
-(:class:`daq.cli.errors.ErrorsAsMessages`); ``daq --debug`` lets them through.
+(:class:`daq.cli.errors.ErrorsAsMessages`); ``daq --debug`` lets them through. The exit statuses
+of every command are one table, :data:`daq.cli.errors.EXIT_CODES`.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from daq.cli import dataset as _dataset_cmd
 from daq.cli import export as _export_cmd
 from daq.cli import live as _live_cmds
 from daq.cli import scene as _scene_cmds
-from daq.cli.errors import ErrorsAsMessages
+from daq.cli.errors import ErrorsAsMessages, exit_codes_text
 
 
 @click.group(cls=ErrorsAsMessages, context_settings={"help_option_names": ["-h", "--help"]})
@@ -32,12 +33,12 @@ from daq.cli.errors import ErrorsAsMessages
               help="Let errors through with their traceback (otherwise: one line, exit 1).")
 @click.pass_context
 def main(ctx, debug):
-    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer).
-
-    Exit status: 0 done; 1 an error (one line); 2 a usage error; 3 a run not as asked (over
-    its error budget or saturated; acquire --allow-over-budget); 128+N ended by signal N.
-    """
+    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer)."""
     ctx.meta["daq.debug"] = debug
+
+
+main.help += ("\n\n\b\nExit status, the same for every command (daq.cli.errors.EXIT_CODES):\n"
+              + exit_codes_text())
 
 
 for _command in (_scene_cmds.scene, _scene_cmds.model, _scene_cmds.simulate, _live_cmds.view,

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from rig.errors import ConfigError
+from rig.errors import ConfigError, ForceRequired
 
 from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table
 from processing.dataset.runfile import check_run_file
@@ -210,17 +210,18 @@ def _prepare(out_dir: Path, sweep: Sweep, planned, force: bool) -> list[str]:
     changes: list[str] = []
     if out_dir.exists():
         if not out_dir.is_dir():
-            raise ConfigError(f"--out {str(out_dir)!r} is a file; expected a directory")
+            raise ConfigError(f"output directory {str(out_dir)!r} is a file; expected a directory")
         if plan_path.exists():
             old = json.loads(plan_path.read_text())
             changes = _changes(old, doc)
             if changes and not force:
-                raise ConfigError(f"{str(out_dir)!r} holds another version of this sweep; "
-                                  f"changed: {'; '.join(changes)}. Pass --force to apply the "
-                                  "changes (runs whose specification changed are redone and "
-                                  "their files replaced) or choose another --out")
+                raise ForceRequired(f"{str(out_dir)!r} holds another version of this sweep; "
+                                    f"changed: {'; '.join(changes)}; choose another output "
+                                    "directory, or force",
+                                    "apply the changes (runs whose specification changed are "
+                                    "redone and their files replaced)")
         elif any(p.name != ".lock" for p in out_dir.iterdir()):
-            raise ConfigError(f"--out {str(out_dir)!r} exists and is not a sweep directory (no "
+            raise ConfigError(f"output directory {str(out_dir)!r} exists and is not a sweep directory (no "
                               f"{PLAN}); expected a new or empty directory, or a sweep's")
     (out_dir / RUNS).mkdir(parents=True, exist_ok=True)
     _write_atomic(plan_path, json.dumps(doc, indent=1, sort_keys=True))

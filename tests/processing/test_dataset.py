@@ -265,7 +265,7 @@ def test_a_rerun_skips_finished_runs_redoes_damaged_ones_and_a_changed_sweep_nee
     assert res.exit_code == 1
     assert "holds another version of this sweep; changed: grid: " in res.output
     assert '"args": [0.05, 0.15, 3]' in res.output and '"args": [0.05, 0.25, 3]' in res.output
-    assert "Pass --force" in res.output
+    assert "pass --force to apply the changes" in res.output
     res = invoke("dataset", path, "--out", out, "--workers", "1", "--force")
     assert res.exit_code == 0, res.output
     assert "3 of 3 runs complete (1 already there)" in res.output
