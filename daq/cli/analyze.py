@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import force_option, verified_records
+from daq.cli.common import figure_path, force_option, verified_records
 from processing.choices import AVERAGING, ESTIMATORS, WINDOWS
 from rig._io import check_writable
 
@@ -33,7 +33,9 @@ from rig._io import check_writable
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the measured H_t and Theta_2 (0.1-10 Hz) as CSV.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the measured Bode diagrams over the model (PNG, like Figs. 9, 10).")
+              callback=figure_path,
+              help="Write the measured Bode diagrams over the model (like Figs. 9, 10); the "
+                   "format follows the extension: .png, .pdf or .svg.")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the Markdown report.")
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),

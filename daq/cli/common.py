@@ -17,6 +17,22 @@ def force_option(fn):
     return click.option("--force", is_flag=True, help="Overwrite existing output files.")(fn)
 
 
+def figure_path(ctx, param, value):
+    """A click callback: a figure path whose extension names a format matplotlib writes
+    (:func:`processing.figure_files.figure_format`), checked while the command line is parsed,
+    so a bad one is a usage error before any work."""
+    if value is None:
+        return None
+    from processing.errors import SettingsError
+    from processing.figure_files import figure_format
+
+    try:
+        figure_format(value)
+    except SettingsError as exc:
+        raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
+    return value
+
+
 def fmt(v) -> str:
     """A value as a person reads it: numbers to 6 digits, booleans and nothing as in JSON/TOML
     (true, false, null), lists in brackets."""

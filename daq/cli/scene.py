@@ -8,9 +8,9 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import fmt, force_option, set_option
+from daq.cli.common import figure_path, fmt, force_option, set_option
 from daq.cli.live import viewer_stream
-from rig._io import atomic_output, check_writable
+from rig._io import check_writable
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -88,37 +88,46 @@ def _format_summary(s: dict, indent: int = 0) -> str:
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the Bode data as CSV.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write gain/phase diagrams (PNG) like the paper's Figs. 9 and 10.")
+              callback=figure_path,
+              help="Write gain/phase diagrams like the paper's Figs. 9 and 10; the format "
+                   "follows the extension: .png, .pdf or .svg.")
 @click.option("--fmin", default=0.1, show_default=True, type=float, help="Lowest frequency [Hz].")
 @click.option("--fmax", default=10.0, show_default=True, type=float, help="Highest frequency [Hz].")
 @click.option("--points", default=1000, show_default=True, type=click.IntRange(min=2),
-              help="Number of log-spaced frequencies.")
+              help="Log-spaced frequencies of the base grid; the output has these plus the "
+                   "points added at and around every mode and anti-resonance until each is "
+                   "drawn within 0.1 dB.")
 @force_option
 def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force):
     """Analytic Bode data of SCENE (exact linear model, direct complex solve).
 
     x is the mirror translation relative to the stage [m per m/s^2], y the mirror rotation [rad
-    per m/s^2] (SPEC section 5).
+    per m/s^2] (SPEC section 5). The frequencies are --points log-spaced ones from --fmin to
+    --fmax plus those added where the response is sharp (each mode's peak and each
+    anti-resonance's notch exactly, and until linear interpolation between neighbours is within
+    0.1 dB), so no resonance or notch is missed.
     """
-    from rig.describe import log_grid, mirror_response, write_csv
+    from rig.describe import log_grid, mirror_response, model_grid, write_csv
     from rig.scene import load_scene
 
-    sc = load_scene(scene_name, overrides)
-    freqs = log_grid(fmin, fmax, points)
     for p in (csv_path, plot_path):
         if p is not None:
             check_writable(p, force=force)
+    log_grid(fmin, fmax, points)  # the range, before the scene is built
+    sc = load_scene(scene_name, overrides)
+    freqs = model_grid(sc, fmin, fmax, points)
     resp = mirror_response(sc, freqs)
     if csv_path is not None:
         write_csv(resp, csv_path, force=force)
-        click.echo(f"wrote {csv_path} ({points} frequencies, {fmin:g}-{fmax:g} Hz)")
+        click.echo(f"wrote {csv_path} ({freqs.size} frequencies, {fmin:g}-{fmax:g} Hz: {points} "
+                   f"log-spaced and {freqs.size - points} at the modes and anti-resonances)")
     if plot_path is not None:
+        from processing.figure_files import save_figure
         from processing.plots import model_bode_figure
 
         fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model",
                                 paper_figures=sc.pendulum_kind == "ishizaki")
-        with atomic_output(plot_path, force=force) as tmp:
-            fig.savefig(tmp, dpi=120, format="png")
+        save_figure(fig, plot_path, force=force, dpi=120)
         click.echo(f"wrote {plot_path}")
     from rig.describe import resonance_table
 

@@ -1,0 +1,129 @@
+"""What a newcomer reads off the outputs is right: the model's CSV and figures show every
+resonance and notch within 0.1 dB whatever --points says, a figure's format follows its
+extension (an unknown one refused before any work), Theta_2's phase at +-180 deg is one band.
+Real CLI in subprocesses, each bounded in time."""
+
+import csv
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from rig.describe import mirror_response
+from rig.scene import load_scene
+
+FAST = ["--records", "2", "--duration", "10", "--rate", "100", "--seed", "1",
+        "--set", "acquisition.settle_s=5", "--set", "acquisition.model=linear", "-q"]
+MAGIC = {".png": b"\x89PNG\r\n\x1a\n", ".pdf": b"%PDF-", ".svg": b"<?xml"}
+
+
+def daq(*args, cwd, timeout=180):
+    return subprocess.run([sys.executable, "-m", "daq.cli", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def run_file(tmp_path_factory):
+    d = tmp_path_factory.mktemp("run")
+    res = daq("acquire", "ishizaki2009", *FAST, "--out", "run.h5", cwd=d, timeout=300)
+    assert res.returncode == 0, res.stderr
+    return d / "run.h5"
+
+
+def _columns(path):
+    with open(path) as fh:
+        rows = [r for r in csv.reader(fh) if r and not r[0].startswith("#")]
+    return {k: np.array([float(r[i]) for r in rows[1:]]) for i, k in enumerate(rows[0])}
+
+
+def _true_extremum(channel, lo, hi, sign):
+    """The largest (sign +1) or smallest (-1) gain [dB] of the exact model's channel over
+    [lo, hi], by a grid of 2e6 points refined around its best point to 1e-9 Hz."""
+    sc = load_scene("ishizaki2009")
+
+    def gain(f):
+        return 20 * np.log10(np.abs(getattr(mirror_response(sc, f), channel)))
+
+    f = np.linspace(lo, hi, 2_000_001)
+    for _ in range(4):
+        g = gain(f)
+        i = int(np.argmax(sign * g))
+        step = f[1] - f[0]
+        f = np.linspace(f[i] - 2 * step, f[i] + 2 * step, 2001)
+    return float(sign * np.max(sign * gain(f)))
+
+
+@pytest.mark.parametrize("points", [None, 10])
+def test_model_csv_shows_the_peak_and_the_notch_within_a_tenth_of_a_db(tmp_path, points):
+    extra = [] if points is None else ["--points", points]
+    res = daq("model", "ishizaki2009", "--csv", "m.csv", *extra, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    c = _columns(tmp_path / "m.csv")
+    f = c["frequency_hz"]
+    base = 1000 if points is None else points
+    assert f.size > base and np.all(np.diff(f) > 0) and f[0] == 0.1 and f[-1] == 10.0
+    near_mode = (f > 2.4) & (f < 2.56)
+    near_notch = (f > 4.5) & (f < 4.8)
+    for col, ch in (("x_gain_db", "x"), ("y_gain_db", "y")):
+        true_peak = _true_extremum(ch, 2.45, 2.51, +1)
+        assert abs(c[col][near_mode].max() - true_peak) < 0.1, (col, true_peak)
+    true_notch = _true_extremum("y", 4.6, 4.7, -1)
+    assert abs(c["y_gain_db"][near_notch].min() - true_notch) < 0.1, true_notch
+    assert f"{base} log-spaced" in res.stdout
+
+
+def test_model_help_says_what_points_means(tmp_path):
+    res = daq("model", "--help", cwd=tmp_path, timeout=60)
+    text = " ".join(res.stdout.split())
+    assert "base grid" in text and "within 0.1 dB" in text
+
+
+@pytest.mark.parametrize("ext", [".png", ".pdf", ".svg"])
+def test_model_plot_format_follows_the_extension(tmp_path, ext):
+    res = daq("model", "ishizaki2009", "--plot", f"b{ext}", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / f"b{ext}").read_bytes().startswith(MAGIC[ext])
+
+
+@pytest.mark.parametrize("name", ["b", "b.jpg", "b.txt"])
+def test_an_unknown_figure_extension_is_refused_before_any_work(tmp_path, name):
+    t0 = time.monotonic()
+    res = daq("model", "ishizaki2009", "--csv", "m.csv", "--plot", name, cwd=tmp_path,
+              timeout=60)
+    assert res.returncode == 2
+    assert ".png, .pdf, .svg" in res.stderr and "--plot" in res.stderr
+    assert "Traceback" not in res.stderr
+    assert list(tmp_path.iterdir()) == []  # not even the CSV
+    assert time.monotonic() - t0 < 30
+
+
+def test_analyze_plot_format_follows_the_extension(run_file, tmp_path):
+    for ext in (".pdf", ".svg", ".png"):
+        out = tmp_path / f"bode{ext}"
+        res = daq("analyze", run_file, "--plot", out, cwd=tmp_path, timeout=300)
+        assert res.returncode == 0, res.stderr
+        assert out.read_bytes().startswith(MAGIC[ext]), ext
+    res = daq("analyze", run_file, "--plot", tmp_path / "b.jpeg", "--csv", tmp_path / "f.csv",
+              cwd=tmp_path, timeout=60)
+    assert res.returncode == 2 and ".png, .pdf, .svg" in res.stderr
+    assert not (tmp_path / "f.csv").exists()
+
+
+def test_theta2_phase_is_drawn_on_one_branch_named_in_the_axis_label(run_file, tmp_path):
+    """Theta_2 sits at +-180 deg between its 2.48 Hz mode and 4.66 Hz notch: the figure draws it
+    on (-90, 270], where that stretch is one band (no model point within 45 deg of the cut
+    there), and says so in the axis label."""
+    from processing.phase_display import phase_branch, wrap_to
+
+    res = daq("analyze", run_file, "--plot", "b.svg", cwd=tmp_path, timeout=300)
+    assert res.returncode == 0, res.stderr
+    svg = (tmp_path / "b.svg").read_text()
+    assert svg.count("on (-90, 270]") >= 2  # both diagrams' phase axes (text kept as text)
+    sc = load_scene("ishizaki2009")
+    f = np.linspace(2.6, 4.5, 500)
+    y = mirror_response(sc, f).y
+    lo = phase_branch(y)
+    p = wrap_to(np.degrees(np.angle(y)), lo)
+    assert lo == -90.0 and np.all(np.abs(p - 180.0) < 45.0)
