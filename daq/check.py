@@ -98,7 +98,8 @@ class FileCheck:
         return d
 
     def line(self) -> str:
-        """One line: ``PATH: OK|BAD kind status, records ..., version; first problem``."""
+        """One line: ``PATH: OK|BAD kind status, records ..., version; first problem`` (or
+        note), then how many more there are (all in :meth:`to_dict`)."""
         head = f"{self.path}: {'OK' if self.ok else 'BAD'} {self.kind}, {self.status}"
         if self.records_planned is not None:
             head += f", {self.records_valid} of {self.records_planned} records verify"
@@ -106,7 +107,8 @@ class FileCheck:
             head += f", format {self.format_version}"
         extra = self.problems or self.notes
         if extra:
-            more = f" (+{len(extra) - 1} more)" if len(extra) > 1 else ""
+            n, what = len(extra) - 1, "problem" if self.problems else "note"
+            more = f" (and {n} more {what}{'s' if n > 1 else ''})" if n else ""
             head += f"; {extra[0]}{more}"
         return head
 

@@ -534,6 +534,31 @@ class Hdf5Sink(Sink):
 
 # -- reading ---------------------------------------------------------------------------------
 
+def mark_interrupted(path: str | Path) -> int | None:
+    """Mark a run file a killed writer left ("acquiring", no writer alive, its open-for-writing
+    mark cleared: :func:`daq.repair.clear_write_flags`) as "interrupted", with a message saying
+    so; its records are untouched. Returns the number of finished records it holds, or None if
+    it was not such a file (another status). Raises ConfigError while a writer is alive."""
+    from daq.repair import writer_alive
+
+    path = Path(path)
+    if writer_alive(path):
+        raise ConfigError(f"{str(path)!r} is still being written (its writer holds a lock); "
+                          "not marking it")
+    with h5py.File(path, "r+") as f:
+        if f.attrs.get("file_format") != FORMAT:
+            return None
+        status, n = _status(f)
+        if status != "acquiring":
+            return None
+        entry = f["entry"]
+        entry["status"][()] = _fixed("interrupted", _STATUS_LEN)
+        entry["message"][()] = _fixed(
+            f"the writer stopped without closing the file (killed) after {n} finished records; "
+            "marked interrupted on repair, its records kept", _MESSAGE_LEN)
+    return n
+
+
 @contextlib.contextmanager
 def open_run(path: str | Path):
     """Open a run file read-only; a file still marked open for writing (a live or killed writer)

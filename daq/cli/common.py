@@ -101,3 +101,25 @@ def verified_records(run: Path, allow_incomplete: bool):
     click.echo(f"warning: {fc.line()}; analysing the {len(fc.valid_records)} records that "
                f"verify", err=True)
     return fc.valid_records
+
+
+def repair_file(path: Path) -> list[str]:
+    """``--repair`` of ``daq check`` and ``daq inspect``: clear the open-for-writing mark a killed
+    writer left (:func:`daq.repair.clear_write_flags`), then mark such a run "interrupted"
+    (:func:`daq.hdf5.mark_interrupted`; its records kept). Returns what was done, one line each;
+    a file whose writer is alive is left alone (a ConfigError saying so)."""
+    from daq.hdf5 import mark_interrupted
+    from daq.repair import clear_write_flags, superblock, writer_alive
+
+    done = []
+    sb = superblock(path)
+    if sb is None:
+        return done
+    if sb["flags"] and sb["version"] >= 2 and clear_write_flags(path):
+        done.append(f"cleared the open-for-writing mark of {path}")
+    if not writer_alive(path):
+        n = mark_interrupted(path)
+        if n is not None:
+            done.append(f"marked {path} interrupted: its writer stopped without closing it "
+                        f"(killed); its {n} finished records kept")
+    return done
