@@ -97,6 +97,7 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
         seen[key] = "another output"
         check_writable(p, force=force)
+    _check_band(run, fmax_hz)
     if follow:
         from processing.follow import follow_run
 
@@ -111,3 +112,19 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     if plot_path is not None:
         for p in write_views(analysis, plot_path, view, phase=phase, force=force):
             click.echo(f"wrote {p}")
+
+
+def _check_band(run: Path, fmax_hz: float) -> None:
+    """--fmax against the run's band (:func:`processing.analyzer.band_limit_hz`), read from its
+    header before anything is analysed."""
+    from daq.hdf5 import run_info
+    from processing.analyzer import band_limit_hz
+
+    aa = run_info(run)["antialias"]
+    limit = band_limit_hz(aa["passband_hz"], aa["rate_hz"])
+    if fmax_hz > limit:
+        raise click.BadParameter(
+            f"{fmax_hz:g} Hz is above this run's band: its anti-alias filter's passband ends at "
+            f"{limit:g} Hz (the Nyquist frequency of its {aa['rate_hz']:g} Hz rate is "
+            f"{aa['rate_hz'] / 2:g} Hz; above the passband the channels hold mostly leakage); "
+            f"give --fmax {limit:g} or less", param_hint="--fmax")

@@ -136,6 +136,18 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
 
 # -- simulation ------------------------------------------------------------------------------
 
+def _frame_grid(traj) -> dict:
+    """``dt_s`` and ``output_dt_s`` of a run drawing ``traj`` at about the view's frame rate:
+    a fixed-step method keeps its step (a frame every whole number of steps, so the frames are
+    the run's own states), an adaptive one its tolerance."""
+    from processing.bench_geometry import FRAMES_PER_S
+
+    dt = traj.settings.get("dt_s")
+    if dt:
+        return {"dt_s": dt, "output_dt_s": max(1, round(1.0 / (FRAMES_PER_S * dt))) * dt}
+    return {"dt_s": None, "output_dt_s": 1.0 / FRAMES_PER_S}
+
+
 def _floats(ctx, param, value):
     """Parse "a,b,..." into floats (None stays None)."""
     if value is None:
@@ -214,22 +226,26 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
         trajectory_format(out)
         check_writable(out, force=force)
     stream = viewer_stream(live, None, rrd, force)
-    if stream is not None and output_dt_s is None:
-        from processing.bench_geometry import FRAMES_PER_S
-
-        output_dt_s = 1.0 / FRAMES_PER_S  # frames for the view, not one a second
     sc = load_scene(scene_name, overrides)
     kw = {} if rtol is None else {"rtol": rtol}
-    traj = run_simulation(
-        sc.chain, duration, theta0=sc.theta0_rad if theta0 is None else theta0,
-        omega0=sc.omega0_rad_s if omega0 is None else omega0, method=method, dt_s=dt_s,
-        output_dt_s=output_dt_s, estimate_error=not no_error_estimate, **kw)
+    start = dict(theta0=sc.theta0_rad if theta0 is None else theta0,
+                 omega0=sc.omega0_rad_s if omega0 is None else omega0, method=method, **kw)
+    traj = run_simulation(sc.chain, duration, dt_s=dt_s, output_dt_s=output_dt_s,
+                          estimate_error=not no_error_estimate, **start)
     if out is not None:
         write_trajectory(out, traj, sc, force=force)
     if stream is not None:
         from processing.live_view import show_trajectory
 
-        path = show_trajectory(traj, sc, stream)
+        frames = traj
+        if output_dt_s is None:  # the run samples each second: the view gets its own frames
+            frames = run_simulation(sc.chain, duration, estimate_error=False,
+                                    **_frame_grid(traj), **start)
+            gap = frames.settings["output_dt_s"]
+            click.echo(f"the view draws {frames.t_s.size} frames ({gap:.3g} s apart) of a "
+                       "second run of the same method and step; the samples and the error "
+                       "estimate are the run's (--output-dt sets both)")
+        path = show_trajectory(frames, sc, stream)
         if path is not None:
             click.echo(f"wrote {path} (rerun recording)")
     e = traj.energy_j

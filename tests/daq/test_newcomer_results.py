@@ -127,3 +127,43 @@ def test_theta2_phase_is_drawn_on_one_branch_named_in_the_axis_label(run_file, t
     lo = phase_branch(y)
     p = wrap_to(np.degrees(np.angle(y)), lo)
     assert lo == -90.0 and np.all(np.abs(p - 180.0) < 45.0)
+
+
+def test_analyze_at_0_hz_gives_no_high_pass_correction_and_says_why(run_file, tmp_path):
+    res = daq("analyze", run_file, "--fmin", "0", "--report", "r.md", cwd=tmp_path, timeout=300)
+    assert res.returncode == 0, res.stderr
+    (line,) = [s for s in res.stdout.splitlines() if s.startswith("model:")]
+    assert "no correction at 0 Hz: the high-pass passes nothing there" in line
+    assert "dB" not in line and "nan" not in line.lower()
+    report = (tmp_path / "r.md").read_text()
+    assert "no correction at 0 Hz" in report and "nan" not in report.split("## Model")[1][:600]
+
+
+def test_fmax_beyond_the_runs_band_is_refused_before_the_analysis(run_file, tmp_path):
+    t0 = time.monotonic()
+    res = daq("analyze", run_file, "--fmax", "50", "--csv", "f.csv", cwd=tmp_path, timeout=120)
+    assert res.returncode == 2
+    err = " ".join(res.stderr.split())
+    assert "--fmax" in err and "passband ends at 40 Hz" in err and "give --fmax 40 or less" in err
+    assert "Nyquist frequency of its 100 Hz rate is 50 Hz" in err
+    assert not (tmp_path / "f.csv").exists()
+    assert time.monotonic() - t0 < 60
+    res = daq("analyze", run_file, "--fmax", "40", cwd=tmp_path, timeout=300)
+    assert res.returncode == 0, res.stderr
+
+
+def test_simulate_with_rrd_samples_and_estimates_as_without(tmp_path):
+    common = ["simulate", "double-rod", "--duration", "3", "--method", "rk4"]
+    plain = daq(*common, "--out", "a.csv", cwd=tmp_path, timeout=300)
+    viewed = daq(*common, "--out", "b.csv", "--rrd", "b.rrd", cwd=tmp_path, timeout=300)
+    assert plain.returncode == 0 and viewed.returncode == 0, plain.stderr + viewed.stderr
+
+    def data(name):
+        return [s for s in (tmp_path / name).read_text().splitlines() if not s.startswith("#")]
+
+    def estimate(res):
+        return [s for s in res.stdout.splitlines() if s.startswith("estimated max angle error")]
+
+    assert data("a.csv") == data("b.csv") and len(data("a.csv")) == 1 + 4  # t = 0, 1, 2, 3 s
+    assert estimate(plain) == estimate(viewed) and estimate(plain)
+    assert "frames" in viewed.stdout and (tmp_path / "b.rrd").stat().st_size > 0
