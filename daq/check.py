@@ -127,8 +127,9 @@ def check_file(path: str | Path) -> FileCheck:
         if "checksum" in str(exc):
             c.problem("corrupt", f"its metadata fails a checksum ({_first_line(exc)})")
         else:
-            c.problem("invalid", f"unexpected structure ({type(exc).__name__}: "
-                                 f"{_first_line(exc)})")
+            what = (f"no {exc.args[0]!r}" if isinstance(exc, KeyError) and exc.args
+                    else _first_line(exc))
+            c.problem("invalid", f"unexpected structure ({what})")
     return c.result()
 
 

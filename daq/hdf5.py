@@ -93,7 +93,7 @@ from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
 from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Recording, STATUSES,
                          TruthField)
-from daq.repair import open_hdf5, write_flags
+from daq.repair import open_hdf5, write_flags, writer_alive
 from daq.sinks import Sink
 from rig._io import check_writable, umask_mode
 from rig.errors import ConfigError
@@ -539,8 +539,6 @@ def mark_interrupted(path: str | Path) -> int | None:
     mark cleared: :func:`daq.repair.clear_write_flags`) as "interrupted", with a message saying
     so; its records are untouched. Returns the number of finished records it holds, or None if
     it was not such a file (another status). Raises ConfigError while a writer is alive."""
-    from daq.repair import writer_alive
-
     path = Path(path)
     if writer_alive(path):
         raise ConfigError(f"{str(path)!r} is still being written (its writer holds a lock); "

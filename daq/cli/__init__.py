@@ -47,6 +47,25 @@ for _command in (_scene_cmds.scene, _scene_cmds.model, _scene_cmds.simulate, _li
     main.add_command(_command)
 
 
+def parse_only(argv: list[str]) -> int:
+    """Parse ``daq COMMAND ARGS...`` as the command would (every option's type, range, choice
+    and file extension), without running it: 0 if it parses, else click's message on stderr
+    and the usage status 2. For a script that must refuse bad arguments before earlier, long
+    steps run (``python3 tasks.py experiment --window ...``)."""
+    if not argv or argv[0] not in main.commands:
+        click.echo(f"Error: no command {argv[0] if argv else ''!r}: expected one of "
+                   f"{', '.join(sorted(main.commands))}", err=True)
+        return 2
+    try:
+        main.commands[argv[0]].make_context(f"daq {argv[0]}", list(argv[1:]))
+    except click.exceptions.Exit as exc:  # --help
+        return exc.exit_code
+    except click.ClickException as exc:
+        exc.show()
+        return exc.exit_code
+    return 0
+
+
 def run() -> None:
     """The ``daq`` console script: :func:`main`, then leave without tearing the interpreter down.
 

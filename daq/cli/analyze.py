@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import figure_path, force_option, verified_records
+from daq.cli.common import (UFF_SUFFIXES, figure_path, force_option, suffix_path,
+                            verified_records)
 from processing.choices import AVERAGING, ESTIMATORS, WINDOWS
 from rig._io import check_writable
 
@@ -42,6 +43,7 @@ from rig._io import check_writable
               help="Write spectra, responses, coherence, model and E[H1] to a new HDF5 file "
                    "(xarray: group 'spectra', engine h5netcdf).")
 @click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              callback=suffix_path(UFF_SUFFIXES, "a UFF file"),
               help="Write H_t and Theta_2 with their coherence as UFF 58 (.uff/.unv) for modal "
                    "software (processing.uff).")
 @click.option("--estimator", type=click.Choice(ESTIMATORS), default="h1",

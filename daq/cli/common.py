@@ -33,6 +33,24 @@ def figure_path(ctx, param, value):
     return value
 
 
+def suffix_path(suffixes: tuple[str, ...], what: str):
+    """A click callback: a path whose extension is one of ``suffixes`` (case-insensitive),
+    checked while the command line is parsed (a usage error naming the valid ones before any
+    work)."""
+    def check(ctx, param, value):
+        if value is not None and Path(value).suffix.lower() not in suffixes:
+            said = (f"has the extension {Path(value).suffix!r}" if Path(value).suffix
+                    else "has no extension")
+            raise click.BadParameter(f"{str(value)!r} {said}: {what} is one of "
+                                     f"{', '.join(suffixes)}", ctx=ctx, param=param)
+        return value
+    return check
+
+
+#: extensions of a UFF file (rig._uff.write_uff)
+UFF_SUFFIXES = (".uff", ".unv")
+
+
 def fmt(v) -> str:
     """A value as a person reads it: numbers to 6 digits, booleans and nothing as in JSON/TOML
     (true, false, null), lists in brackets."""

@@ -41,7 +41,7 @@ def replay(path, stream: ViewerStream, *, magnification: float = MAGNIFICATION,
     finally:
         status = run.status
         if status == "acquiring":  # no footer yet: a writer at work, or one that was killed
-            from daq.repair import writer_alive
+            from daq.hdf5 import writer_alive
 
             status = ("acquiring (still being written)" if writer_alive(path) else
                       "acquiring (its writer stopped without closing it; a repair marks it "

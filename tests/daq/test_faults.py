@@ -83,7 +83,7 @@ def test_a_stop_signal_ends_acquire_cleanly_with_every_finished_record(tmp_path,
     assert fc.ok and fc.status == "interrupted" and fc.records_complete == n >= 2
     with h5py.File(out, "r") as f:  # closed: any reader opens it
         assert f["entry/message"][()].strip(b"\0 ").decode() == (
-            "KeyboardInterrupt" if sig == signal.SIGINT else f"{name} received")
+            "SIGINT received (Ctrl-C)" if sig == signal.SIGINT else f"{name} received")
     assert _same_as_a_fresh_run(out, tmp_path) == n
     record_fault(f"{name} during daq acquire", records_lost=0,
                  outcome=f"'interrupted ({name}) after N of M records; FILE holds them', exit "
