@@ -21,13 +21,26 @@ def figure_path(ctx, param, value):
     """A click callback: a figure path whose extension names a format matplotlib writes
     (:func:`processing.figure_files.figure_format`), checked while the command line is parsed,
     so a bad one is a usage error before any work."""
+    from processing.figure_files import figure_format
+
+    return _format_checked(ctx, param, value, figure_format)
+
+
+def image_path(ctx, param, value):
+    """A click callback: an image path (a screenshot) whose extension names PNG or JPEG
+    (:func:`processing.figure_files.image_format`), checked while the command line is parsed."""
+    from processing.figure_files import image_format
+
+    return _format_checked(ctx, param, value, image_format)
+
+
+def _format_checked(ctx, param, value, check):
     if value is None:
         return None
     from processing.errors import SettingsError
-    from processing.figure_files import figure_format
 
     try:
-        figure_format(value)
+        check(value)
     except SettingsError as exc:
         raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
     return value

@@ -8,7 +8,6 @@ import rerun.blueprint as rrb
 
 from processing.live_view.drawing import SIGNALS, VOLTS, _bench_bounds
 from processing.live_view.stream import TIMELINE
-from processing.phase_display import branch_text
 
 SIGNAL_WINDOW_S = 20.0
 TRAIL_S = 2.0
@@ -60,8 +59,7 @@ def acquisition_blueprint(view) -> rrb.Blueprint:
         bounds = rrb.VisualBounds2D(x_range=(-16, w + 50), y_range=(-4, 124))
         key_units = {"H_t": "m/(m/s^2)", "Theta_2": "rad/(m/s^2)"}
         names = {k: f"analyzer: {k} = {'x' if k == 'H_t' else 'y'}/a averaged after each record:"
-                    f" gain [dB re 1 {u}], phase [deg] on "
-                    f"{branch_text(view.panels[k][1].lo)}" for k, u in key_units.items()}
+                    f" gain [dB re 1 {u}], phase [deg]" for k, u in key_units.items()}
         cols.append(rrb.Vertical(
             rrb.Spatial2DView(origin="/analyzer/H_t", name=names["H_t"], visual_bounds=bounds),
             rrb.Spatial2DView(origin="/analyzer/Theta_2", name=names["Theta_2"],

@@ -41,11 +41,16 @@ def _has_vulkan() -> bool:
 
 def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
                timeout_s: float = 300.0) -> Path:
-    """Render the layout of ``rrd`` (at its end) into ``png`` without a window (see
-    :func:`screenshot_command`)."""
+    """Render the layout of ``rrd`` (at its end) into the image ``png`` without a window (see
+    :func:`screenshot_command`); its format follows its extension (PNG, or JPEG converted from
+    the viewer's PNG with Pillow: :func:`processing.figure_files.image_format`)."""
+    from processing.figure_files import image_format
+
     png = Path(png)
+    fmt = image_format(png)
     check_writable(png, force=force)
-    tmp = png.with_name(png.name + ".part.png")
+    # absolute: the viewer does not write a relative path where this process would
+    tmp = Path(os.path.abspath(png.with_name(png.name + ".part.png")))
     cmd, env = screenshot_command(Path(rrd), tmp, size)
     try:
         p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
@@ -56,6 +61,18 @@ def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
         tmp.unlink(missing_ok=True)
         raise LiveViewError(f"the viewer could not render a screenshot (exit {p.returncode}): "
                             + " | ".join(tail))
+    if fmt == "jpeg":
+        from PIL import Image
+
+        jpg = png.with_name(png.name + ".part.jpg")
+        try:
+            with Image.open(tmp) as im:
+                im.convert("RGB").save(jpg, format="JPEG", quality=92)
+            os.replace(jpg, png)
+        finally:
+            tmp.unlink(missing_ok=True)
+            jpg.unlink(missing_ok=True)
+        return png
     os.replace(tmp, png)
     return png
 

@@ -167,3 +167,22 @@ def test_simulate_with_rrd_samples_and_estimates_as_without(tmp_path):
     assert data("a.csv") == data("b.csv") and len(data("a.csv")) == 1 + 4  # t = 0, 1, 2, 3 s
     assert estimate(plain) == estimate(viewed) and estimate(plain)
     assert "frames" in viewed.stdout and (tmp_path / "b.rrd").stat().st_size > 0
+
+
+def test_view_screenshot_format_follows_the_extension(run_file, tmp_path):
+    """A .jpg screenshot is JPEG (converted from the viewer's PNG); a .gif is refused before
+    anything is replayed. The relative path is written where the user is (the viewer runs
+    elsewhere)."""
+    from processing.live_view import LiveViewError, screenshot_command
+
+    res = daq("view", run_file, "--screenshot", "s.gif", cwd=tmp_path, timeout=60)
+    assert res.returncode == 2 and ".png, .jpg, .jpeg" in res.stderr
+    assert list(tmp_path.iterdir()) == []
+    try:
+        screenshot_command(tmp_path / "x.rrd", tmp_path / "x.png")
+    except LiveViewError as exc:
+        pytest.skip(f"the viewer cannot render here: {exc}")
+    res = daq("view", run_file, "--screenshot", "s.jpg", cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "s.jpg").read_bytes()[:3] == b"\xff\xd8\xff"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.jpg"]  # no temporary left
