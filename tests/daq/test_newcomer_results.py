@@ -4,9 +4,11 @@ extension (an unknown one refused before any work), Theta_2's phase at +-180 deg
 Real CLI in subprocesses, each bounded in time."""
 
 import csv
+import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +18,7 @@ from rig.scene import load_scene
 
 FAST = ["--records", "2", "--duration", "10", "--rate", "100", "--seed", "1",
         "--set", "acquisition.settle_s=5", "--set", "acquisition.model=linear", "-q"]
+ROOT = Path(__file__).resolve().parents[2]
 MAGIC = {".png": b"\x89PNG\r\n\x1a\n", ".pdf": b"%PDF-", ".svg": b"<?xml"}
 
 
@@ -186,3 +189,27 @@ def test_view_screenshot_format_follows_the_extension(run_file, tmp_path):
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "s.jpg").read_bytes()[:3] == b"\xff\xd8\xff"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.jpg"]  # no temporary left
+
+
+def test_the_readme_scene_example_runs_as_asked_under_its_own_name(tmp_path):
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split("```toml\nbase = ")[1].split("```")[0]
+    (tmp_path / "mine.toml").write_text("base = " + block)
+    res = daq("acquire", "mine.toml", "--seed", "1", "--out", "mine.h5", cwd=tmp_path,
+              timeout=600)
+    assert res.returncode == 0, res.stdout + res.stderr  # within budget, nothing saturated
+    assert "WARNING" not in res.stderr
+    res = daq("inspect", "mine.h5", cwd=tmp_path)
+    assert "scene: mine (mine.toml (base preset:ishizaki2009))" in res.stdout
+
+
+def test_the_readme_names_only_what_exists(tmp_path):
+    readme = (ROOT / "README.md").read_text()
+    for path in set(re.findall(r"`(tests/[\w/]+\.py)`", readme)):
+        assert (ROOT / path).is_file(), path
+    (line,) = [s for s in readme.splitlines() if s.startswith("daq simulate") and "--method" in s]
+    methods = line.split("--method ")[1].split("]")[0].split("|")
+    for m in methods:  # every method listed runs on the fixed base
+        res = daq("simulate", "double-rod", "--duration", "1", "--method", m, "--out",
+                  f"{m}.csv", "--no-error-estimate", cwd=tmp_path, timeout=300)
+        assert res.returncode == 0, (m, res.stderr)
