@@ -82,6 +82,8 @@ def user_message(exc: BaseException) -> str:
         m = re.search(r"filename = '([^']*)'", str(exc))
         name = getattr(exc, "filename", None) or (m.group(1) if m else None)
         return f"disk full: no space left on the device{f' writing {name}' if name else ''}"
+    if isinstance(exc, BrokenPipeError):
+        return "the output's reader closed it (a pipe into head?); the rest was not printed"
     if isinstance(exc, PermissionError):
         return f"permission denied: {exc.filename or _first_line(exc)}"
     if isinstance(exc, FileExistsError) and exc.filename:
