@@ -143,7 +143,7 @@ def _open_swmr(path: Path):
 
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+    return text[0] if text else "no message"
 
 
 def write_flags(path: str | Path) -> int | None:
