@@ -115,7 +115,7 @@ def bode_axes(fig, col: int, ncols: int, title: str, unit: str, curves: list[Cur
     (:func:`outside_legend`)."""
     ax_g = fig.add_subplot(2, ncols, col + 1)
     ax_p = fig.add_subplot(2, ncols, ncols + col + 1, sharex=ax_g)
-    lo = phase_branch(*(c.h for c in curves))
+    lo = phase_branch(*((c.freqs_hz, c.h) for c in curves))
     for c in curves:
         ax_g.semilogx(c.freqs_hz, gain_db(c.h), label=c.label, **c.style)
         ax_p.semilogx(*phase_curve(c.freqs_hz, c.h, phase, lo), **c.style)
@@ -201,7 +201,7 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     g_lo, g_hi = (b[sel] for b in measured.gain_band_db(k))
     p_lo, p_hi = (b[sel] for b in measured.phase_band_deg(k, unwrapped=unwrapped))
     p_meas = (measured.phase_unwrapped_deg if unwrapped else measured.phase_deg)[sel]
-    lo = phase_branch(model.h if model is not None else measured.h[sel])
+    lo = phase_branch((model.freqs_hz, model.h) if model is not None else (fs, measured.h[sel]))
     if not unwrapped:  # onto the branch, the bands moved with their centres
         shift = wrap_to(p_meas, lo) - p_meas
         p_meas, p_lo, p_hi = p_meas + shift, p_lo + shift, p_hi + shift

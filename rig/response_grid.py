@@ -12,8 +12,10 @@ points over 0.1-10 Hz step 11 mHz there, so the drawn peak comes out ~8 dB low.
   (minimum), found by a bounded scalar search (scipy.optimize.minimize_scalar) to 1e-9 f0;
 - then, repeatedly, the geometric midpoint of every interval whose midpoint value differs from
   the straight line between its ends (gain in dB over log frequency, as plotted) by more than
-  ``tol_db``, or whose phase differs from the line by more than ``tol_deg``; until none does
-  (or ``max_rounds`` rounds, or intervals narrower than 1e-9 of their frequency).
+  ``tol_db``, or whose phase differs from the line by more than ``tol_deg``, or whose ends'
+  phases differ by more than ``max_step_deg`` (so a mode's circle in a Nyquist plot is round);
+  until none does (or ``max_rounds`` rounds, or intervals narrower than 1e-9 of their
+  frequency).
 
 So the peak and notch values a person reads off the curve are the true extrema (to the search's
 tolerance), and between the grid's points linear interpolation is within ``tol_db`` at every
@@ -84,8 +86,9 @@ def _seeds(response, fmin, fmax, modes, notches, n_channels) -> list[np.ndarray]
     return parts
 
 
-def _misfit(f, h, fm, hm, tol_db, tol_deg) -> np.ndarray:
-    """Which intervals' midpoint values (fm, hm) leave the straight line between their ends."""
+def _misfit(f, h, fm, hm, tol_db, tol_deg, max_step_deg) -> np.ndarray:
+    """Which intervals' midpoint values (fm, hm) leave the straight line between their ends, or
+    whose ends' phases differ by more than ``max_step_deg``."""
     x = np.log(f)
     w = ((np.log(fm) - x[:-1]) / (x[1:] - x[:-1]))[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -96,13 +99,13 @@ def _misfit(f, h, fm, hm, tol_db, tol_deg) -> np.ndarray:
         line = np.angle(h[:-1]) + w * step
         dev = np.degrees(np.abs(np.angle(np.exp(1j * (np.angle(hm) - line)))))
     bad = np.where(np.isfinite(gm) & np.isfinite(g[:-1]) & np.isfinite(g[1:]),
-                   bad_gain | (dev > tol_deg), False)
+                   bad_gain | (dev > tol_deg) | (np.degrees(np.abs(step)) > max_step_deg), False)
     return bad.any(axis=1)
 
 
 def resolving_grid(response: Callable, fmin_hz: float, fmax_hz: float, points: int, *,
                    modes: Sequence[tuple[float, float]] = (), notches: Sequence[float] = (),
-                   tol_db: float = TOL_DB, tol_deg: float = 1.0,
+                   tol_db: float = TOL_DB, tol_deg: float = 1.0, max_step_deg: float = 5.0,
                    max_rounds: int = 40) -> np.ndarray:
     """An ascending grid in [fmin_hz, fmax_hz] [Hz] on which ``response`` (``f -> (nf,)`` or
     ``(nf, k)`` complex) shows every mode ``(f_hz, Q)`` and anti-resonance ``f_hz`` it is given
@@ -116,7 +119,8 @@ def resolving_grid(response: Callable, fmin_hz: float, fmax_hz: float, points: i
     for _ in range(max_rounds):
         fm = np.sqrt(f[:-1] * f[1:])
         hm = _values(response, fm)
-        bad = _misfit(f, h, fm, hm, tol_db, tol_deg) & (f[1:] - f[:-1] > 1e-9 * f[1:])
+        bad = (_misfit(f, h, fm, hm, tol_db, tol_deg, max_step_deg)
+               & (f[1:] - f[:-1] > 1e-9 * f[1:]))
         if not bad.any():
             break
         f = np.concatenate([f, fm[bad]])

@@ -121,7 +121,8 @@ class LiveView(Sink):
             pass
         self.panels = _analyzer_panels(f, {k: _db(v) for k, v in self.model.items()},
                                        {k: _db(v) for k, v in self.expected.items()},
-                                       {k: phase_branch(v) for k, v in self.model.items()})
+                                       {k: phase_branch((self.model_f, v))
+                                        for k, v in self.model.items()})
 
     def _log_analyzer_static(self) -> None:
         s, f = self.stream, self.average.freqs_hz
