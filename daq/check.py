@@ -189,7 +189,7 @@ class _Checker:
             self._everything(f, skip)
             if marked:
                 self.notes.append("still marked open for writing (writer running or killed): "
-                                  "read as SWMR; 'daq inspect --repair' clears the mark")
+                                  "read as SWMR; a repair clears the mark once the writer is gone")
 
     # -- every object -------------------------------------------------------------------------
     def _everything(self, f, skip: set) -> None:

@@ -44,5 +44,8 @@ def check_cmd(paths, as_json, repair):
             click.echo(r.line())
         if any(len(r.problems or r.notes) > 1 for r in results):
             click.echo("(each line shows the first problem or note; --json lists them all)")
+        if not repair and any("marked open for writing" in n for r in results for n in r.notes):
+            click.echo("(--repair clears the open-for-writing mark of a file whose writer is "
+                       "gone, and marks such a run interrupted)")
     if not all(r.ok for r in results):
         raise click.exceptions.Exit(1)

@@ -265,7 +265,7 @@ def _locked(out_dir: Path):
                 fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
                 raise ConfigError(f"{str(out_dir)!r} is in use by another running sweep; wait "
-                                  "for it or choose another --out") from None
+                                  "for it or choose another output directory") from None
         yield
     finally:
         fh.close()
