@@ -35,6 +35,7 @@ import numpy as np
 from rig.errors import ConfigError
 
 __all__ = ["BestLinearApproximation", "best_linear_approximation", "transient_periods_for",
+           "predicted_even_power",
            "OUTPUTS", "TRANSIENT_DECAY"]
 
 #: The two FRFs: output channel -> name.
@@ -49,7 +50,9 @@ class BestLinearApproximation:
     ``odd_power[c]``: the periodic output power at the empty even / odd lines [unit^2] (mean
     over those lines, noise removed; NaN where the grid has none); ``noise_power_floor[c]``:
     the noise's own power per line after the average [unit^2]; ``excited_power[c]``: mean
-    output power at the excited lines [unit^2]."""
+    output power at the excited lines [unit^2]; ``predicted_even_power[c]``: the even-line power
+    the optical lever's second-order geometry makes of the exact linear motion (the even
+    distortion computed exactly, to second order: :func:`predicted_even_power`)."""
 
     freqs_hz: np.ndarray
     lines: np.ndarray
@@ -64,6 +67,7 @@ class BestLinearApproximation:
     odd_power: dict
     noise_power_floor: dict
     excited_power: dict
+    predicted_even_power: dict
 
     def within_sigma(self, c: str, k: float = 2.0) -> np.ndarray:
         """Lines where ``|G_BLA - exact| <= k sigma_total`` (boolean, (lines,))."""
@@ -96,7 +100,7 @@ def _periods(recording, source, transient: int):
                           f"{source.multisine_periods - transient} kept period(s): the BLA's "
                           "variances need at least 2 realisations of at least 2 periods after "
                           "the transient (more records, or more source.multisine_periods)")
-    spectra = {}
+    spectra = {"realisations": np.array(full)}
     for c in ("a", "x", "y"):
         v = recording.values(c).reshape(-1, n)  # (periods, n)
         sel = np.concatenate([np.flatnonzero(keep & (r == x)) for x in full])
@@ -150,6 +154,7 @@ def best_linear_approximation(recording, *, transient_periods: int | None = None
     out = {k: {} for k in ("g", "exact", "vt", "vn", "vd", "even", "odd", "floor", "exc")}
     u = spectra["a"][:, :, lines]
     pp = u.shape[1]
+    predicted = predicted_even_power(recording, spectra["realisations"], n, even, key)
     for c, name in OUTPUTS.items():
         y = spectra[c]
         g_rp = y[:, :, lines] / u
@@ -176,7 +181,48 @@ def best_linear_approximation(recording, *, transient_periods: int | None = None
         freqs_hz=freqs, lines=lines, realisations=n_real, periods=pp, g=out["g"],
         exact=out["exact"], var_total=out["vt"], var_noise=out["vn"], var_distortion=out["vd"],
         even_power=out["even"], odd_power=out["odd"], noise_power_floor=out["floor"],
-        excited_power=out["exc"])
+        excited_power=out["exc"], predicted_even_power=predicted)
+
+
+def predicted_even_power(recording, realisations, n: int, even: np.ndarray, key: int) -> dict:
+    """The mean power at the ``even`` lines [unit^2] of the lever's second-order terms
+    (:func:`processing.coherence_model.lever_quadratic_coefficients`: ``x = dx - c_x theta^2``,
+    ``y = theta - c_y dx theta``) of the exact linear motion under the run's multisine, through
+    the anti-alias filter: the mirror's translation ``dx`` and angle ``theta`` at the DAC
+    instants from each realisation's DAC samples (the exact discrete-time response,
+    ``expected_response(sampled=True)``), taken at the sample instants, the products'
+    spectra at the even lines averaged over the realisations."""
+    from processing.coherence_model import lever_quadratic_coefficients
+    from rig.bench.response import expected_response
+    from rig.devices import multisine as ms
+
+    h = recording.header
+    src = h.scene.source
+    if even.size == 0:
+        return {c: float("nan") for c in OUTPUTS}
+    big_n = src.period_samples
+    q = big_n // n
+    lines = ms.excited_lines(src.multisine_grid, big_n, src.fs_hz, src.fmin_hz, src.fmax_hz,
+                             key)
+    r = expected_response(h.scene, lines * src.fs_hz / big_n, sampled=True)
+    coef = lever_quadratic_coefficients(h.scene.lever)
+    aa2 = np.abs(h.antialias.response(even * h.plan.rate_hz / n)) ** 2
+    scale = 2.0 / n ** 2
+    power = {"x": 0.0, "y": 0.0}
+    for real in realisations:
+        v = ms.period(src.multisine_grid, big_n, src.fs_hz, src.fmin_hz, src.fmax_hz,
+                      src.level_vrms, key, int(real), src.crest_iterations)
+        vl = np.fft.rfft(v)[lines]
+        motion = {}
+        for name, hresp in (("dx", r.mirror_x), ("theta", r.mirror_rot)):
+            spec = np.zeros(big_n // 2 + 1, complex)
+            spec[lines] = hresp * vl
+            motion[name] = np.fft.irfft(spec, big_n)[::q]  # at the sample instants
+        terms = {"x": -coef["x"] * motion["theta"] ** 2,
+                 "y": -coef["y"] * motion["dx"] * motion["theta"]}
+        for c, t in terms.items():
+            power[c] += float(np.mean(scale * np.abs(np.fft.rfft(t)[even]) ** 2 * aa2))
+    return {c: p / len(realisations) for c, p in power.items()}
 
 
 def _cvar(z: np.ndarray, axis: int) -> np.ndarray:

@@ -20,8 +20,8 @@ Exit statuses of every ``daq`` command (:data:`EXIT_CODES`; the README's table a
   run exceeds its error budget, or a channel clipped or saturated in more than
   :data:`SATURATION_LIMIT` of its samples (a WARNING says which); ``--allow-over-budget`` makes
   that exit 0;
-- 4 (:data:`EXIT_PARTIAL`): partly done: a sweep (``daq dataset``) some of whose runs failed
-  (the manifest records which and why);
+- 4 (:data:`EXIT_PARTIAL`): partly done: ``daq dataset`` ran, but some runs failed or are
+  missing (a line says how many; the manifest lists them);
 - 128 + N (:data:`EXIT_SIGNAL_BASE` + N): ended by signal N (130 Ctrl-C, 143 SIGTERM, 129
   SIGHUP), everything finished kept."""
 
@@ -47,7 +47,7 @@ EXIT_CODES = (
     ("1", "an error, said on one line"),
     ("2", "a usage error (unknown option, bad option value)"),
     ("3", "finished and written but not as asked (over its error budget, or saturated)"),
-    ("4", "partly done (a sweep some of whose runs failed)"),
+    ("4", "partly done (a sweep some of whose runs failed or are missing)"),
     ("128+N", "ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), all finished work "
               "kept"),
 )
@@ -70,9 +70,7 @@ def user_message(exc: BaseException) -> str:
     """One line saying what went wrong, for a person (see the module docstring)."""
     from daq.resources import is_disk_full
     from processing import ProcessingError
-    from rig.errors import RigError
-
-    from rig.errors import ForceRequired
+    from rig.errors import ForceRequired, RigError
 
     if isinstance(exc, ForceRequired):  # the library's refusal, and the command line's remedy
         return f"{_first_line(exc)}; pass --force to {exc.action}"
@@ -106,14 +104,29 @@ def user_message(exc: BaseException) -> str:
 
 class ErrorsAsMessages(click.Group):
     """A click group whose commands' exceptions reach the user as one line (module docstring);
-    with ``ctx.meta["daq.debug"]`` set (``--debug``) they propagate with their traceback."""
+    with ``ctx.meta["daq.debug"]`` set (``--debug``) they propagate with their traceback.
+    SIGTERM and SIGHUP stop a command like Ctrl-C (:func:`daq.signals.stop_signals_interrupt`:
+    its temporary files are removed) and an interruption the command does not report itself
+    is one line and exit status 128 + N."""
 
     def invoke(self, ctx):
+        from daq.signals import stop_signals_interrupt
+
         try:
-            return super().invoke(ctx)
+            with stop_signals_interrupt():  # SIGTERM, SIGHUP: like Ctrl-C, finally blocks run
+                return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit,
-                click.exceptions.Abort, KeyboardInterrupt, SystemExit):
+                click.exceptions.Abort, SystemExit):
             raise
+        except KeyboardInterrupt as exc:  # a command that does not say more itself
+            if ctx.meta.get("daq.debug"):
+                raise
+            from daq.signals import exit_status, signal_name
+
+            name = ctx.invoked_subcommand or ctx.info_name
+            click.echo(f"interrupted ({signal_name(exc)}): daq {name} stopped; files it had "
+                       "finished are kept, none is left half-written", err=True)
+            raise click.exceptions.Exit(exit_status(exc)) from None
         except Exception as exc:
             if ctx.meta.get("daq.debug"):
                 raise

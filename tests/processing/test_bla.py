@@ -89,6 +89,11 @@ def test_even_distortion_grows_as_the_drive_to_the_fourth_and_odd_only_with_the_
         assert 0.8 < high.even_power[c] / low.even_power[c] / 2.0 ** 4 < 1.25
         # and the same in the linear bench: the lever is nonlinear in both models
         assert lin.even_power[c] == pytest.approx(high.even_power[c], rel=0.05)
+        # the exact second-order prediction of the lever's even distortion: the measured power
+        # is that plus what the noise subtraction leaves (floor / sqrt(lines x R), ~1e-4 of it)
+        # and the geometry's fourth-order terms (~theta^2, ~1e-5): 2 % bounds both
+        for b in (low, high, lin):
+            assert b.even_power[c] == pytest.approx(b.predicted_even_power[c], rel=0.02), c
     # odd detection lines: the pendulum's large-angle terms, absent from the linear model
     assert high.odd_power["x"] > 10 * high.noise_power_floor["x"]
     assert abs(lin.odd_power["x"]) < 2 * lin.noise_power_floor["x"]
