@@ -127,11 +127,17 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
 
 def _check_band(run: Path, fmax_hz: float) -> None:
     """--fmax against the run's band (:func:`processing.analyzer.band_limit_hz`), read from its
-    header before anything is analysed."""
+    header before anything is analysed. A file that cannot be read yet (--follow of a run not
+    started, a damaged file) is left to the steps that say why; the analysis checks the band
+    again (:func:`processing.analyzer.check_band`)."""
     from daq.hdf5 import run_info
     from processing.analyzer import band_limit_hz
+    from rig.errors import RigError
 
-    aa = run_info(run)["antialias"]
+    try:
+        aa = run_info(run)["antialias"]
+    except (RigError, OSError, KeyError):
+        return
     limit = band_limit_hz(aa["passband_hz"], aa["rate_hz"])
     if fmax_hz > limit:
         raise click.BadParameter(

@@ -131,7 +131,7 @@ def _analyzer_panels(freqs, model_db, expected_db, branches=None):
         lo = max(lo, hi - 120.0)  # an anti-resonance's notch need not set the scale
         gain = bc.Panel(fmin, fmax, lo, hi, bc.ticks(lo, hi, 20.0), "dB", 0.0, 62.0, "", upd)
         p_lo = (branches or {}).get(key, -180.0)
-        phase = bc.Panel(fmin, fmax, p_lo, p_lo + 360.0, bc.ticks(p_lo, p_lo + 360.0, 90.0),
+        phase = bc.Panel(fmin, fmax, p_lo, p_lo + 360.0, bc.ticks(p_lo, p_lo + 360.0, 180.0),
                          "deg", 72.0, 36.0, "", upd)
         out[key] = (gain, phase)
     out["coherence"] = (bc.Panel(fmin, fmax, 0.0, 1.0, bc.ticks(0, 1, 0.5), "", 0.0, 30.0,
