@@ -8,12 +8,12 @@ left out. :func:`etdab_kernel` writes :func:`rig.coupled.etd_ab_kernel`'s step t
 zero pattern of its matrices: the same operations in the same order (each sum from its first
 term in the loop kernel's order, the zero products left out, which leaves every finite sum's
 value unchanged) under the same compiler options, so the two give equal values, and the
-unrolled one measured 1.8x faster per step (``docs/bench``, BENCHMARKS.md speed round 4).
+unrolled one is faster per step (docs/benchmarks/history.md, speed round 4).
 
 Generated modules are written once under ``<numba cache dir>/unrolled/<name>_<hash>.py`` (the
 hash of their text: any change of the generator or of the pattern is a new file), imported from
 there and compiled with ``cache=True``, so a second process loads the compiled code from numba's
-on-disk cache instead of compiling (~3 s for the paper's pattern). Writes are atomic (a temporary
+on-disk cache instead of compiling again. Writes are atomic (a temporary
 file, then ``os.replace``) and an existing file is never rewritten, so concurrent workers agree.
 Where no cache directory is writable the module goes to a fresh temporary directory (compiled
 per process, the same code).
