@@ -133,6 +133,17 @@ EXPERIMENT = [
 ]
 
 
+def check_extra_args(cmd: list, extra: list[str], env: dict) -> int:
+    """Parse the last ``daq`` command with the extra arguments before any step runs
+    (``daq.cli.parse_only``), so that a misspelt option is refused before the acquisition, not
+    after it. Its run file may not exist yet: this file stands in for it while parsing."""
+    args = [str(c) for c in cmd[len(DAQ):]]
+    args = [args[0], str(Path(__file__).resolve()), *args[2:], *extra]
+    return subprocess.run([str(PY), "-c", "import sys; from daq.cli import parse_only; "
+                           "sys.exit(parse_only(sys.argv[1:]))", *args], cwd=ROOT,
+                          env=env).returncode
+
+
 def main(argv: list[str]) -> int:
     """Run a job: its commands in sequence, stopping at the first failure; extra args go to the
     job's last command (``daq analyze`` for the experiment, pytest for the tests)."""
@@ -156,6 +167,10 @@ def main(argv: list[str]) -> int:
         return 0
     (ROOT / "out").mkdir(exist_ok=True)
     env = dict(os.environ, PYTHONHASHSEED="0")
+    if argv[0] == "experiment" and argv[1:]:
+        rc = check_extra_args(cmds[-1], argv[1:], env)
+        if rc:
+            return rc
     for i, cmd in enumerate(cmds):
         cmd = [str(c) for c in cmd] + (argv[1:] if i == len(cmds) - 1 else [])
         if len(cmds) > 1:

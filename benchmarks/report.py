@@ -233,7 +233,9 @@ def bench(mode, scenes, out_dir, repeats, limit_s, no_compile_times, from_json, 
             scenes, mode=mode, repeats=repeats, limit_s=limit_s,
             compile_check=not no_compile_times, progress=lambda s: click.echo(f"  {s}", err=True))
     except RigError as exc:
-        raise click.ClickException(str(exc)) from None
+        from daq.cli.errors import user_message
+
+        raise click.ClickException(user_message(exc)) from None  # with the --force hint
     command = "python benchmarks/run.py --" + mode + "".join(f" --scene {s}" for s in scenes
                                               if len(scenes) < len(rb.SCENES))
     repeats = repeats or (stored.settings.get("repeats") if stored else None)

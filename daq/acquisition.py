@@ -469,11 +469,11 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
         status = "complete"
     except KeyboardInterrupt as exc:
         status = "interrupted"
-        message = f"{exc} received" if str(exc).startswith("SIG") else "KeyboardInterrupt"
+        message = f"{exc} received" if str(exc).startswith("SIG") else "SIGINT received (Ctrl-C)"
         raise
     except BaseException as exc:
         first = (str(exc).strip().splitlines() or [""])[0]
-        message, failure = f"{type(exc).__name__}: {first}", exc
+        message, failure = first or "an unexpected failure without a message", exc
         raise
     finally:
         clip_counts = np.array(clips, dtype=np.int64).reshape(len(clips), len(channels))

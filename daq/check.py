@@ -100,7 +100,8 @@ class FileCheck:
         return d
 
     def line(self) -> str:
-        """One line: ``PATH: OK|BAD kind status, records ..., version; first problem``."""
+        """One line: ``PATH: OK|BAD kind status, records ..., version; first problem`` (or
+        note), then how many more there are (all in :meth:`to_dict`)."""
         head = f"{self.path}: {'OK' if self.ok else 'BAD'} {self.kind}, {self.status}"
         if self.records_planned is not None:
             head += f", {self.records_valid} of {self.records_planned} records verify"
@@ -108,7 +109,8 @@ class FileCheck:
             head += f", format {self.format_version}"
         extra = self.problems or self.notes
         if extra:
-            more = f" (+{len(extra) - 1} more)" if len(extra) > 1 else ""
+            n, what = len(extra) - 1, "problem" if self.problems else "note"
+            more = f" (and {n} more {what}{'s' if n > 1 else ''})" if n else ""
             head += f"; {extra[0]}{more}"
         return head
 
@@ -127,8 +129,9 @@ def check_file(path: str | Path) -> FileCheck:
         if "checksum" in str(exc):
             c.problem("corrupt", f"its metadata fails a checksum ({_first_line(exc)})")
         else:
-            c.problem("invalid", f"unexpected structure ({type(exc).__name__}: "
-                                 f"{_first_line(exc)})")
+            what = (f"no {exc.args[0]!r}" if isinstance(exc, KeyError) and exc.args
+                    else _first_line(exc))
+            c.problem("invalid", f"unexpected structure ({what})")
     return c.result()
 
 
@@ -190,7 +193,7 @@ class _Checker:
             self._everything(f, skip)
             if marked:
                 self.notes.append("still marked open for writing (writer running or killed): "
-                                  "read as SWMR; 'daq inspect --repair' clears the mark")
+                                  "read as SWMR; a repair clears the mark once the writer is gone")
 
     # -- every object -------------------------------------------------------------------------
     def _everything(self, f, skip: set) -> None:

@@ -43,7 +43,7 @@ from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
 from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Recording, STATUSES,
                          TruthField)
-from daq.repair import open_hdf5, write_flags
+from daq.repair import open_hdf5, write_flags, writer_alive
 from daq.sinks import Sink
 from rig._io import check_writable, not_a_file, umask_mode
 from rig.errors import ConfigError
@@ -171,7 +171,7 @@ class Hdf5Sink(Sink):
         run file (:data:`RUN_SUFFIXES`)."""
         path = check_writable(self.target, force=self.force)
         if path.suffix.lower() not in RUN_SUFFIXES:
-            raise ConfigError(f"--out {str(path)!r}: unknown extension {path.suffix!r}; "
+            raise ConfigError(f"run file {str(path)!r}: unknown extension {path.suffix!r}; "
                               f"a run file is HDF5: expected {', '.join(RUN_SUFFIXES)}")
 
     def start(self, header: Header) -> None:
@@ -180,8 +180,9 @@ class Hdf5Sink(Sink):
         # a sink may write another run (with force): the per-run state anew, the row shapes
         # keyed by HDF5 ids that the new file may reuse
         self._tmp, self._n, self._extents, self._rows = None, 0, None, {}
-        if target.exists():
-            self._hold_target(target)
+        if os.path.lexists(target):  # a file, or a link (dangling: replaced by the file)
+            if target.exists():
+                self._hold_target(target)
             fd, tmp = tempfile.mkstemp(prefix=f"{target.stem}.partial-", suffix=target.suffix,
                                        dir=target.parent)
             os.close(fd)
@@ -482,6 +483,29 @@ class Hdf5Sink(Sink):
 
 
 # -- reading ---------------------------------------------------------------------------------
+
+def mark_interrupted(path: str | Path) -> int | None:
+    """Mark a run file a killed writer left ("acquiring", no writer alive, its open-for-writing
+    mark cleared: :func:`daq.repair.clear_write_flags`) as "interrupted", with a message saying
+    so; its records are untouched. Returns the number of finished records it holds, or None if
+    it was not such a file (another status). Raises ConfigError while a writer is alive."""
+    path = Path(path)
+    if writer_alive(path):
+        raise ConfigError(f"{str(path)!r} is still being written (its writer holds a lock); "
+                          "not marking it")
+    with h5py.File(path, "r+") as f:
+        if f.attrs.get("file_format") != FORMAT:
+            return None
+        status, n = _status(f)
+        if status != "acquiring":
+            return None
+        entry = f["entry"]
+        entry["status"][()] = _fixed("interrupted", _STATUS_LEN)
+        entry["message"][()] = _fixed(
+            f"the writer stopped without closing the file (killed) after {n} finished records; "
+            "marked interrupted on repair, its records kept", _MESSAGE_LEN)
+    return n
+
 
 @contextlib.contextmanager
 def open_run(path: str | Path):

@@ -20,7 +20,7 @@ except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
 __all__ = ["SWMR_READ_ATTEMPTS", "UnreadableFile", "clear_write_flags", "open_hdf5",
-           "superblock", "write_flags"]
+           "superblock", "write_flags", "writer_alive"]
 
 _SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
@@ -147,7 +147,7 @@ def _open_swmr(path: Path):
 
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+    return text[0] if text else "no message"
 
 
 def write_flags(path: str | Path) -> int | None:
@@ -196,6 +196,23 @@ def _lookup3(data: bytes, initval: int = 0) -> int:
     b ^= a; b = (b - rot(a, 14)) & mask   # noqa: E702
     c ^= b; c = (c - rot(b, 24)) & mask   # noqa: E702
     return c
+
+
+def writer_alive(path: str | Path) -> bool:
+    """True while a process holds a lock on ``path``: a run's writer holds a shared lock on its
+    file from start to end (:class:`daq.hdf5.Hdf5Sink`), so a file whose status is still
+    "acquiring" is being written if this is True, and was left by a killed writer if False.
+    (Any other process holding a lock on it, e.g. an HDF5 reader with file locking, reads as
+    alive too.) False where locks do not exist (not POSIX)."""
+    if fcntl is None:  # pragma: no cover - not POSIX
+        return False
+    with open(path, "rb") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        fcntl.flock(fh, fcntl.LOCK_UN)
+    return False
 
 
 def clear_write_flags(path: str | Path) -> bool:

@@ -76,7 +76,7 @@ def preflight(plan, scene, out: str | Path | None) -> RunNeeds:
             f"of {plan.samples} samples, which need about {_size(needs.memory_bytes)} of memory; "
             f"this machine has {_size(mem)}: shorten the records (or lower the rate)")
     if out is not None:
-        parent = Path(out).resolve().parent
+        parent = Path(os.path.abspath(out)).parent  # where it is written (a link is replaced)
         free = shutil.disk_usage(parent).free
         if needs.file_bytes > free:
             raise ConfigError(

@@ -114,7 +114,7 @@ class Fanout:
                 if getattr(s, "critical", True):
                     raise
                 warnings.warn(f"sink {type(s).__name__} failed in {method}() and was dropped: "
-                              f"{type(exc).__name__}: {exc}", RuntimeWarning, stacklevel=2)
+                              f"{exc}", RuntimeWarning, stacklevel=2)
                 self.sinks.remove(s)
 
     def stop_all(self, footer: Footer) -> list[BaseException]:

@@ -42,7 +42,7 @@ def trajectory_format(path: Path) -> str:
         return "csv"
     if suffix in HDF5_SUFFIXES:
         return "hdf5"
-    raise ConfigError(f"--out {str(path)!r}: unknown extension {suffix!r}; expected .csv, .h5 "
+    raise ConfigError(f"trajectory file {str(path)!r}: unknown extension {suffix!r}; expected .csv, .h5 "
                       "or .hdf5")
 
 

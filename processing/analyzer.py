@@ -57,7 +57,7 @@ from rig._threads import single_threaded_blas
 from rig.errors import ConfigError
 
 __all__ = ["AnalyzerSettings", "Analysis", "RunInfo", "ModelAtLines", "analyze",
-           "model_at_lines", "incomplete_note", "paper_figures", "FIT_METHODS", "CHANNELS"]
+           "band_limit_hz", "check_band", "model_at_lines", "incomplete_note", "paper_figures", "FIT_METHODS", "CHANNELS"]
 
 FIT_METHODS = ("leakage", "direct")
 _LABEL_T, _LABEL_R = "H_t (x/a)", "Theta_2 (y/a)"
@@ -365,7 +365,9 @@ class Analysis:
     rotation : RotationReading or None.
     exact_modes : ((f_hz, Q), ...) of the pendulum.
     antiresonances_hz : {"x": (...), "y": (...)}.
-    highpass_at_fmin : (dB, deg) of the whole chain against the pendulum alone at ``fmin_hz``.
+    highpass_at_fmin : (dB, deg) of the whole chain against the pendulum alone at ``fmin_hz``;
+        (NaN, NaN) for ``fmin_hz`` = 0, where the high-pass passes nothing and the ratio is
+        undefined.
     notes : tuple of str: what the reader must know (incomplete run, clipping, skipped parts).
     coherence_budget : processing.coherence_model.CoherenceBudget or None (with E[H1]): the
         expected coherence with the optical lever's second-order geometry, the noise floors and
@@ -462,10 +464,33 @@ def analyze(recording, settings: AnalyzerSettings | None = None, *,
         return _analyze(recording, settings, source)
 
 
+def band_limit_hz(antialias_passband_hz: float, rate_hz: float) -> float:
+    """The highest frequency [Hz] a run's analysis shows: its anti-alias filter's passband edge
+    (``acquisition.antialias_passband`` x the rate: 40 Hz at 100 Hz). Above it the channels
+    are attenuated on their way to the Nyquist frequency (rate / 2), and the auto spectrum of
+    the input holds little but the window's leakage from below, so the expected estimate E[H1]
+    and the comparisons have no meaning there (the 35670A likewise shows a span of rate / 2.56)."""
+    return min(float(antialias_passband_hz), 0.5 * float(rate_hz))
+
+
+def check_band(settings: AnalyzerSettings, antialias_passband_hz: float, rate_hz: float) -> None:
+    """A SettingsError if ``settings.fmax_hz`` exceeds :func:`band_limit_hz` of a run sampled at
+    ``rate_hz`` [Hz] behind an anti-alias filter whose passband ends at
+    ``antialias_passband_hz``; the message names fmax_hz, the limit and why."""
+    limit = band_limit_hz(antialias_passband_hz, rate_hz)
+    if settings.fmax_hz > limit:
+        raise SettingsError(f"fmax_hz = {settings.fmax_hz:g} Hz is above this run's band: its "
+                            f"anti-alias filter's passband ends at {limit:g} Hz (the Nyquist "
+                            f"frequency of its {rate_hz:g} Hz rate is {rate_hz / 2:g} Hz, and "
+                            "above the passband the channels hold mostly leakage); expected "
+                            f"fmax_hz <= {limit:g} Hz")
+
+
 def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analysis:
     s = settings if settings is not None else AnalyzerSettings()
     h = recording.header
     plan = h.plan
+    check_band(s, h.antialias.passband_hz, plan.rate_hz)
     missing = [c for c in CHANNELS if c not in h.names]
     if missing:
         raise ChannelDataError(f"the run has channels {', '.join(h.names)}: expected a "
@@ -516,9 +541,13 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
             "y": tuple(float(v) for v in chain.antiresonances_hz(np.eye(chain.n)[
                 scene.mirror.body]))}
     bench = SampledBench(scene)
-    r_min = bench(np.array([s.fmin_hz]))
-    hp_min = r_min["h_t"][0] / r_min["h_t_pendulum"][0]
-    highpass_at_fmin = (float(_DB * np.log(abs(hp_min))), float(np.degrees(np.angle(hp_min))))
+    if s.fmin_hz > 0:
+        r_min = bench(np.array([s.fmin_hz]))
+        hp_min = r_min["h_t"][0] / r_min["h_t_pendulum"][0]
+        highpass_at_fmin = (float(_DB * np.log(abs(hp_min))),
+                            float(np.degrees(np.angle(hp_min))))
+    else:  # the high-pass passes nothing at 0 Hz: the ratio is 0/0 there, no number
+        highpass_at_fmin = (math.nan, math.nan)
 
     expected = None
     if s.estimator != "h1":

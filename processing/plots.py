@@ -5,7 +5,9 @@ Plot functions only render result data and return a :class:`matplotlib.figure.Fi
 without pyplot: no backend is selected and nothing is registered globally (the caller saves it;
 there is nothing to close).
 Every figure is drawn the way a paper prints it: the legend outside the data, decade ticks
-labelled 0.1 / 1 / 10 Hz, the wrapped phase broken at each wrap (no vertical lines) or unwrapped,
+labelled 0.1 / 1 / 10 Hz, the wrapped phase on the branch where it is one band
+(:mod:`processing.phase_display`, named in the axis label) and broken at each wrap (no vertical
+lines) or unwrapped,
 axis labels naming the quantity, and an incomplete run marked in red in the title.
 """
 
@@ -23,9 +25,12 @@ from matplotlib.colors import LogNorm  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import FuncFormatter, MultipleLocator, NullFormatter  # noqa: E402
 
+from processing.phase_display import branch_text, branch_ticks, phase_branch, wrap_to
 from rig.describe import MirrorResponse, gain_db, phase_deg
 
 PHASES = ("wrapped", "unwrapped")
+#: size of a measured Bode diagram (:func:`measured_bode_figure`) [in]
+BODE_SIZE_IN = (8, 9.5)
 
 
 @dataclass(frozen=True)
@@ -54,8 +59,9 @@ def decade_axis(ax) -> None:
     ax.xaxis.set_minor_formatter(NullFormatter())
 
 
-def phase_curve(f, h, phase: str = "wrapped") -> tuple[np.ndarray, np.ndarray]:
-    """``(f, phase [deg])`` ready to draw as a line: ``"wrapped"`` to (-180, 180] with a NaN
+def phase_curve(f, h, phase: str = "wrapped",
+                lo: float = -180.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(f, phase [deg])`` ready to draw as a line: ``"wrapped"`` to (lo, lo + 360] with a NaN
     inserted at every wrap (a break, not a vertical line), or ``"unwrapped"`` along frequency."""
     f, h = np.asarray(f, dtype=float), np.asarray(h)
     if phase not in PHASES:
@@ -65,7 +71,7 @@ def phase_curve(f, h, phase: str = "wrapped") -> tuple[np.ndarray, np.ndarray]:
         ok = np.isfinite(h)
         out[ok] = np.degrees(np.unwrap(np.angle(h[ok])))
         return f, out
-    p = phase_deg(h)
+    p = wrap_to(phase_deg(h), lo)
     return wrap_breaks(f, p)
 
 
@@ -76,12 +82,16 @@ def wrap_breaks(f, p, *others):
     return tuple(np.insert(np.asarray(a, dtype=float), jump, np.nan) for a in (f, p, *others))
 
 
-def _phase_axis(ax, phase: str, what: str = "") -> None:
-    ax.set_ylabel(f"phase{' of ' + what if what else ''} [deg]")
+def _phase_axis(ax, phase: str, what: str = "", lo: float = -180.0) -> None:
+    """Label and ticks of a phase axis; wrapped: on the branch (lo, lo + 360], named in the label
+    (:mod:`processing.phase_display`)."""
+    of = f" of {what}" if what else ""
     if phase == "wrapped":
-        ax.set_ylim(-190, 190)
-        ax.set_yticks([-180, -90, 0, 90, 180])
+        ax.set_ylabel(f"phase{of} [deg], on {branch_text(lo)}")
+        ax.set_ylim(lo - 10, lo + 370)
+        ax.set_yticks(branch_ticks(lo))
     else:
+        ax.set_ylabel(f"phase{of} [deg]")
         lo, hi = ax.get_ylim()
         ax.yaxis.set_major_locator(MultipleLocator(90 if hi - lo <= 900 else 180))
 
@@ -110,12 +120,13 @@ def bode_axes(fig, col: int, ncols: int, title: str, unit: str, curves: list[Cur
     (:func:`outside_legend`)."""
     ax_g = fig.add_subplot(2, ncols, col + 1)
     ax_p = fig.add_subplot(2, ncols, ncols + col + 1, sharex=ax_g)
+    lo = phase_branch(*((c.freqs_hz, c.h) for c in curves))
     for c in curves:
         ax_g.semilogx(c.freqs_hz, gain_db(c.h), label=c.label, **c.style)
-        ax_p.semilogx(*phase_curve(c.freqs_hz, c.h, phase), **c.style)
+        ax_p.semilogx(*phase_curve(c.freqs_hz, c.h, phase, lo), **c.style)
     ax_g.set_title(title)
     ax_g.set_ylabel(f"gain{' |' + what + '|' if what else ''} [dB re 1 {unit}]")
-    _phase_axis(ax_p, phase, what)
+    _phase_axis(ax_p, phase, what, lo)
     ax_p.set_xlabel("frequency [Hz]")
     for ax in (ax_g, ax_p):
         ax.grid(True, which="both", alpha=0.3)
@@ -153,7 +164,8 @@ def model_bode_figure(resp: MirrorResponse, *, title: str = "", paper_figures: b
 def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve | None = None,
                          expected: Curve | None = None, k: float = 2.0, title: str = "",
                          unit: str = "", fmin_hz: float = 0.1, fmax_hz: float = 10.0,
-                         what: str = "", phase: str = "wrapped", incomplete: str = ""):
+                         what: str = "", phase: str = "wrapped", incomplete: str = "",
+                         into=None):
     """Measured Bode diagram in the style of the paper's Figs. 9 and 10, plus coherence.
 
     Gain [dB] and phase [deg] panels on a log frequency axis from ``fmin_hz`` to ``fmax_hz``:
@@ -174,15 +186,17 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     fmin_hz, fmax_hz : x range [Hz].
     phase : "wrapped" (to (-180, 180], lines broken at the wraps) or "unwrapped".
     incomplete : if not empty, the run is incomplete: this note heads the title in red.
+    into : a matplotlib SubFigure to draw into (several diagrams in one file) instead of a new
+        Figure.
 
     Returns
     -------
-    matplotlib.figure.Figure
+    matplotlib.figure.Figure (or ``into``)
     """
     f = np.asarray(measured.freqs_hz)
     sel = (f >= fmin_hz) & (f <= fmax_hz) & np.isfinite(measured.h)
     fs = f[sel]
-    fig = Figure(figsize=(8, 9.5), layout="constrained")
+    fig = Figure(figsize=BODE_SIZE_IN, layout="constrained") if into is None else into
     ax_g = fig.add_subplot(3, 1, 1)
     ax_p = fig.add_subplot(3, 1, 2, sharex=ax_g)
     ax_c = fig.add_subplot(3, 1, 3, sharex=ax_g)
@@ -192,6 +206,10 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     g_lo, g_hi = (b[sel] for b in measured.gain_band_db(k))
     p_lo, p_hi = (b[sel] for b in measured.phase_band_deg(k, unwrapped=unwrapped))
     p_meas = (measured.phase_unwrapped_deg if unwrapped else measured.phase_deg)[sel]
+    lo = phase_branch((model.freqs_hz, model.h) if model is not None else (fs, measured.h[sel]))
+    if not unwrapped:  # onto the branch, the bands moved with their centres
+        shift = wrap_to(p_meas, lo) - p_meas
+        p_meas, p_lo, p_hi = p_meas + shift, p_lo + shift, p_hi + shift
     band_style = {"color": "tab:red", "alpha": 0.25, "lw": 0}
     ax_g.fill_between(fs, np.where(np.isfinite(g_lo), g_lo, np.nan), g_hi,
                       label=f"±{k:g}σ (Bendat-Piersol)", **band_style)
@@ -214,10 +232,10 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
         m = (cf >= fmin_hz) & (cf <= fmax_hz)
         st = {**style, **curve.style}
         ax_g.semilogx(cf[m], gain_db(curve.h[m]), label=curve.label, **st)
-        ax_p.semilogx(*phase_curve(cf[m], curve.h[m], phase), **st)
+        ax_p.semilogx(*phase_curve(cf[m], curve.h[m], phase, lo), **st)
     ax_c.semilogx(fs, measured.coherence[sel], color="tab:red", lw=0.8)
     ax_g.set_ylabel(f"gain{' |' + what + '|' if what else ''} [dB re 1 {unit or measured.units}]")
-    _phase_axis(ax_p, phase, what)
+    _phase_axis(ax_p, phase, what, lo)
     ax_c.set_ylabel(f"coherence γ²{' of ' + what if what else ''}")
     ax_c.set_ylim(0, 1.05)
     ax_c.set_xlabel("frequency [Hz]")

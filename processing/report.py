@@ -335,12 +335,21 @@ def _run_line(a) -> str:
 
 
 def _model_line(a) -> str:
-    db, deg = a.highpass_at_fmin
     where = ("from the run file (its grid is the FFT lines: exact, not interpolated)"
              if a.model.source == "file" else
              "recomputed exactly at the FFT lines (rig.bench.expected_response, sampled)")
-    return (f"model: the whole sampled chain, accelerometer high-pass included ({db:+.2f} dB, "
-            f"{deg:+.1f} deg against the pendulum alone at {a.settings.fmin_hz:g} Hz), {where}")
+    return (f"model: the whole sampled chain, accelerometer high-pass included "
+            f"({_highpass_text(a)}), {where}")
+
+
+def _highpass_text(a) -> str:
+    """What the high-pass changes at fmin against the pendulum alone (nothing at 0 Hz, where
+    the ratio is undefined)."""
+    db, deg = a.highpass_at_fmin
+    if not (math.isfinite(db) and math.isfinite(deg)):
+        return (f"no correction at {a.settings.fmin_hz:g} Hz: the high-pass passes nothing "
+                "there, so the ratio to the pendulum alone is undefined")
+    return f"{db:+.2f} dB, {deg:+.1f} deg against the pendulum alone at {a.settings.fmin_hz:g} Hz"
 
 
 def _fmt_mode(md, check, exact) -> str:
@@ -428,13 +437,11 @@ def analysis_report(a) -> str:
     else:
         head.append("- no clipped samples")
     head += [f"- {n}" for n in a.notes]
-    db, deg = a.highpass_at_fmin
     head += ["", "## Model", "",
              "H_t = W_ax/W_aa and Θ₂ = W_ay/W_aa are compared with the exact response of the "
              "*whole* sampled chain (rig.bench.expected_response, sampled=True): the "
-             "accelerometer's high-pass is in the denominator of both, so at "
-             f"{a.settings.fmin_hz:g} Hz the analyzer reads {db:+.2f} dB and {deg:+.1f}° off "
-             "the pendulum alone; the anti-alias filter, common to all channels, cancels.",
+             "accelerometer's high-pass is in the denominator of both "
+             f"({_highpass_text(a)}); the anti-alias filter, common to all channels, cancels.",
              ""]
     if a.model.source == "file":
         head.append("- model values: the run file's, whose grid (k / record length) is the "

@@ -19,7 +19,7 @@ import numpy as np
 from rig.errors import ConfigError
 from rig.linear import SampledSystem
 
-__all__ = ["SampledBench", "linear_scene"]
+__all__ = ["SampledBench", "linear_scene", "resolved_fields"]
 
 
 def linear_scene(scene):
@@ -79,3 +79,37 @@ class SampledBench:
                     "mirror_rot": mirror_rot, "h_t": mirror_x / a_eng,
                     "theta_2": mirror_rot / a_eng, "h_t_pendulum": mirror_x / stage_accel,
                     "theta_2_pendulum": mirror_rot / stage_accel}
+
+
+def resolved_fields(scene, fmin_hz: float, fmax_hz: float, points: int = 1500, *,
+                    bench: SampledBench | None = None) -> tuple[np.ndarray, dict]:
+    """``(f, fields)``: :class:`SampledBench`'s fields of ``scene`` on a grid over
+    [fmin_hz, fmax_hz] [Hz] (``points`` log-spaced ones as its base) that draws every mode and
+    anti-resonance of ``h_t``, ``theta_2`` and the stage-1 curves within 0.1 dB
+    (:func:`rig.response_grid.resolving_grid`), with ``theta1`` [rad] and ``g1`` [m] (body 1's
+    angle and centre of mass per unit sensed stage acceleration [per m/s^2]) added. What a
+    person sees of the exact whole-chain model (the figures, the live view)."""
+    from rig.response_grid import resolving_grid, scene_features
+
+    bench = SampledBench(scene) if bench is None else bench
+    chain = scene.chain
+    w_g1 = chain.point_weights(0, chain.com_m[0])
+
+    def fields(f):
+        r = dict(bench(f))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a_eng = r["mirror_x"] / r["h_t"]  # sensed stage acceleration per source volt
+            r["theta1"] = r["theta"][:, 0] / a_eng
+        r["g1"] = r["theta1"] * w_g1[0]
+        return r
+
+    def curves(f):
+        r = fields(f)
+        return np.stack([r["h_t"], r["theta_2"], r["theta1"], r["g1"]], axis=-1)
+
+    weights = (scene.mirror_weights(), np.eye(chain.n)[scene.mirror.body], w_g1,
+               np.eye(chain.n)[0])
+    modes, notches = scene_features(scene, weights)
+    f = resolving_grid(curves, max(fmin_hz, 1e-3), fmax_hz, points, modes=modes,
+                       notches=notches)
+    return f, fields(f)

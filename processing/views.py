@@ -1,4 +1,5 @@
-"""The analyzer's display views of an :class:`processing.analyzer.Analysis` as PNG files.
+"""The analyzer's display views of an :class:`processing.analyzer.Analysis` as figure files
+(PNG, PDF or SVG, after the extension).
 
 ``bode`` (gain, phase and coherence over the exact model: :func:`bode_figures`),
 ``nyquist`` (the Nyquist plot with the real and imaginary parts against frequency) and
@@ -10,13 +11,12 @@ marked with its cause); ``all`` writes the three.
 from __future__ import annotations
 
 import io
-import math
 from pathlib import Path
 
 import numpy as np
 
 from processing.analyzer import incomplete_note, paper_figures
-from processing.sampled_bench import SampledBench
+from processing.sampled_bench import resolved_fields
 from rig._io import atomic_output, check_writable
 
 VIEWS = ("bode", "nyquist", "coherence", "all")
@@ -33,21 +33,16 @@ def view_paths(path, view: str) -> dict[str, Path]:
     return {v: path.with_name(f"{path.stem}-{v}{path.suffix}") for v in VIEWS[:-1]}
 
 
-def _fine_grid(a) -> np.ndarray:
-    lo, hi = a.settings.fmin_hz, a.settings.fmax_hz
-    parts = [np.geomspace(max(lo, 1e-3), hi, 1500)]
-    for fm, q in a.exact_modes:
-        half = min(8.0 * fm / q, 0.2 * fm) if math.isfinite(q) else 0.01 * fm
-        parts.append(np.linspace(fm - half, fm + half, 401))
-    f = np.unique(np.concatenate(parts))
-    return f[(f >= max(lo, 1e-3)) & (f <= hi)]
+def _model_curves(a) -> tuple[np.ndarray, dict]:
+    """The exact whole-chain model drawn in the figures: :func:`resolved_fields` over the
+    display band."""
+    return resolved_fields(a.scene, a.settings.fmin_hz, a.settings.fmax_hz)
 
 
 def _responses(a):
     from processing.plots import Curve, Response
 
-    f = _fine_grid(a)
-    r = SampledBench(a.scene)(f)
+    f, r = _model_curves(a)
     b = a.coherence_budget
     ex = {"x": None, "y": None} if b is None else b.expected
     return [Response("H_t", a.h_t, "m/(m/s^2)", Curve("exact model of H_t", f, r["h_t"]),
@@ -98,37 +93,34 @@ def view_figures(a, view: str, *, phase: str = "wrapped") -> list:
     raise ValueError(f"view = {view!r} is invalid: expected one of {', '.join(VIEWS[:-1])}")
 
 
-def bode_figures(a, *, k: float | None = None, phase: str = "wrapped"):
+def bode_figures(a, *, k: float | None = None, phase: str = "wrapped", into=None):
     """The measured Bode diagrams (:func:`processing.plots.measured_bode_figure`): translation
     H_t (cf. the paper's Fig. 9 for an Ishizaki pendulum) and rotation Theta_2 (cf. Fig. 10),
     measured lines with their Bendat-Piersol band over the exact whole-chain model, stage 1
     dotted (body 1's centre of mass, resp. theta_1, per unit stage acceleration as the analyzer
     reads it), E[H1] dashed, and the coherence; titled from the scene, an incomplete run marked.
-    ``phase``: "wrapped" or "unwrapped". Returns ``(fig_translation, fig_rotation)``
-    (matplotlib Figures, no backend selected)."""
+    ``phase``: "wrapped" or "unwrapped"; ``into``: two matplotlib SubFigures to draw into (one
+    file), else new Figures. Returns ``(fig_translation, fig_rotation)`` (matplotlib Figures,
+    no backend selected, or the SubFigures)."""
     from processing.plots import Curve, measured_bode_figure
 
     scene = a.scene
-    chain = scene.chain
-    f = _fine_grid(a)
-    r = SampledBench(scene)(f)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a_eng = r["mirror_x"] / r["h_t"]  # sensed stage acceleration per source volt
-        theta1 = r["theta"][:, 0] / a_eng
-    g1 = theta1 * chain.point_weights(0, chain.com_m[0])[0]
+    f, r = _model_curves(a)
+    theta1, g1 = r["theta1"], r["g1"]
     kk = a.settings.k if k is None else k
     paper = paper_figures(scene)
     figs = []
     lines = a.freqs_hz
     est = a.settings.estimator.upper()
-    for frf, model, stage1, e, what, title, s1, unit in (
+    into = (None, None) if into is None else into
+    for target, (frf, model, stage1, e, what, title, s1, unit) in zip(into, (
             (a.h_t, r["h_t"], g1, None if a.expected is None else a.expected.h_t, "H_t",
              "mirror translation H_t = W_ax/W_aa" + (" (cf. the paper's Fig. 9)" if paper else ""),
              "stage 1: translation of its centre of mass G1 (model)", "m/(m/s^2)"),
             (a.theta_2, r["theta_2"], theta1, None if a.expected is None else a.expected.theta_2,
              "Θ₂", "mirror rotation Θ₂ = W_ay/W_aa" + (" (cf. the paper's Fig. 10)" if paper
                                                        else ""),
-             "stage 1: rotation θ₁ (model)", "rad/(m/s^2)")):
+             "stage 1: rotation θ₁ (model)", "rad/(m/s^2)"))):
         figs.append(measured_bode_figure(
             frf, model=Curve(f"exact model of {what} (whole chain)", f, model),
             stage1=Curve(s1, f, stage1),
@@ -137,7 +129,7 @@ def bode_figures(a, *, k: float | None = None, phase: str = "wrapped"):
             k=kk, title=f"{a.run.scene}: {title}\nseed {a.run.seed}, {est}, "
                         f"{a.settings.window} window, {frf.n_averages} averages",
             unit=unit, fmin_hz=a.settings.fmin_hz, fmax_hz=a.settings.fmax_hz, what=what,
-            phase=phase, incomplete=incomplete_note(a)))
+            phase=phase, incomplete=incomplete_note(a), into=target))
     return tuple(figs)
 
 
@@ -160,14 +152,38 @@ def _save_side_by_side(figs, path: Path, *, force: bool, dpi: int) -> None:
         matplotlib.image.imsave(tmp, np.concatenate(padded, axis=1), format="png")
 
 
+def _write_view(a, view: str, path: Path, *, phase: str, force: bool, dpi: int) -> None:
+    """One view in the format of ``path``'s extension: a PNG's figures drawn and set side by
+    side; a vector file's (PDF, SVG) drawn side by side into one figure, as vectors."""
+    from processing.figure_files import figure_format, save_figure
+
+    if figure_format(path) == "png":
+        _save_side_by_side(view_figures(a, view, phase=phase), path, force=force, dpi=dpi)
+        return
+    if view != "bode":  # one figure
+        save_figure(view_figures(a, view, phase=phase)[0], path, force=force, dpi=dpi)
+        return
+    from matplotlib.figure import Figure
+
+    from processing.plots import BODE_SIZE_IN
+
+    fig = Figure(figsize=(2 * BODE_SIZE_IN[0], BODE_SIZE_IN[1]), layout="constrained")
+    bode_figures(a, phase=phase, into=fig.subfigures(1, 2))
+    save_figure(fig, path, force=force, dpi=dpi)
+
+
 def write_views(a, path, view: str = "bode", *, phase: str = "wrapped", force: bool = False,
                 dpi: int = 100) -> list[Path]:
-    """Write ``view`` of ``a`` as PNG (:func:`view_paths`; several figures of one view side by
-    side in one file); returns the paths written. Nothing existing is overwritten without
-    ``force`` (every path is checked before any is drawn)."""
+    """Write ``view`` of ``a`` in the format of ``path``'s extension (PNG, PDF or SVG:
+    :func:`processing.figure_files.figure_format`; :func:`view_paths`; several figures of one
+    view side by side in one file); returns the paths written. Nothing existing is overwritten
+    without ``force`` (every path is checked before any is drawn)."""
+    from processing.figure_files import figure_format
+
+    figure_format(path)
     paths = view_paths(path, view)
     for p in paths.values():
         check_writable(p, force=force)
     for v, p in paths.items():
-        _save_side_by_side(view_figures(a, v, phase=phase), p, force=force, dpi=dpi)
+        _write_view(a, v, p, phase=phase, force=force, dpi=dpi)
     return list(paths.values())

@@ -13,8 +13,20 @@ from rig.errors import ConfigError
 
 def shown(value) -> str:
     """``repr(value)``, a numpy scalar shown as the Python number it holds (``0.5``, not
-    ``np.float64(0.5)``)."""
+    ``np.float64(0.5)``), an integer of more than 20 digits by its size (``an integer of 401
+    digits``)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 66:
+        return f"an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits"
     return repr(value.item() if type(value).__module__ == "numpy" else value)
+
+
+def as_float(value) -> float:
+    """``float(value)``, or ``inf`` (with the sign) for an integer too large for a float (which
+    ``float`` refuses with OverflowError): then it is not finite, and refused as such."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
 
 
 def _is_real(value) -> bool:
@@ -36,7 +48,7 @@ def number(where: str, value, *, lo: float | None = None, hi: float | None = Non
     ``valid`` (default: "a finite number" and the bounds, with ``unit``)."""
     ok = _is_real(value)
     if ok:
-        v = float(value)
+        v = as_float(value)
         ok = (not math.isnan(v) and (allow_inf or math.isfinite(v))
               and (lo is None or v > lo or (v == lo and not lo_open))
               and (hi is None or v < hi or (v == hi and not hi_open)))

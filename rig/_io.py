@@ -19,14 +19,20 @@ import socket
 import tempfile
 from pathlib import Path
 
-from rig.errors import ConfigError
+from rig.errors import ConfigError, ForceRequired
 
 
 def check_writable(path: Path, *, force: bool) -> Path:
     """Validate an output path before any work is done; returns it as a :class:`Path`."""
     path = Path(path)
+    if path.is_symlink() and not path.exists():
+        if not force:
+            raise ForceRequired(f"output {str(path)!r} is a symbolic link to "
+                                f"{os.readlink(path)!r}, which does not exist",
+                                "replace the link by the file")
+        return path
     if path.exists() and not force:
-        raise ConfigError(f"output {str(path)!r} exists; pass --force to overwrite it")
+        raise ForceRequired(f"output {str(path)!r} exists")
     if path.exists() and path.is_dir():
         raise ConfigError(f"output {str(path)!r} is a directory; expected a file path")
     parent = path.parent if str(path.parent) else Path(".")
@@ -138,7 +144,7 @@ def atomic_output(path: Path, *, force: bool, suffix: str = ""):
     try:
         yield tmp_path
         if path.exists() and not force:  # appeared meanwhile
-            raise ConfigError(f"output {str(path)!r} exists; pass --force to overwrite it")
+            raise ForceRequired(f"output {str(path)!r} exists")
         os.chmod(tmp_path, umask_mode())  # the user's umask, as for any new file
         os.replace(tmp_path, path)
     finally:

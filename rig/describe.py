@@ -22,7 +22,7 @@ from rig.linear import FrequencyResponse, wrap_deg
 from rig.scene import Scene
 
 __all__ = ["scene_summary", "design_dict", "resonance_table", "MirrorResponse", "mirror_response",
-           "log_grid", "gain_db", "phase_deg", "CSV_COLUMNS", "write_csv"]
+           "log_grid", "model_grid", "gain_db", "phase_deg", "CSV_COLUMNS", "write_csv"]
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,27 @@ def log_grid(fmin_hz: float, fmax_hz: float, points: int) -> np.ndarray:
     if points < 2:
         raise ConfigError(f"points = {points} is invalid: expected >= 2")
     return np.geomspace(fmin_hz, fmax_hz, points)
+
+
+def model_grid(scene: Scene, fmin_hz: float, fmax_hz: float, points: int) -> np.ndarray:
+    """The frequencies [Hz] at which :func:`mirror_response` is sampled for a person (``daq
+    model``'s CSV and figure): ``points`` log-spaced ones from fmin_hz to fmax_hz (the base grid,
+    :func:`log_grid`) plus those :func:`rig.response_grid.resolving_grid` adds so that every mode
+    and anti-resonance of x, y and the stage-1 curves is drawn within 0.1 dB."""
+    from rig.response_grid import resolving_grid, scene_features
+
+    base = log_grid(fmin_hz, fmax_hz, points)
+    chain = scene.chain
+    weights = (scene.mirror_weights(), np.eye(chain.n)[scene.mirror.body],
+               chain.point_weights(0, chain.com_m[0]), np.eye(chain.n)[0])
+    modes, notches = scene_features(scene, weights)
+
+    def response(f):
+        r = mirror_response(scene, f)
+        return np.stack([r.x, r.y, r.stage1_x, r.stage1_theta], axis=-1)
+
+    return resolving_grid(response, float(base[0]), float(base[-1]), points, modes=modes,
+                          notches=notches)
 
 
 def mirror_response(scene: Scene, freqs_hz) -> MirrorResponse:

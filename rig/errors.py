@@ -11,6 +11,17 @@ class ConfigError(RigError, ValueError):
     """An invalid parameter or scene value; the message names the key, the value and what is valid."""
 
 
+class ForceRequired(ConfigError):
+    """A refusal to replace or change something that exists (an output file, a sweep directory
+    of another plan) unless asked to (``force=True``). The message says what exists and names no
+    command-line flag; ``action`` says what forcing would do (e.g. "overwrite it"), for a caller
+    to offer its own way of forcing."""
+
+    def __init__(self, message: str, action: str = "overwrite it"):
+        super().__init__(message)
+        self.action = action
+
+
 class DivergenceError(RigError, FloatingPointError):
     """A simulation produced a non-finite state.
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from rig.errors import ConfigError
-from rig._check import finite_at_least
+from rig._check import as_float, finite_at_least, shown
 
 REQUIRED = object()
 
@@ -71,9 +71,9 @@ def check_fields(obj, section: str) -> None:
                                                           strict=key.strict, unit=key.unit))
         elif key.type == "int" and key.choices == (1, -1):
             if isinstance(value, bool) or value not in (1, -1):
-                raise ConfigError(f"{section}.{name} = {value!r} is invalid: expected +1 or -1")
+                raise ConfigError(f"{section}.{name} = {shown(value)} is invalid: expected +1 or -1")
         elif key.type == "bool" and not isinstance(value, bool):
-            raise ConfigError(f"{section}.{name} = {value!r} is invalid: expected true or false")
+            raise ConfigError(f"{section}.{name} = {shown(value)} is invalid: expected true or false")
 
 
 def check_value(where: str, key: Key, value: Any) -> Any:
@@ -84,29 +84,29 @@ def check_value(where: str, key: Key, value: Any) -> Any:
 
     def number(v, what):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ConfigError(f"{where} = {v!r} is invalid: expected {what}")
-        if not math.isfinite(float(v)):
-            raise ConfigError(f"{where} = {v!r} is invalid: expected a finite number")
+            raise ConfigError(f"{where} = {shown(v)} is invalid: expected {what}")
+        if not math.isfinite(as_float(v)):
+            raise ConfigError(f"{where} = {shown(v)} is invalid: expected a finite number")
         return float(v)
 
     if key.type == "float":
         return number(value, "a number")
     if key.type == "bool":
         if not isinstance(value, bool):
-            raise ConfigError(f"{where} = {value!r} is invalid: expected true or false")
+            raise ConfigError(f"{where} = {shown(value)} is invalid: expected true or false")
         return value
     if key.type == "int":
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where} = {value!r} is invalid: expected an integer")
+            raise ConfigError(f"{where} = {shown(value)} is invalid: expected an integer")
         if key.choices and value not in key.choices:
-            raise ConfigError(f"{where} = {value!r} is invalid: expected one of "
+            raise ConfigError(f"{where} = {shown(value)} is invalid: expected one of "
                               f"{', '.join(map(str, key.choices))}")
         return value
     if key.type == "str":
         if not isinstance(value, str):
-            raise ConfigError(f"{where} = {value!r} is invalid: expected a string")
+            raise ConfigError(f"{where} = {shown(value)} is invalid: expected a string")
         if key.choices and value not in key.choices:
-            raise ConfigError(f"{where} = {value!r} is invalid: expected one of "
+            raise ConfigError(f"{where} = {shown(value)} is invalid: expected one of "
                               f"{', '.join(key.choices)}")
         return value
     if key.type == "floats":
@@ -115,7 +115,7 @@ def check_value(where: str, key: Key, value: Any) -> Any:
                 raise ConfigError(f"{where} = [] is invalid: expected a number or a non-empty list")
             for i, v in enumerate(value):
                 if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise ConfigError(f"{where} of body {i + 1} = {v!r} is invalid: expected a "
+                    raise ConfigError(f"{where} of body {i + 1} = {shown(v)} is invalid: expected a "
                                       "number")
             return [number(v, "a finite number") for v in value]
         return number(value, "a number or a list of numbers")

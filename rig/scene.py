@@ -33,7 +33,8 @@ default, range and doc written once, :mod:`rig.params`); the pendulum's, mirror'
 state's keys are the tables below.
 
 A top-level ``base = "PRESET"`` (or a TOML file path, relative to the file) inherits every key not
-given (:func:`load_scene`); :func:`rig.scene_toml.scene_toml` writes a resolved scene back as a
+given (:func:`load_scene`); a scene file is named after itself (``scene.name`` defaults to its
+file name without ``.toml``); :func:`rig.scene_toml.scene_toml` writes a resolved scene back as a
 complete file.
 """
 
@@ -53,6 +54,7 @@ import numpy as np
 from rig.acquisition_settings import AcquisitionSettings
 from rig.chain import DAMPING_MODES, G_STANDARD, Chain
 from rig.devices import Accelerometer, OpticalLever, Source, Stage
+from rig._check import shown
 from rig.errors import ConfigError
 from rig.params import REQUIRED, Key, check_value, keys_of
 
@@ -212,8 +214,9 @@ def load_scene(scene: str | Path | dict, overrides: list[str] | tuple[str, ...] 
 
     A scene may start from another: a top-level ``base = "PRESET"`` (or a path to a TOML file,
     relative to the file that names it) inherits every key the scene does not give, section by
-    section; bases may chain (a cycle is an error). A scene that gives a different
-    ``pendulum.kind`` than its base inherits none of the base's pendulum keys.
+    section; bases may chain, at most :data:`MAX_BASE_DEPTH` deep (a cycle is an error). A
+    scene that gives a different ``pendulum.kind`` than its base inherits none of the base's
+    pendulum keys.
 
     Overrides use dotted keys (``pendulum.q1=300``), an index for one list element
     (``initial.theta0_rad[2]=0.1``, 1-based like the bodies) and TOML values (a bare word is
@@ -229,6 +232,10 @@ def load_scene(scene: str | Path | dict, overrides: list[str] | tuple[str, ...] 
     for item in overrides:
         apply_override(data, item)
     return resolve_scene(data, origin=origin)
+
+
+#: the most scenes a chain of ``base`` files may hold (a deeper one is refused, not followed)
+MAX_BASE_DEPTH = 32
 
 
 def read_scene_data(scene: str | Path, *, relative_to: Path | None = None,
@@ -255,11 +262,23 @@ def read_scene_data(scene: str | Path, *, relative_to: Path | None = None,
     if key in _chain:
         raise ConfigError(f"scene {source}: its base chain comes back to itself "
                           f"({' -> '.join((*_chain, key))})")
+    if len(_chain) >= MAX_BASE_DEPTH:
+        raise ConfigError(f"scene {_chain[0]}: its chain of bases is deeper than "
+                          f"{MAX_BASE_DEPTH} ({_chain[0]} -> {_chain[1]} -> ... -> {source}); "
+                          f"expected at most {MAX_BASE_DEPTH} scenes, each naming the next as "
+                          "its base")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"scene {source}: invalid TOML: {exc}") from None
+    except ValueError:  # an integer beyond Python's 4300-digit limit for reading one
+        raise ConfigError(f"scene {source}: a number in it has more than 4300 digits; expected "
+                          "numbers in the keys' ranges") from None
     base = data.pop("base", None)
+    if source != f"preset:{scene}":  # a file: named after itself unless it says otherwise
+        data.setdefault("scene", {})
+        if isinstance(data["scene"], dict):
+            data["scene"].setdefault("name", path.stem)
     if base is None:
         return data, source
     if not isinstance(base, str) or not base:
@@ -300,31 +319,38 @@ def parse_value(text: str) -> Any:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text.strip()
+    except ValueError:  # an integer beyond Python's 4300-digit limit for reading one
+        raise ConfigError(f"the value {text[:12]}... ({len(text)} characters) is not a number "
+                          "that can be read (integers have at most 4300 digits); expected a "
+                          "number in its range") from None
 
 
 def apply_override(data: dict, item: str) -> None:
     """Apply one ``section.key=value`` or ``section.key[i]=value`` override to raw scene data."""
     m = _OVERRIDE.match(item.strip())
     if not m:
-        raise ConfigError(f"--set {item!r} is invalid: expected section.key=value, e.g. "
+        raise ConfigError(f"override {item!r} is invalid: expected section.key=value, e.g. "
                           "pendulum.q1=300 or initial.theta0_rad[1]=0.2")
     *sections, key = m["key"].split(".")
     node = data
     for s in sections:
         node = node.setdefault(s, {})
         if not isinstance(node, dict):
-            raise ConfigError(f"--set {item!r}: {s!r} is not a section")
-    value = parse_value(m["val"])
+            raise ConfigError(f"override {item!r}: {s!r} is not a section")
+    try:
+        value = parse_value(m["val"])
+    except ConfigError as exc:
+        raise ConfigError(f"{m['key']}: {exc}") from None
     if m["idx"] is None:
         node[key] = value
         return
     i = int(m["idx"])
     current = node.get(key)
     if not isinstance(current, list):
-        raise ConfigError(f"--set {item!r}: {m['key']} is not a list in this scene "
+        raise ConfigError(f"override {item!r}: {m['key']} is not a list in this scene "
                           "(set the whole list instead, e.g. key=[0.1, 0.2])")
     if not 1 <= i <= len(current):
-        raise ConfigError(f"--set {item!r}: index {i} is out of range 1..{len(current)}")
+        raise ConfigError(f"override {item!r}: index {i} is out of range 1..{len(current)}")
     current[i - 1] = value
 
 
@@ -380,7 +406,7 @@ def _finite_chain(p: dict, raw: dict) -> Chain:
     except (ZeroDivisionError, OverflowError, FloatingPointError, np.linalg.LinAlgError,
             ValueError) as exc:
         raise ConfigError(f"{given or 'the [pendulum] values'}: no finite pendulum follows "
-                          f"(numerical {type(exc).__name__}: {exc}); expected values of "
+                          f"(the numbers fail: {exc}); expected values of "
                           "ordinary size (lengths in m, frequencies in Hz)") from None
     return chain
 
@@ -423,8 +449,8 @@ def _build_chain(p: dict) -> Chain:
             if p["n"] is None or p["total_length_m"] is None:
                 raise ConfigError("a rod-chain needs n and total_length_m, or rod_lengths_m")
             if not 1 <= p["n"] <= MAX_BODIES:
-                raise ConfigError(f"n = {p['n']} is invalid: expected 1 <= n <= {MAX_BODIES} "
-                                  f"({_WHY_MAX_BODIES})")
+                raise ConfigError(f"n = {shown(p['n'])} is invalid: expected 1 <= n <= "
+                                  f"{MAX_BODIES} ({_WHY_MAX_BODIES})")
             if not p["total_length_m"] > 0:
                 raise ConfigError(f"total_length_m = {p['total_length_m']} is invalid: expected > 0")
             lengths = [p["total_length_m"] / p["n"]] * p["n"]

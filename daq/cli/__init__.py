@@ -8,7 +8,8 @@ command group) is a module of its own: :mod:`daq.cli.scene` (scene, model, simul
 shared options in :mod:`daq.cli.common`.
 
 Errors become one line and exit status 1 in one place, the group's class
-(:class:`daq.cli.errors.ErrorsAsMessages`); ``daq --debug`` lets them through.
+(:class:`daq.cli.errors.ErrorsAsMessages`); ``daq --debug`` lets them through. The exit statuses
+of every command are one table, :data:`daq.cli.errors.EXIT_CODES`.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from daq.cli import live as _live_cmds
 from daq.cli import scene as _scene_cmds
 from daq.cli import serve as _serve_cmd
 from daq.cli import sine as _sine_cmd
-from daq.cli.errors import ErrorsAsMessages
+from daq.cli.errors import ErrorsAsMessages, exit_codes_text
 
 
 @click.group(cls=ErrorsAsMessages, context_settings={"help_option_names": ["-h", "--help"]})
@@ -37,12 +38,7 @@ from daq.cli.errors import ErrorsAsMessages
               help="Let errors through with their traceback (otherwise: one line, exit 1).")
 @click.pass_context
 def main(ctx, debug):
-    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer).
-
-    Exit status: 0 done; 1 an error (one line); 2 a usage error; 3 a run not as asked (over
-    its error budget or saturated; acquire --allow-over-budget); 4 a sweep with failed or
-    missing runs (dataset); 128+N ended by signal N.
-    """
+    """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer)."""
     ctx.meta["daq.debug"] = debug
     if not debug:
         import warnings
@@ -52,11 +48,34 @@ def main(ctx, debug):
         warnings.showwarning = warning_line
 
 
+main.help += ("\n\n\b\nExit status, the same for every command (daq.cli.errors.EXIT_CODES):\n"
+              + exit_codes_text())
+
+
 for _command in (_scene_cmds.scene, _scene_cmds.model, _scene_cmds.simulate, _live_cmds.view,
                  _acquire_cmds.acquire, _acquire_cmds.inspect, _analyze_cmd.analyze,
                  _dataset_cmd.dataset, _export_cmd.export, _check_cmd.check_cmd,
                  _design_cmd.design, _serve_cmd.serve, _sine_cmd.sine):
     main.add_command(_command)
+
+
+def parse_only(argv: list[str]) -> int:
+    """Parse ``daq COMMAND ARGS...`` as the command would (every option's type, range, choice
+    and file extension), without running it: 0 if it parses, else click's message on stderr
+    and the usage status 2. For a script that must refuse bad arguments before earlier, long
+    steps run (``python3 tasks.py experiment --window ...``)."""
+    if not argv or argv[0] not in main.commands:
+        click.echo(f"Error: no command {argv[0] if argv else ''!r}: expected one of "
+                   f"{', '.join(sorted(main.commands))}", err=True)
+        return 2
+    try:
+        main.commands[argv[0]].make_context(f"daq {argv[0]}", list(argv[1:]))
+    except click.exceptions.Exit as exc:  # --help
+        return exc.exit_code
+    except click.ClickException as exc:
+        exc.show()
+        return exc.exit_code
+    return 0
 
 
 def run() -> None:

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import (fmt, force_option, model_lines, note_cold_kernels, run_check,
-                            set_option, size_text)
+from daq.cli.common import (fmt, force_option, model_lines, note_cold_kernels, repair_file,
+                            run_check, set_option, size_text)
 from daq.cli.live import live_options, live_sinks, rrd_preflight
 from rig._io import check_writable
 
@@ -231,15 +231,16 @@ def _acquire_summary(s) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
 @click.option("--repair", is_flag=True,
               help="Clear the 'open for writing' mark a killed writer left in the file (like "
-                   "h5clear -s) so that any HDF5 reader opens it.")
+                   "h5clear -s) so that any HDF5 reader opens it, and mark the run interrupted "
+                   "(its records kept); never while the writer lives.")
 def inspect(path, as_json, repair):
     """Show what the run file PATH holds: scene, seed, versions, status, channels, clipping,
     model."""
     from daq.hdf5 import run_info
-    from daq.repair import clear_write_flags
 
-    if repair and clear_write_flags(path) and not as_json:
-        click.echo(f"cleared the open-for-writing mark of {path}")
+    for line in repair_file(path) if repair else ():
+        if not as_json:
+            click.echo(line)
     fc = run_check(path, sine_ok=True)
     if fc.kind == "sine":  # a stepped-sine run file (daq sine)
         from daq.sine_file import sine_info

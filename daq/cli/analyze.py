@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import force_option, verified_records
+from daq.cli.common import (UFF_SUFFIXES, figure_path, force_option, suffix_path,
+                            verified_records)
 from processing.choices import AVERAGING, ESTIMATORS, WINDOWS
 from rig._io import check_writable
 
@@ -33,13 +34,16 @@ from rig._io import check_writable
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the measured H_t and Theta_2 (0.1-10 Hz) as CSV.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the measured Bode diagrams over the model (PNG, like Figs. 9, 10).")
+              callback=figure_path,
+              help="Write the measured Bode diagrams over the model (like Figs. 9, 10); the "
+                   "format follows the extension: .png, .pdf or .svg.")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the Markdown report.")
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write spectra, responses, coherence, model and E[H1] to a new HDF5 file "
                    "(xarray: group 'spectra', engine h5netcdf).")
 @click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              callback=suffix_path(UFF_SUFFIXES, "a UFF file"),
               help="Write H_t and Theta_2 with their coherence as UFF 58 (.uff/.unv) for modal "
                    "software (processing.uff).")
 @click.option("--estimator", type=click.Choice(ESTIMATORS), default="h1",
@@ -102,6 +106,7 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
             raise click.BadParameter(f"output {str(p)!r} is {seen[key]}: choose another path")
         seen[key] = "another output"
         check_writable(p, force=force)
+    _check_band(run, fmax_hz)
     if follow:
         from processing.follow import follow_run
 
@@ -118,3 +123,25 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     if plot_path is not None:
         for p in write_views(analysis, plot_path, view, phase=phase, force=force):
             click.echo(f"wrote {p}")
+
+
+def _check_band(run: Path, fmax_hz: float) -> None:
+    """--fmax against the run's band (:func:`processing.analyzer.band_limit_hz`), read from its
+    header before anything is analysed. A file that cannot be read yet (--follow of a run not
+    started, a damaged file) is left to the steps that say why; the analysis checks the band
+    again (:func:`processing.analyzer.check_band`)."""
+    from daq.hdf5 import run_info
+    from processing.analyzer import band_limit_hz
+    from rig.errors import RigError
+
+    try:
+        aa = run_info(run)["antialias"]
+    except (RigError, OSError, KeyError):
+        return
+    limit = band_limit_hz(aa["passband_hz"], aa["rate_hz"])
+    if fmax_hz > limit:
+        raise click.BadParameter(
+            f"{fmax_hz:g} Hz is above this run's band: its anti-alias filter's passband ends at "
+            f"{limit:g} Hz (the Nyquist frequency of its {aa['rate_hz']:g} Hz rate is "
+            f"{aa['rate_hz'] / 2:g} Hz; above the passband the channels hold mostly leakage); "
+            f"give --fmax {limit:g} or less", param_hint="--fmax")

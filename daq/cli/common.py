@@ -17,6 +17,53 @@ def force_option(fn):
     return click.option("--force", is_flag=True, help="Overwrite existing output files.")(fn)
 
 
+def figure_path(ctx, param, value):
+    """A click callback: a figure path whose extension names a format matplotlib writes
+    (:func:`processing.figure_files.figure_format`), checked while the command line is parsed,
+    so a bad one is a usage error before any work."""
+    from processing.figure_files import figure_format
+
+    return _format_checked(ctx, param, value, figure_format)
+
+
+def image_path(ctx, param, value):
+    """A click callback: an image path (a screenshot) whose extension names PNG or JPEG
+    (:func:`processing.figure_files.image_format`), checked while the command line is parsed."""
+    from processing.figure_files import image_format
+
+    return _format_checked(ctx, param, value, image_format)
+
+
+def _format_checked(ctx, param, value, check):
+    if value is None:
+        return None
+    from processing.errors import SettingsError
+
+    try:
+        check(value)
+    except SettingsError as exc:
+        raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
+    return value
+
+
+def suffix_path(suffixes: tuple[str, ...], what: str):
+    """A click callback: a path whose extension is one of ``suffixes`` (case-insensitive),
+    checked while the command line is parsed (a usage error naming the valid ones before any
+    work)."""
+    def check(ctx, param, value):
+        if value is not None and Path(value).suffix.lower() not in suffixes:
+            said = (f"has the extension {Path(value).suffix!r}" if Path(value).suffix
+                    else "has no extension")
+            raise click.BadParameter(f"{str(value)!r} {said}: {what} is one of "
+                                     f"{', '.join(suffixes)}", ctx=ctx, param=param)
+        return value
+    return check
+
+
+#: extensions of a UFF file (rig._uff.write_uff)
+UFF_SUFFIXES = (".uff", ".unv")
+
+
 def fmt(v) -> str:
     """A value as a person reads it: numbers to 6 digits, booleans and nothing as in JSON/TOML
     (true, false, null), lists in brackets."""
@@ -88,6 +135,28 @@ def verified_records(run: Path, allow_incomplete: bool):
     click.echo(f"warning: {fc.line()}; analysing the {len(fc.valid_records)} records that "
                f"verify", err=True)
     return fc.valid_records
+
+
+def repair_file(path: Path) -> list[str]:
+    """``--repair`` of ``daq check`` and ``daq inspect``: clear the open-for-writing mark a killed
+    writer left (:func:`daq.repair.clear_write_flags`), then mark such a run "interrupted"
+    (:func:`daq.hdf5.mark_interrupted`; its records kept). Returns what was done, one line each;
+    a file whose writer is alive is left alone (a ConfigError saying so)."""
+    from daq.hdf5 import mark_interrupted
+    from daq.repair import clear_write_flags, superblock, writer_alive
+
+    done = []
+    sb = superblock(path)
+    if sb is None:
+        return done
+    if sb["flags"] and sb["version"] >= 2 and clear_write_flags(path):
+        done.append(f"cleared the open-for-writing mark of {path}")
+    if not writer_alive(path):
+        n = mark_interrupted(path)
+        if n is not None:
+            done.append(f"marked {path} interrupted: its writer stopped without closing it "
+                        f"(killed); its {n} finished records kept")
+    return done
 
 
 def warning_line(message, category, filename, lineno, file=None, line=None) -> None:

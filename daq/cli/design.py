@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import force_option
+from daq.cli.common import figure_path, force_option
 from rig._io import atomic_output, check_writable
 
 
@@ -40,7 +40,9 @@ def _write_text(path: Path, text: str, force: bool) -> None:
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the design report (markdown).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the design's responses against its targets (PNG).")
+              callback=figure_path,
+              help="Write the design's responses against its targets (.png, .pdf or .svg: the "
+                   "format follows the extension).")
 @click.option("--tradeoffs", "tradeoffs_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the trade-off sweeps (alpha, f2/f1, sigma^2) and policy (i) against "
                    "(ii) into this directory: tradeoffs.png, tradeoffs_*.csv, policies.png, "
@@ -103,8 +105,9 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_
                    + [t.freq_hz * 2 for t in targets.translation])
         curves = design_curves(d.chain, _grid(0.05 * d.inputs.f2_hz, f_hi))
         fig = design_figure(d, curves)
-        with atomic_output(plot_path, force=force) as tmp:
-            fig.savefig(tmp, dpi=120, format="png")
+        from processing.figure_files import save_figure
+
+        save_figure(fig, plot_path, force=force, dpi=120)
     written = []
     mc_text, mc_data = "", None
     if tol is not None:

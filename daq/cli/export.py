@@ -6,19 +6,21 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import force_option
+from daq.cli.common import UFF_SUFFIXES, force_option, suffix_path
 from rig._io import check_writable
 
 
 @click.command()
 @click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path),
+              callback=suffix_path((".nc", ".h5", ".hdf5"), "a netCDF-4/HDF5 file"),
               help="Write the channels as a netCDF-4/HDF5 file (.nc, .h5, .hdf5) that xarray "
                    "opens directly (daq.eu.to_xarray).")
 @click.option("--units", type=click.Choice(["eu", "volts", "codes"]), default="eu",
               show_default=True, help="Units of --out: engineering units (m/s^2, m, rad), the "
               "sensors' volts or the raw ADC codes.")
 @click.option("--uff", "uff_path", type=click.Path(dir_okay=False, path_type=Path),
+              callback=suffix_path(UFF_SUFFIXES, "a UFF file"),
               help="Write every record of every channel in engineering units as UFF 58 time "
                    "responses (.uff/.unv, daq.uff).")
 @click.option("--oma", "oma_path", type=click.Path(dir_okay=False, path_type=Path),

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import NO_DISPLAY, check_viewer_url, display_missing, force_option
+from daq.cli.common import (NO_DISPLAY, check_viewer_url, display_missing, force_option,
+                            image_path)
 from rig._io import check_writable
 
 
@@ -129,7 +130,9 @@ def live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
               help="Save the replay to this .rrd file.")
 @click.option("--connect", metavar="URL", help="Replay into a running rerun viewer.")
 @click.option("--screenshot", "screenshot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Render the layout at the end of the run to a PNG, without a window.")
+              callback=image_path,
+              help="Render the layout at the end of the run to an image, without a window: "
+                   ".png, or .jpg/.jpeg (the format follows the extension).")
 @click.option("--size", default="1600x900", show_default=True, metavar="WxH",
               help="Window size of --screenshot.")
 @click.option("--magnify", type=click.FloatRange(min=0, min_open=True), default=None,

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import fmt, force_option, set_option
+from daq.cli.common import figure_path, fmt, force_option, set_option
 from daq.cli.live import viewer_stream
-from rig._io import atomic_output, check_writable
+from rig._io import check_writable
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -88,37 +88,46 @@ def _format_summary(s: dict, indent: int = 0) -> str:
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the Bode data as CSV.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write gain/phase diagrams (PNG) like the paper's Figs. 9 and 10.")
+              callback=figure_path,
+              help="Write gain/phase diagrams like the paper's Figs. 9 and 10; the format "
+                   "follows the extension: .png, .pdf or .svg.")
 @click.option("--fmin", default=0.1, show_default=True, type=float, help="Lowest frequency [Hz].")
 @click.option("--fmax", default=10.0, show_default=True, type=float, help="Highest frequency [Hz].")
 @click.option("--points", default=1000, show_default=True, type=click.IntRange(min=2),
-              help="Number of log-spaced frequencies.")
+              help="Log-spaced frequencies of the base grid; the output has these plus the "
+                   "points added at and around every mode and anti-resonance until each is "
+                   "drawn within 0.1 dB.")
 @force_option
 def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force):
     """Analytic Bode data of SCENE (exact linear model, direct complex solve).
 
     x is the mirror translation relative to the stage [m per m/s^2], y the mirror rotation [rad
-    per m/s^2] (SPEC section 5).
+    per m/s^2] (SPEC section 5). The frequencies are --points log-spaced ones from --fmin to
+    --fmax plus those added where the response is sharp (each mode's peak and each
+    anti-resonance's notch exactly, and until linear interpolation between neighbours is within
+    0.1 dB), so no resonance or notch is missed.
     """
-    from rig.describe import log_grid, mirror_response, write_csv
+    from rig.describe import log_grid, mirror_response, model_grid, write_csv
     from rig.scene import load_scene
 
-    sc = load_scene(scene_name, overrides)
-    freqs = log_grid(fmin, fmax, points)
     for p in (csv_path, plot_path):
         if p is not None:
             check_writable(p, force=force)
+    log_grid(fmin, fmax, points)  # the range, before the scene is built
+    sc = load_scene(scene_name, overrides)
+    freqs = model_grid(sc, fmin, fmax, points)
     resp = mirror_response(sc, freqs)
     if csv_path is not None:
         write_csv(resp, csv_path, force=force)
-        click.echo(f"wrote {csv_path} ({points} frequencies, {fmin:g}-{fmax:g} Hz)")
+        click.echo(f"wrote {csv_path} ({freqs.size} frequencies, {fmin:g}-{fmax:g} Hz: {points} "
+                   f"log-spaced and {freqs.size - points} at the modes and anti-resonances)")
     if plot_path is not None:
+        from processing.figure_files import save_figure
         from processing.plots import model_bode_figure
 
         fig = model_bode_figure(resp, title=f"{sc.name}: exact linear model",
                                 paper_figures=sc.pendulum_kind == "ishizaki")
-        with atomic_output(plot_path, force=force) as tmp:
-            fig.savefig(tmp, dpi=120, format="png")
+        save_figure(fig, plot_path, force=force, dpi=120)
         click.echo(f"wrote {plot_path}")
     from rig.describe import resonance_table
 
@@ -126,6 +135,18 @@ def model(scene_name, overrides, csv_path, plot_path, fmin, fmax, points, force)
 
 
 # -- simulation ------------------------------------------------------------------------------
+
+def _frame_grid(traj) -> dict:
+    """``dt_s`` and ``output_dt_s`` of a run drawing ``traj`` at about the view's frame rate:
+    a fixed-step method keeps its step (a frame every whole number of steps, so the frames are
+    the run's own states), an adaptive one its tolerance."""
+    from processing.bench_geometry import FRAMES_PER_S
+
+    dt = traj.settings.get("dt_s")
+    if dt:
+        return {"dt_s": dt, "output_dt_s": max(1, round(1.0 / (FRAMES_PER_S * dt))) * dt}
+    return {"dt_s": None, "output_dt_s": 1.0 / FRAMES_PER_S}
+
 
 def _floats(ctx, param, value):
     """Parse "a,b,..." into floats (None stays None)."""
@@ -205,22 +226,26 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
         trajectory_format(out)
         check_writable(out, force=force)
     stream = viewer_stream(live, None, rrd, force)
-    if stream is not None and output_dt_s is None:
-        from processing.bench_geometry import FRAMES_PER_S
-
-        output_dt_s = 1.0 / FRAMES_PER_S  # frames for the view, not one a second
     sc = load_scene(scene_name, overrides)
     kw = {} if rtol is None else {"rtol": rtol}
-    traj = run_simulation(
-        sc.chain, duration, theta0=sc.theta0_rad if theta0 is None else theta0,
-        omega0=sc.omega0_rad_s if omega0 is None else omega0, method=method, dt_s=dt_s,
-        output_dt_s=output_dt_s, estimate_error=not no_error_estimate, **kw)
+    start = dict(theta0=sc.theta0_rad if theta0 is None else theta0,
+                 omega0=sc.omega0_rad_s if omega0 is None else omega0, method=method, **kw)
+    traj = run_simulation(sc.chain, duration, dt_s=dt_s, output_dt_s=output_dt_s,
+                          estimate_error=not no_error_estimate, **start)
     if out is not None:
         write_trajectory(out, traj, sc, force=force)
     if stream is not None:
         from processing.live_view import show_trajectory
 
-        path = show_trajectory(traj, sc, stream)
+        frames = traj
+        if output_dt_s is None:  # the run samples each second: the view gets its own frames
+            frames = run_simulation(sc.chain, duration, estimate_error=False,
+                                    **_frame_grid(traj), **start)
+            gap = frames.settings["output_dt_s"]
+            click.echo(f"the view draws {frames.t_s.size} frames ({gap:.3g} s apart) of a "
+                       "second run of the same method and step; the samples and the error "
+                       "estimate are the run's (--output-dt sets both)")
+        path = show_trajectory(frames, sc, stream)
         if path is not None:
             click.echo(f"wrote {path} (rerun recording)")
     e = traj.energy_j

@@ -205,7 +205,8 @@ def check_run_file(path: str | Path, *, sha256: str | None = None,
                 else:
                     h = str(e["dataset"].attrs["spec_hash"])
         except (OSError, KeyError) as exc:
-            problems.append(f"unreadable: {type(exc).__name__}: {exc}")
+            what = f"no {exc.args[0]!r} in it" if isinstance(exc, KeyError) else str(exc)
+            problems.append(f"unreadable: {what}")
     if spec_hash is not None and h and h != spec_hash:
         problems.append("written by another sweep plan (spec_hash differs)")
     digest = ""

@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Callable
 
 from rig._io import process_alive
-from rig.errors import ConfigError
+from rig.errors import ConfigError, ForceRequired
 
 from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table
 from processing.dataset.runfile import check_run_file
@@ -146,7 +146,7 @@ def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = Non
             samples = round(acq.record_s * acq.rate_hz)
             settings.spectral(acq.rate_hz, samples)
         except (ConfigError, SettingsError) as exc:
-            out.append(PlannedRun(spec, None, "", f"{type(exc).__name__}: {exc}", 0.0, 0))
+            out.append(PlannedRun(spec, None, "", str(exc).splitlines()[0], 0.0, 0))
             continue
         sim_s = acq.settle_s + acq.records * acq.record_s
         n = acq.records * samples
@@ -224,25 +224,44 @@ def _short(v) -> str:
     return s if len(s) <= 80 else s[:77] + "..."
 
 
+def _read_plan(path: Path) -> dict:
+    """The plan a sweep directory was made with; a ConfigError saying what to do if it is
+    damaged."""
+    try:
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise _damaged(path, f"not JSON: {str(exc).splitlines()[0]}", _PLAN_REMEDY) from None
+    if not (isinstance(doc, dict) and isinstance(doc.get("sweep"), dict)):
+        raise _damaged(path, "not a sweep's plan", _PLAN_REMEDY)
+    return doc
+
+
+_PLAN_REMEDY = ("it records which sweep made the directory; run the sweep into a new output "
+                "directory, or remove this one and run it again")
+
+
 def _prepare(out_dir: Path, sweep: Sweep, planned, force: bool) -> list[str]:
     doc = _plan_doc(sweep, planned)
     plan_path = out_dir / PLAN
     changes: list[str] = []
     if out_dir.exists():
         if not out_dir.is_dir():
-            raise ConfigError(f"--out {str(out_dir)!r} is a file; expected a directory")
+            raise ConfigError(f"output directory {str(out_dir)!r} is a file; expected a "
+                              "directory")
         if plan_path.exists():
-            old = json.loads(plan_path.read_text())
+            old = _read_plan(plan_path)
             changes = _changes(old, doc)
             if changes and not force:
-                raise ConfigError(f"{str(out_dir)!r} holds another version of this sweep; "
-                                  f"changed: {'; '.join(changes)}. Pass --force to apply the "
-                                  "changes (runs whose specification changed are redone and "
-                                  "their files replaced, run files it does not list removed) "
-                                  "or choose another --out")
+                raise ForceRequired(f"{str(out_dir)!r} holds another version of this sweep; "
+                                    f"changed: {'; '.join(changes)}; choose another output "
+                                    "directory, or force",
+                                    "apply the changes (runs whose specification changed are "
+                                    "redone and their files replaced, run files it does not "
+                                    "list removed)")
         elif any(p.name != ".lock" for p in out_dir.iterdir()):
-            raise ConfigError(f"--out {str(out_dir)!r} exists and is not a sweep directory (no "
-                              f"{PLAN}); expected a new or empty directory, or a sweep's")
+            raise ConfigError(f"output directory {str(out_dir)!r} exists and is not a sweep "
+                              f"directory (no {PLAN}); expected a new or empty directory, or a "
+                              "sweep's")
     (out_dir / RUNS).mkdir(parents=True, exist_ok=True)
     _write_atomic(plan_path, json.dumps(doc, indent=1, sort_keys=True))
     if sweep.text:
@@ -273,22 +292,40 @@ def _locked(out_dir: Path):
                 fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
                 raise ConfigError(f"{str(out_dir)!r} is in use by another running sweep; wait "
-                                  "for it or choose another --out") from None
+                                  "for it or choose another output directory") from None
         yield
     finally:
         fh.close()
 
 
+def _damaged(path: Path, what: str, remedy: str) -> ConfigError:
+    return ConfigError(f"{str(path)!r} is damaged ({what}): the sweep cannot be resumed from it; "
+                       f"{remedy}")
+
+
 def _read_journal(out_dir: Path) -> dict:
+    """The journal's last record of each run; a line cut by a kill (the last) is skipped, any
+    other damage refused with what to do (a ConfigError)."""
     out = {}
     path = out_dir / JOURNAL
-    if path.exists():
-        for line in path.read_text().splitlines():
-            try:
-                r = json.loads(line)
-            except json.JSONDecodeError:
+    if not path.exists():
+        return out
+    remedy = (f"move it aside and run again (each run file in {RUNS}/ is then verified by its "
+              "own checksums), or choose another output directory")
+    try:
+        lines = path.read_bytes().decode("utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        raise _damaged(path, f"byte {exc.start} is not text", remedy) from None
+    for i, line in enumerate(lines, 1):
+        try:
+            r = json.loads(line)
+        except json.JSONDecodeError:
+            if i == len(lines):
                 continue  # a line cut by a kill
-            out[r["index"]] = r
+            raise _damaged(path, f"line {i} is not JSON", remedy) from None
+        if not (isinstance(r, dict) and isinstance(r.get("index"), int)):
+            raise _damaged(path, f"line {i} is not a run's record", remedy)
+        out[r["index"]] = r
     return out
 
 
@@ -378,7 +415,7 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
     SweepInterrupted : on KeyboardInterrupt, after the manifest is written.
     """
     from processing.dataset.engines import default_workers, local_pool
-    from processing.dataset.task import run_task
+    from processing.dataset.task import failure_text, run_task
 
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
@@ -480,7 +517,7 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
                     except Exception as exc:  # e.g. Dask's KilledWorker after its retries
                         res = {"index": job["index"], "status": "failed", "file": "",
                                "sha256": "", "model": "",
-                               "error": f"{type(exc).__name__}: {exc}"[:500]}
+                               "error": failure_text(exc)[:500]}
                     record(res, job["spec_hash"])
                 if broken:
                     # the pool is dead: every run in flight went with it

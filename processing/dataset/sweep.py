@@ -370,11 +370,12 @@ def _keep(keep: dict) -> dict:
 
 def _flatten(section: str, raw: dict, prefix: str = "") -> dict:
     """{"a.b": spec} from quoted dotted keys and nested tables; a table holding a spec keyword
-    (linspace, uniform, ...) is a spec, not a section."""
+    (linspace, uniform, ...), or under a key that is already ``section.name``, is a spec, not a
+    section (so a misspelt keyword is reported as such, not as a scene key)."""
     out = {}
     for k, v in raw.items():
         key = f"{prefix}{k}"
-        if isinstance(v, dict) and not (set(v) & _SPEC_KEYS):
+        if isinstance(v, dict) and "." not in key and not (set(v) & _SPEC_KEYS):
             out.update(_flatten(section, v, f"{key}."))
         else:
             out[key] = v
@@ -434,7 +435,11 @@ def _grid_parameter(key: str, v, base) -> Parameter:
                           "num = N }")
     kinds = [k for k in v if k in GRID_KINDS]
     extra = [k for k in v if k not in ("linspace", "logspace", "num")]
-    if len(kinds) != 1 or extra or kinds[0] == "values":
+    if extra:
+        raise ConfigError(f"{where}: unknown entry {extra[0]!r}; valid: linspace or logspace "
+                          "with num (e.g. { linspace = [0.1, 0.5], num = 5 }), or a list of "
+                          "values")
+    if len(kinds) != 1 or kinds[0] == "values":
         raise ConfigError(f"{where} = {_short(v)} is invalid: expected exactly one of linspace, "
                           "logspace with num (e.g. { linspace = [0.1, 0.5], num = 5 })")
     kind = kinds[0]
@@ -463,7 +468,11 @@ def _random_parameter(key: str, v, base) -> Parameter:
                           "[lo, hi] }")
     kinds = [k for k in v if k in RANDOM_KINDS]
     extra = [k for k in v if k not in RANDOM_KINDS and k != "bounds"]
-    if len(kinds) != 1 or extra:
+    if extra:
+        raise ConfigError(f"{where}: unknown distribution {extra[0]!r}; valid: "
+                          f"{', '.join(RANDOM_KINDS)} (normal with optional bounds), e.g. "
+                          "{ uniform = [0.5, 2.0] }")
+    if len(kinds) != 1:
         raise ConfigError(f"{where} = {_short(v)} is invalid: expected exactly one of "
                           f"{', '.join(RANDOM_KINDS)} (and bounds for normal)")
     kind = kinds[0]

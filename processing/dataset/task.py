@@ -19,7 +19,7 @@ import socket
 import time
 from pathlib import Path
 
-__all__ = ["run_task", "partial_name", "worker_init"]
+__all__ = ["run_task", "partial_name", "worker_init", "failure_text"]
 
 
 def partial_name(final: Path) -> Path:
@@ -107,8 +107,7 @@ def run_task(job: dict) -> dict:
         out["error"] = "interrupted"
         raise
     except Exception as exc:  # failures are data: the sweep records the error and goes on
-        msg = str(exc).splitlines()[0] if str(exc) else ""
-        out["error"] = f"{type(exc).__name__}: {msg}"[:500]
+        out["error"] = failure_text(exc)[:500]
     finally:
         _BUSY = False
         if tmp.exists():
@@ -139,3 +138,20 @@ def _run(job: dict, tmp: Path) -> str:
         "spec_hash": job["spec_hash"], "parameters": job["params"],
         "overrides": job["overrides"]})
     return str(summary.model_info.get("model", ""))
+
+
+def failure_text(exc: BaseException) -> str:
+    """A failed run's error as a person reads it (no exception class names): the library's own
+    message for its errors, the file and reason for a failed read or write, else the message
+    marked as unexpected."""
+    from processing.errors import ProcessingError
+    from rig.errors import RigError
+
+    msg = str(exc).splitlines()[0] if str(exc).strip() else ""
+    if isinstance(exc, (RigError, ProcessingError)):
+        return msg
+    if isinstance(exc, OSError) and exc.filename:
+        return f"{exc.filename}: {exc.strerror or msg}"
+    if isinstance(exc, MemoryError):
+        return f"out of memory{f' ({msg})' if msg else ''}"
+    return f"unexpected failure: {msg or 'no message'}"

@@ -11,6 +11,7 @@ import rerun.blueprint as rrb
 from processing import bode_canvas as bc
 from processing.bench_geometry import BenchDrawing
 from processing.live_view.stream import ViewerStream
+from processing.phase_display import wrap_to
 
 #: The channels in engineering units and in ADC volts: one entity each, one series per channel
 SIGNALS, VOLTS = "/signals", "/volts"
@@ -118,8 +119,10 @@ COHERENCE_BOUNDS = ((-bc.LABEL_MARGIN - 2.0, ANALYZER_WIDTH + 12.0), (-16.0, 44.
 LEGEND_Y = -15.0
 
 
-def _analyzer_panels(freqs, model_db, expected_db):
-    """The panels of H_t / Theta_2 (gain, phase) and coherence on a common frequency range."""
+def _analyzer_panels(freqs, model_db, expected_db, branches=None):
+    """The panels of H_t / Theta_2 (gain, phase) and coherence on a common frequency range; each
+    phase panel spans its response's branch (lo, lo + 360] (``branches[key]`` = lo [deg],
+    :func:`processing.phase_display.phase_branch`; default -180), named by its tick labels."""
     fmin, fmax = float(freqs[0]), float(freqs[-1])
     upd = ANALYZER_WIDTH / np.log10(fmax / fmin)
     out = {}
@@ -127,8 +130,9 @@ def _analyzer_panels(freqs, model_db, expected_db):
         lo, hi = bc.db_range(model_db[key], expected_db.get(key, []), step=20.0)
         lo = max(lo, hi - 120.0)  # an anti-resonance's notch need not set the scale
         gain = bc.Panel(fmin, fmax, lo, hi, bc.ticks(lo, hi, 20.0), "dB", 0.0, 62.0, "", upd)
-        phase = bc.Panel(fmin, fmax, -180.0, 180.0, bc.ticks(-180, 180, 180), "deg", 72.0,
-                         36.0, "", upd)
+        p_lo = (branches or {}).get(key, -180.0)
+        phase = bc.Panel(fmin, fmax, p_lo, p_lo + 360.0, bc.ticks(p_lo, p_lo + 360.0, 180.0),
+                         "deg", 72.0, 36.0, "", upd)
         out[key] = (gain, phase)
     out["coherence"] = (bc.Panel(fmin, fmax, 0.0, 1.0, bc.ticks(0, 1, 0.5), "", 0.0, 30.0,
                                  "", upd),)
@@ -168,4 +172,6 @@ def _log_panel_static(s: ViewerStream, entity: str, panels) -> None:
 
 
 def _bode_strips(gain: bc.Panel, phase: bc.Panel, f, h) -> list:
-    return gain.curve(f, _db(h)) + phase.curve(f, _deg(h), wrap=360.0)
+    """Gain and phase strips of ``h``; the phase wrapped onto its panel's branch
+    (phase.lo, phase.lo + 360]."""
+    return gain.curve(f, _db(h)) + phase.curve(f, wrap_to(_deg(h), phase.lo), wrap=360.0)

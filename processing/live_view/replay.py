@@ -39,7 +39,13 @@ def replay(path, stream: ViewerStream, *, magnification: float = MAGNIFICATION,
             view.record(Record(index=r, t0_s=t0, codes=codes, clipped=clipped, truth=truth,
                                saturated=sat))
     finally:
-        status = run.status if run.status != "acquiring" else "acquiring (writer stopped)"
+        status = run.status
+        if status == "acquiring":  # no footer yet: a writer at work, or one that was killed
+            from daq.hdf5 import writer_alive
+
+            status = ("acquiring (still being written)" if writer_alive(path) else
+                      "acquiring (its writer stopped without closing it; a repair marks it "
+                      "interrupted)")
         view.stop(Footer(status=status, records_complete=run.records,
                          clip_counts=run.clip_counts()))
     return view

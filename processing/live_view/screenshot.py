@@ -52,12 +52,17 @@ def _has_vulkan() -> bool:
 
 def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
                timeout_s: float = 300.0) -> Path:
-    """Render the layout of ``rrd`` (at its end) into ``png`` without a window (see
-    :func:`screenshot_command`)."""
+    """Render the layout of ``rrd`` (at its end) into the image ``png`` without a window (see
+    :func:`screenshot_command`); its format follows its extension (PNG, or JPEG converted from
+    the viewer's PNG with Pillow: :func:`processing.figure_files.image_format`)."""
+    from processing.figure_files import image_format
+
     png = Path(png)
+    fmt = image_format(png)
     check_writable(png, force=force)
     remove_stale_temps(png)
-    tmp = temp_beside(png, ".part.png")
+    # absolute: the viewer does not write a relative path where this process would
+    tmp = Path(os.path.abspath(temp_beside(png, ".part.png")))
     try:
         cmd, env = screenshot_command(Path(rrd), tmp, size)
         try:
@@ -69,10 +74,22 @@ def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
             raise LiveViewError(f"the viewer could not render a screenshot (exit "
                                 f"{p.returncode}): " + " | ".join(tail))
         _to_size(tmp, size)
+        if fmt == "jpeg":
+            _to_jpeg(tmp)
         os.replace(tmp, png)
     finally:
         tmp.unlink(missing_ok=True)
     return png
+
+
+def _to_jpeg(path: Path) -> None:
+    """Rewrite the PNG ``path`` as a JPEG in place (quality 92; Pillow, matplotlib's
+    dependency)."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        rgb = im.convert("RGB")
+    rgb.save(path, format="JPEG", quality=92)
 
 
 def _to_size(png: Path, size: str) -> None:

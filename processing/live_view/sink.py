@@ -101,13 +101,17 @@ class LiveView(Sink):
         self._status(records=0, state="acquiring")
 
     def _prepare_analyzer(self) -> None:
-        from processing.analyzer import model_at_lines
         from processing.leakage import expected_estimate
+        from processing.phase_display import phase_branch
+        from processing.sampled_bench import resolved_fields
 
         avg = self.average
         f = avg.freqs_hz
-        model = model_at_lines(self.header, f)
-        self.model = {"H_t": model.h_t, "Theta_2": model.theta_2}
+        lines = f[f > 0]
+        # the model on a grid that shows its modes and notches (not only at the lines)
+        self.model_f, fields = resolved_fields(self.header.scene, float(lines[0]),
+                                               float(f[-1]))
+        self.model = {"H_t": fields["h_t"], "Theta_2": fields["theta_2"]}
         self.expected = {}
         try:
             e = expected_estimate(self.header, avg.spectral, fmin_hz=avg.settings.fmin_hz,
@@ -117,7 +121,9 @@ class LiveView(Sink):
         except ProcessingError:  # no E[H1] for this source (e.g. a sine): the model alone
             pass
         self.panels = _analyzer_panels(f, {k: _db(v) for k, v in self.model.items()},
-                                       {k: _db(v) for k, v in self.expected.items()})
+                                       {k: _db(v) for k, v in self.expected.items()},
+                                       {k: phase_branch((self.model_f, v))
+                                        for k, v in self.model.items()})
 
     def _log_analyzer_static(self) -> None:
         s, f = self.stream, self.average.freqs_hz
@@ -127,7 +133,7 @@ class LiveView(Sink):
             _log_panel_static(s, base, (gain, phase))
             # three curves that agree where the run does: drawn as nested bands, the measured
             # widest (bottom), E[H1] inside it, the model a thin line on top
-            s.static(f"{base}/model", rr.LineStrips2D(_bode_strips(gain, phase, f,
+            s.static(f"{base}/model", rr.LineStrips2D(_bode_strips(gain, phase, self.model_f,
                                                                    self.model[key]),
                                                       colors=MODEL, radii=0.35,
                                                       draw_order=30.0))

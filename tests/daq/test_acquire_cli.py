@@ -118,7 +118,8 @@ def test_ctrl_c_keeps_the_finished_records_and_exits_130(runner, tmp_path, monke
     assert res.exit_code == 130, res.output
     assert f"interrupted (SIGINT) after 1 of 3 records; {out} holds them (status interrupted)" in res.stderr
     res = runner.invoke(main, ["inspect", str(out)])
-    assert "status: INCOMPLETE (interrupted), 1 of 3 records: KeyboardInterrupt" in res.output
+    assert ("status: INCOMPLETE (interrupted), 1 of 3 records: SIGINT received (Ctrl-C)"
+            in res.output)
 
 
 def test_inspect_tells_what_a_file_holds(runner, tmp_path):

@@ -280,7 +280,7 @@ def test_bad_settings_are_refused_before_any_work_and_nothing_is_destroyed(tmp_p
 def test_bad_outputs_and_seeds_are_refused_before_any_work(tmp_path):
     out = tmp_path / "run.h5"
     out.write_bytes(b"precious")
-    with pytest.raises(ConfigError, match="exists; pass --force to overwrite it"):
+    with pytest.raises(ConfigError, match="exists"):
         acquire(scene(), seed=1, sinks=[Hdf5Sink(out)], bench=_never)
     with pytest.raises(ConfigError, match="does not exist"):
         acquire(scene(), seed=1, sinks=[Hdf5Sink(tmp_path / "no" / "run.h5")], bench=_never)

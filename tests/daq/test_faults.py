@@ -83,7 +83,7 @@ def test_a_stop_signal_ends_acquire_cleanly_with_every_finished_record(tmp_path,
     assert fc.ok and fc.status == "interrupted" and fc.records_complete == n >= 2
     with h5py.File(out, "r") as f:  # closed: any reader opens it
         assert f["entry/message"][()].strip(b"\0 ").decode() == (
-            "KeyboardInterrupt" if sig == signal.SIGINT else f"{name} received")
+            "SIGINT received (Ctrl-C)" if sig == signal.SIGINT else f"{name} received")
     assert _same_as_a_fresh_run(out, tmp_path) == n
     record_fault(f"{name} during daq acquire", records_lost=0,
                  outcome=f"'interrupted ({name}) after N of M records; FILE holds them', exit "
@@ -112,15 +112,18 @@ def test_sigkill_leaves_every_finished_record_and_repair_makes_the_file_plainly_
     res = daq("check", "--repair", copy, cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert res.stdout.splitlines()[0] == f"cleared the open-for-writing mark of {copy}"
+    assert f"marked {copy} interrupted" in res.stdout and "OK run, interrupted" in res.stdout
     for p in (out, copy):
         with h5py.File(p, "r") as f:
             assert f["entry/records_complete"][()] == fc.records_valid
+            assert f["entry/status"][()].decode().strip("\x00 ") == "interrupted"
     if shutil.which("h5dump"):
         assert subprocess.run(["h5dump", "-H", str(out)], capture_output=True).returncode == 0
     assert _same_as_a_fresh_run(out, tmp_path) == fc.records_valid
     record_fault("SIGKILL during daq acquire", records_lost=0,
                  outcome="every finished record readable (SWMR); check: OK acquiring; "
-                         "check --repair / inspect --repair: plainly openable")
+                         "check --repair / inspect --repair: plainly openable, marked "
+                         "interrupted, records kept")
 
 
 def test_a_corrupt_file_left_by_a_killed_writer_is_named_without_a_hang(tmp_path):

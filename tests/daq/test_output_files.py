@@ -53,7 +53,7 @@ def test_every_output_takes_the_umask(tmp_path):
 def test_a_run_file_needs_an_hdf5_extension(tmp_path):
     res = daq("acquire", *SHORT, "--out", "x.csv", cwd=tmp_path)
     assert res.returncode == 1 and res.stderr.strip() == (
-        "Error: --out 'x.csv': unknown extension '.csv'; a run file is HDF5: expected .h5, "
+        "Error: run file 'x.csv': unknown extension '.csv'; a run file is HDF5: expected .h5, "
         ".hdf5, .nxs")
     assert list(tmp_path.iterdir()) == []
 

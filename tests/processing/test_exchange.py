@@ -94,8 +94,8 @@ def test_export_out_writes_an_eu_netcdf_that_xarray_opens(run_file, runner, tmp_
 
 @pytest.mark.parametrize("args, message", [
     ([], "nothing to export"),
-    (["--out", "x.csv"], "expected a .nc, .h5 or .hdf5 file"),
-    (["--uff", "x.txt"], "expected a .uff or .unv file"),
+    (["--out", "x.csv"], "a netCDF-4/HDF5 file is one of .nc, .h5, .hdf5"),
+    (["--uff", "x.txt"], "a UFF file is one of .uff, .unv"),
 ])
 def test_export_refuses_bad_outputs_with_one_line(run_file, runner, tmp_path, args, message):
     args = [str(tmp_path / a) if "." in a else a for a in args]

@@ -142,7 +142,7 @@ def test_unknown_scene_and_malformed_override_are_explained(tmp_path):
         load_scene("nope")
     with pytest.raises(ConfigError, match=r"scene file .*missing\.toml.* does not exist"):
         load_scene(tmp_path / "missing.toml")
-    with pytest.raises(ConfigError, match=r"--set 'q1' is invalid: expected section\.key=value"):
+    with pytest.raises(ConfigError, match=r"override 'q1' is invalid: expected section\.key=value"):
         apply_override({}, "q1")
     bad = tmp_path / "bad.toml"
     bad.write_text("[pendulum\nkind=1")
