@@ -191,7 +191,7 @@ RIG_RESPONSE_NAMES = {
 #: other truth series (coil current, stage velocity, spot positions, flags) are not stored.
 RIG_TRUTH = ("stage_accel_mps2", "theta_rad", "mirror_x_m", "mirror_rot_rad", "source_v")
 #: bench block length [s] (at most; a record if shorter): the paper's 100 s records come as one
-#: block each. Blocks of any length give the same samples (tests/rig/test_lifted.py); longer
+#: block each. Blocks of any length give the same samples (tests/rig/bench/test_fused.py); longer
 #: ones spread the per-block work (digitising, slicing, queueing) over more samples.
 BLOCK_S = 100.0
 
@@ -224,7 +224,7 @@ class _RigBench:
         self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s),
                                        **bench_kw)
         self.fs_hz = float(self._sim.fs_hz)
-        self._lifted = bool(lifted)  # the fused chain (rig.lifted), either model
+        self._lifted = bool(lifted)  # the fused chain (rig.bench.fused), either model
 
     def blocks(self) -> Iterator[AnalogBlock]:
         return self._sim.blocks(self._block_s, self._duration_s)
@@ -232,7 +232,7 @@ class _RigBench:
     def decimated_blocks(self, sos: np.ndarray, decimation: int
                          ) -> Iterator[DecimatedBlock] | None:
         """The run through the anti-alias sections ``sos`` and kept every ``decimation``
-        samples by the fused chain (:mod:`rig.lifted`: the linear model lifted, the nonlinear
+        samples by the fused chain (:mod:`rig.bench.fused`: the linear model lifted, the nonlinear
         one fused after its per-sample bench), not with ``lifted=False`` (None: use
         :meth:`blocks`)."""
         if not self._lifted or decimation != self._sim.model.decimation:
@@ -254,13 +254,7 @@ class _RigBench:
     def model_info(self) -> dict:
         info = dict(self._sim.model_info())
         if self._lifted:
-            from rig.lifted import LIFTED_STEP, PER_SAMPLE, PER_SAMPLE_NONLINEAR
-
-            linear = self._sim.model.model == "linear"
-            info["per_sample"] = dict(PER_SAMPLE if linear else PER_SAMPLE_NONLINEAR,
-                                      rate_hz=self.fs_hz)
-            if linear:  # what the lifted chain runs
-                info["method"] = self._rb.linear_method(self._sim.model, LIFTED_STEP)
+            info.update(self._rb.fused_model_info(self._sim.model))
         return info
 
 

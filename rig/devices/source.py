@@ -65,7 +65,7 @@ The one-sided PSD of the DAC samples is ``2 L^2 |H(f)|^2 / fs`` with ``H`` the n
 response (:meth:`Source.design_psd` gives the ideal design, without the window's edge smoothing).
 
 Public API: :class:`Source`, :class:`SourceState`, :func:`start_source`, :func:`generate`,
-:data:`SOURCE_TYPES`.
+:data:`SOURCE_TYPES`, :func:`fill_standard_normal`.
 """
 
 from __future__ import annotations
@@ -376,12 +376,14 @@ def standard_normals(rng: np.random.Generator, n: int) -> np.ndarray:
     same state, drawn in compiled code (numba's Generator runs numpy's ziggurat on the same bit
     generator, ~3 times faster here than numpy's own loop)."""
     out = np.empty(int(n))
-    _fill_standard_normal(rng, out)
+    fill_standard_normal(rng, out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def _fill_standard_normal(rng, out):
+def fill_standard_normal(rng, out):
+    """``out`` filled with ``rng``'s standard normals in order (compiled: the same values and
+    generator state as ``rng.standard_normal(out.size)``)."""
     for i in range(out.shape[0]):
         out[i] = rng.standard_normal()
 
