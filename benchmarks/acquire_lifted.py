@@ -36,7 +36,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
-from daq.acquisition import BLOCK_S, acquire, rig_bench  # noqa: E402
+from daq.acquisition import acquire  # noqa: E402
+from daq.benches import BLOCK_S, rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink, read_run  # noqa: E402
 from rig import bench as rb  # noqa: E402
 from rig.bench import fused as rl  # noqa: E402

@@ -24,7 +24,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from daq.acquisition import BLOCK_S, antialias_for  # noqa: E402
+from daq.acquisition import antialias_for  # noqa: E402
+from daq.benches import BLOCK_S  # noqa: E402
 from daq.records import RecordPlan  # noqa: E402
 from rig.bench import fused as rl  # noqa: E402
 from rig.sosfilt import lift_sections  # noqa: E402

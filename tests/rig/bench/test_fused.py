@@ -22,7 +22,8 @@ import math
 import numpy as np
 import pytest
 
-from daq.acquisition import _interval_any, antialias_for
+from daq.acquisition import antialias_for
+from daq.benches import interval_any
 from daq.records import RecordPlan
 from rig.bench import BenchSimulation
 from rig.scene import load_scene
@@ -68,7 +69,7 @@ def _per_sample(scene, seed, duration_s, block_s=10.0, **kw):
         for k in TRUTH:
             out[k].append(np.asarray(b.truth[k])[kept])
         for k, key in (("a", "a_overrange"), ("x", "psd_off_detector")):
-            s, carry[k] = _interval_any(b.truth[key], kept, carry[k])
+            s, carry[k] = interval_any(b.truth[key], kept, carry[k])
             out["sat_" + k].append(s)
     return {k: np.concatenate(v) for k, v in out.items()}, aa, sim
 
@@ -283,3 +284,4 @@ def test_the_fused_nonlinear_chain_refuses_a_linear_model_an_odd_block_and_unlif
     sim.next_block(3)
     with pytest.raises(ConfigError, match="kept instant"):
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
+
