@@ -220,10 +220,7 @@ class OpticalLever:
             sd, wx, wy = 0.0, np.zeros(0), np.zeros(0)
         u0, v0, x_v, y_v = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         off = np.empty(n, dtype=np.bool_)
-        _measure_kernel(dx, dz, th, math.cos(self.phi_rad), math.sin(self.phi_rad),
-                        self.distance_m, wx, wy, sd, self.half_size_m,
-                        self.sign_x * self.gain_vpm, self.sign_y * self.gain_vpm, u0, v0, x_v,
-                        y_v, off)
+        _measure_kernel(dx, dz, th, self.row_params(fs_hz), wx, wy, sd, u0, v0, x_v, y_v, off)
         return PsdReading(x_v=x_v, y_v=y_v, spot_u_m=u0, spot_v_m=v0, off_detector=off)
 
 
@@ -298,10 +295,11 @@ def spot_kernel(dx, dz, th, cphi, sphi, dist, u, v):
 
 
 @njit(cache=True, nogil=True)
-def _measure_kernel(dx, dz, th, cphi, sphi, dist, wx, wy, sd, h, gx, gy, u, v, x_v, y_v, off):
+def _measure_kernel(dx, dz, th, p, wx, wy, sd, u, v, x_v, y_v, off):
     """Per sample: the exact spot (``u``, ``v``), plus noise ``sd wx``, ``sd wy`` (``wx`` empty:
-    none), clipped at the edge ``h`` and flagged there (``off``), times the signed gains
-    (``x_v``, ``y_v``); one pass."""
+    none), clipped at the edge and flagged there (``off``), times the signed gains (``x_v``,
+    ``y_v``; ``p``: :class:`LeverRow`); one pass."""
+    cphi, sphi, dist, h, gx, gy = p.cphi, p.sphi, p.distance_m, p.half_m, p.gain_x, p.gain_y
     noisy = wx.shape[0] > 0
     for k in range(dx.shape[0]):
         uk, vk = _spot(dx[k], dz[k], th[k], cphi, sphi, dist)

@@ -285,3 +285,25 @@ def test_the_fused_nonlinear_chain_refuses_a_linear_model_an_odd_block_and_unlif
     with pytest.raises(ConfigError, match="kept instant"):
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
 
+
+def test_no_kernel_of_the_fused_chain_takes_more_than_15_arguments():
+    # one tuple of parameters per system (the lifted bench, each sensor, the lifted filter,
+    # the mirror's layout, the outputs) instead of their numbers one by one
+    import inspect
+
+    import rig.bench.fused
+    import rig.devices.accelerometer
+    import rig.devices.optical_lever
+    import rig.sosfilt
+
+    modules = (rig.bench.fused, rig.sosfilt, rig.devices.accelerometer,
+               rig.devices.optical_lever)
+    counts = {}
+    for mod in modules:
+        for name, obj in vars(mod).items():
+            func = getattr(obj, "py_func", None)  # a lazy kernel or numba's dispatcher
+            if func is not None and func.__module__ == mod.__name__:
+                counts[f"{mod.__name__}.{name}"] = len(inspect.signature(func).parameters)
+    assert {"rig.bench.fused._fused_chunk", "rig.bench.fused._nonlinear_kernel",
+            "rig.sosfilt.lifted_sections_pass", "rig.devices.optical_lever.lever_row"} <= set(counts)
+    assert {k: v for k, v in counts.items() if v > 15} == {}
