@@ -104,7 +104,7 @@ def lsim_peer(seconds):
 
 def parts(rounds):
     """CPU of the lifted run's parts, each alone and in sequence (no threads), medians: the
-    source, the fused kernel (in the run's blocks, :data:`daq.acquisition.BLOCK_S`; also with
+    source, the fused kernel (in the run's blocks, :data:`daq.benches.BLOCK_S`; also with
     the whole block as one chunk, the kernel of speed round 5), the model information (its
     probe), and whole acquisitions without a sink and with the run file."""
     from daq.acquisition import antialias_for

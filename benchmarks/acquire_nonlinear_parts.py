@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Where the nonlinear acquisition's bench CPU goes, each part alone over the paper's whole run
-(3300 s at 1 kHz in the run's blocks, ``daq.acquisition.BLOCK_S``, or ``--block-s``; seed 2009,
+(3300 s at 1 kHz in the run's blocks, ``daq.benches.BLOCK_S``, or ``--block-s``; seed 2009,
 method etdab), medians of ``--rounds`` interleaved rounds of ``time.process_time``:
 
     .venv/bin/python benchmarks/acquire_nonlinear_parts.py --rounds 5

@@ -30,11 +30,6 @@ signal-to-noise ratios they give are in ``docs/devices.md``.
 The noise is white over the simulation band: each sample gets ``|S| noise sqrt(fs / 2)`` rms (a
 one-sided density ``noise`` up to the Nyquist frequency).
 
-The compiled chains of the bench (:mod:`rig.bench.fused`) run the output stage a row of
-samples at a time (:func:`accelerometer_row`, with :meth:`Accelerometer.row_params`): the same
-arithmetic as :meth:`Accelerometer.sense_and_output`, held equal bit for bit by
-tests/rig/devices/test_fused_sensors.py.
-
 Public API: :class:`Accelerometer`, :class:`AccelerometerState`, :class:`AccelerometerRow`,
 :func:`accelerometer_row`.
 """
@@ -270,7 +265,8 @@ def accelerometer_row(r, w, p, out, flag):
     """One sample of every interval of a chunk: the sensed accelerations ``r`` [m/s^2] times
     the gain, plus the noise ``w`` [V] (empty: none), clipped at ``+-p.limit_v`` into ``out``
     and flagged beyond it (``p``: :class:`AccelerometerRow`; :meth:`Accelerometer.output`'s
-    arithmetic, a loop that vectorises)."""
+    arithmetic, a loop that vectorises). The bench's fused chain (:mod:`rig.bench.fused`) runs
+    the accelerometer so; equal to it bit for bit (tests/rig/devices/test_fused_sensors.py)."""
     gain = p.gain
     lim = p.limit_v
     if w.shape[0]:

@@ -47,10 +47,6 @@ flagged samples must not be trusted.
 Defaults: the fields of :class:`OpticalLever`; the spot excursions and signal-to-noise ratios
 they give are in ``docs/devices.md``.
 
-The compiled chains of the bench (:mod:`rig.bench.fused`) run the detector a row of samples
-at a time (:func:`lever_row`, with :meth:`OpticalLever.row_params`): the same arithmetic as
-:meth:`OpticalLever.measure`, held equal bit for bit by tests/rig/devices/test_fused_sensors.py.
-
 Public API: :class:`OpticalLever`, :class:`PsdReading`, :class:`LeverRow`, :func:`lever_row`.
 """
 
@@ -322,7 +318,8 @@ def lever_row(dx, dz, th, wx, wy, p, out_x, out_y, flag):
     :meth:`OpticalLever.measure`'s arithmetic). Where every tilt is within the small-angle
     polynomial's range (a mirror's tilts are microradians) and there is noise, the spot is
     :func:`_spot_small`, the same arithmetic without a branch or a call, so the loop
-    vectorises."""
+    vectorises. The bench's fused chain (:mod:`rig.bench.fused`) runs the lever so; equal to
+    :meth:`OpticalLever.measure` bit for bit (tests/rig/devices/test_fused_sensors.py)."""
     cphi, sphi, dist, half, gain_x, gain_y = p.cphi, p.sphi, p.distance_m, p.half_m, p.gain_x, \
         p.gain_y
     n = dx.shape[0]
