@@ -40,7 +40,7 @@ from daq.benches import (Bench, FunctionBench, StreamError, check_finite_volts, 
                          rig_bench)
 from daq.channels import channels_for
 from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan,
-                         Recording, TruthField)
+                         TruthField)
 from daq.sinks import Fanout, Sink
 from rig._io import software_version
 from rig._threads import prefetch, single_threaded_blas
@@ -53,6 +53,7 @@ from rig.scene import Scene
 __all__ = ["acquire", "AcquisitionSummary", "AcquisitionInterrupted", "StreamError", "Bench",
            "FunctionBench", "rig_bench", "model_response", "antialias_for", "check_seed",
            "utc_now_iso"]
+
 
 class AcquisitionInterrupted(KeyboardInterrupt):
     """The run was interrupted (KeyboardInterrupt); the sinks hold every finished record.

@@ -67,5 +67,5 @@ from rig.bench.simulation import BenchSimulation
 
 __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
-           "model_info", "linear_method", "fused_model_info", "select_model", "predict_linearisation_error", "MODELS",
-           "NONLINEAR_METHODS", "STREAMS"]
+           "model_info", "linear_method", "fused_model_info", "select_model",
+           "predict_linearisation_error", "MODELS", "NONLINEAR_METHODS", "STREAMS"]

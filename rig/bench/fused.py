@@ -38,7 +38,6 @@ Public API: :class:`Lifted`, :func:`lift`, :func:`advance_decimated`,
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -429,27 +428,19 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
                                 source_block=None):
     """The nonlinear model's ``n`` DAC samples (a whole number of intervals) from ``state`` (at
     a kept instant) through the sensors, the anti-alias filter and the decimation, keeping every
-    ``q``-th sample. ``sections``: the filter lifted to the decimation, :func:`rig.sosfilt.lift_sections`
-    of its ``sos`` (as :func:`advance_decimated` takes it).
+    ``q``-th sample. ``sections``: the filter lifted to the decimation,
+    :func:`rig.sosfilt.lift_sections` of its ``sos`` (as :func:`advance_decimated` takes it).
 
     The bench state at every DAC sample is :func:`rig.bench.run.bench_states` (what
-    :func:`rig.bench.advance` steps); then one compiled kernel (:func:`_nonlinear_kernel`),
-    :data:`CHUNK_INTERVALS` intervals at a time: per sample the mirror's exact kinematics
-    (:func:`rig.bench.run.mirror_point`, what ``_mirror_kinematics(exact=True)`` computes), the
-    accelerometer (``x0'' - w_c q``, gain, noise, clip, flag:
-    :meth:`Accelerometer.sense_and_output`'s arithmetic), the lever
-    (:func:`rig.devices.optical_lever.lever_row`: the spot, noise, clip, flag, :meth:`OpticalLever.measure`'s)
-    and the interval rule's flags, then the filter lifted to the interval
-    (:func:`rig.sosfilt.lifted_sections_pass`, as the linear chain). The noise is the per-sample
-    path's (each stream's ``standard_normal`` draws in sample order, from numpy's generators in
-    compiled code: the same values and generator states as one ``standard_normal(n)`` per stream
-    and block). So the filter's inputs, the flags and the truth equal the per-sample path's bit
-    for bit, and the kept volts equal :func:`rig.bench.advance` then daq's filter and
-    decimation up to the lifted filter's round-off (its sums in another order; the bound:
-    tests/rig/bench/test_fused.py); the per-sample kinematics, noise, spot positions and sensed
-    acceleration are never stored. Cost: the bench's own, plus per sample ``2 nth`` sines and
-    cosines, one spot geometry and three normal draws, and per interval and channel the lifted
-    filter's ``q ns`` (vectorised) plus ``ns (ns + 2) / 2 + ns`` multiply-adds.
+    :func:`rig.bench.advance` steps); then one compiled kernel (:func:`_nonlinear_kernel`):
+    per sample the mirror's exact kinematics (:func:`rig.bench.run.mirror_point`), the
+    accelerometer (:func:`rig.devices.accelerometer.accelerometer_row`) and the lever
+    (:func:`rig.devices.optical_lever.lever_row`) with their noise, clipping and flags, then
+    the filter lifted to the interval (:func:`rig.sosfilt.lifted_sections_pass`). The noise is
+    the per-sample path's (each stream's draws in sample order), so the filter's inputs, the
+    flags and the truth equal the per-sample path's bit for bit, and the kept volts equal
+    :func:`rig.bench.advance` then daq's filter and decimation up to the lifted filter's
+    round-off (the bound: tests/rig/bench/test_fused.py). The cost: docs/bench_model.md.
 
     Returns (:class:`rig.blocks.DecimatedBlock`, the bench state after it, the chain state).
     ``chain.zi`` (3, 2 x sections): the sections' state per channel, as

@@ -305,5 +305,6 @@ def test_no_kernel_of_the_fused_chain_takes_more_than_15_arguments():
             if func is not None and func.__module__ == mod.__name__:
                 counts[f"{mod.__name__}.{name}"] = len(inspect.signature(func).parameters)
     assert {"rig.bench.fused._fused_chunk", "rig.bench.fused._nonlinear_kernel",
-            "rig.sosfilt.lifted_sections_pass", "rig.devices.optical_lever.lever_row"} <= set(counts)
+            "rig.sosfilt.lifted_sections_pass",
+            "rig.devices.optical_lever.lever_row"} <= set(counts)
     assert {k: v for k, v in counts.items() if v > 15} == {}

@@ -51,10 +51,10 @@ def test_optical_lever_measure_equals_exact_spot_then_noise_and_clipping():
 @pytest.mark.parametrize("tilt_rad", [3e-6, 0.05])
 def test_the_fused_sensor_rows_equal_the_sensors_sample_by_sample_bit_for_bit(tilt_rad, noisy,
                                                                               height):
-    # the compiled chains' per-row sensors against the devices' own per-sample arithmetic: the lever's
-    # vectorised small-angle spot where every tilt is below SMALL_ANGLE_RAD (3e-6 rad) and the
-    # general one where one is not (0.05 rad), the mirror's height given (the nonlinear
-    # bench's) or 0 (the linear one's), the noise added or not, clipped and flagged
+    # the compiled chains' per-row sensors against the devices' own per-sample arithmetic: the
+    # lever's vectorised small-angle spot where every tilt is below SMALL_ANGLE_RAD (3e-6 rad)
+    # and the general one where one is not (0.05 rad), the mirror's height given (the
+    # nonlinear bench's) or 0 (the linear one's), the noise added or not, clipped and flagged
     from rig.devices.accelerometer import AccelerometerRow, accelerometer_row
     from rig.devices.optical_lever import SMALL_ANGLE_RAD, LeverRow, lever_row, spot_kernel
 
