@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -357,10 +356,6 @@ def _per_body(where: str, value, n: int) -> list[float]:
     return [value] * n
 
 
-def _prefixed(exc: ConfigError, prefix: str) -> ConfigError:
-    return ConfigError(f"{prefix}{exc}")
-
-
 def _finite_chain(p: dict, raw: dict) -> Chain:
     """:func:`_build_chain`, and its linearised model evaluated: values that are each valid but
     together overflow or divide by zero (e.g. f1_hz = 1e300) are a ConfigError naming them."""
@@ -492,17 +487,3 @@ def section_keys(section: str, kind: str) -> dict[str, Key]:
     if section == "pendulum":
         return {**SECTIONS["pendulum"], **PENDULUM_KINDS[kind]}
     return SECTIONS[section]
-
-
-def describe_keys() -> dict[str, dict[str, str]]:
-    """Documentation of every scene key: ``{section: {key: "type, default: doc"}}``."""
-    out: dict[str, dict[str, str]] = {}
-    for section, keys in SECTIONS.items():
-        all_keys = dict(keys)
-        if section == "pendulum":
-            for kind, extra in PENDULUM_KINDS.items():
-                all_keys.update({f"{k} ({kind})": v for k, v in extra.items()})
-        out[section] = {k: f"{v.type}; " + ("required" if v.default is REQUIRED
-                                            else f"default {v.default!r}") + f"; {v.doc}"
-                        for k, v in all_keys.items()}
-    return out

@@ -1,4 +1,6 @@
-"""``daq dataset``: a parameter sweep of runs, one run file each, and a manifest."""
+"""``daq dataset``: a parameter sweep of runs, one run file each, and a manifest
+(``daq dataset SWEEP.toml``, the same as ``daq dataset run SWEEP.toml``); ``daq dataset export``
+writes a finished dataset as flat shards for ML tools."""
 
 from __future__ import annotations
 
@@ -49,7 +51,22 @@ def _sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, old)
 
 
-@click.command()
+class _SweepOrSubcommand(click.Group):
+    """A group whose first argument, when it names no subcommand, is a sweep file for ``run``."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and args[0] not in ("-h", "--help"):
+            args = ["run", *args]
+        return super().parse_args(ctx, args)
+
+
+@click.group(cls=_SweepOrSubcommand)
+def dataset():
+    """Datasets of runs: DIR from a sweep file (daq dataset SWEEP.toml --out DIR, i.e. the run
+    subcommand), and flat exports of DIR for other tools (export)."""
+
+
+@dataset.command("run")
 @click.argument("sweep_file", metavar="SWEEP.toml",
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
@@ -62,7 +79,7 @@ def _sigterm_as_interrupt():
 @click.option("--dry-run", is_flag=True, help="Print the runs, time and disk; run nothing.")
 @click.option("--force", is_flag=True,
               help="Apply a changed sweep file to an existing dataset (changed runs are redone).")
-def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
+def run_cmd(sweep_file, out_dir, workers, scheduler, dry_run, force):
     """Run the parameter sweep SWEEP.toml: one HDF5 file per run (the run and its analysis), a
     manifest that xarray opens as one dataset (DIR/manifest.h5) and a table (DIR/manifest.csv).
 
@@ -105,3 +122,60 @@ def dataset(sweep_file, out_dir, workers, scheduler, dry_run, force):
             click.echo(f"  run {r['index']} failed: {r['error']}")
     click.echo(f"wrote {result.manifest} (xarray.open_dataset(..., engine=\"h5netcdf\")) and "
                f"{result.table}")
+
+
+@dataset.command("export")
+@click.argument("ds_dir", metavar="DIR", type=click.Path(exists=True, file_okay=False,
+                                                         path_type=Path))
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Directory of the export (new or empty): data/<split>-*.parquet|npz, README.md "
+                   "(the dataset card), export.json.")
+@click.option("--format", "fmt", type=click.Choice(["parquet", "npz"]), default="parquet",
+              show_default=True, help="Shard format: Parquet (pyarrow, pandas, Hugging Face "
+              "datasets) or NumPy .npz.")
+@click.option("--window-s", type=float, default=None,
+              help="Rows are windows of this many seconds (whole samples) [default: one row per "
+                   "record].")
+@click.option("--hop-s", type=float, default=None,
+              help="Step between windows [s] [default: the window, no overlap].")
+@click.option("--split", "split_text", default="train=0.8,val=0.1,test=0.1", show_default=True,
+              metavar="NAME=FRACTION,...", help="Splits, by run (no run in two splits).")
+@click.option("--split-by", metavar="PARAM",
+              help="Split by the values of this varied parameter instead of by run (runs that "
+                   "share a value share a split).")
+@click.option("--truth", is_flag=True, help="Add the ground truth (stage acceleration, mirror "
+              "translation and rotation) as columns (the sweep must keep truth).")
+@click.option("--drive", is_flag=True, help="Add the source's drive voltage as a column.")
+def export_cmd(ds_dir, out_dir, fmt, window_s, hop_s, split_text, split_by, truth, drive):
+    """Export the finished dataset DIR as flat shards, one row per window (or record) of every
+    complete run, a/x/y in engineering units with the run's parameters and seed, and a dataset
+    card: loadable by pyarrow, pandas and datasets.load_dataset("parquet", data_dir=OUT)."""
+    from processing.dataset.export import ExportSettings, export_dataset, parse_split
+
+    settings = ExportSettings(format=fmt, window_s=window_s, hop_s=hop_s,
+                              split=parse_split(split_text), split_by=split_by, truth=truth,
+                              drive=drive)
+    res = export_dataset(ds_dir, out_dir, settings)
+    for name, files in res.shards.items():
+        click.echo(f"{name}: {res.rows[name]} rows from {len(res.runs[name])} runs in "
+                   f"{len(files)} shard(s)")
+    click.echo(f"wrote {res.out_dir} (card: {res.card.name})")
+
+
+@dataset.command("index")
+@click.argument("ds_dir", metavar="DIR", type=click.Path(exists=True, file_okay=False,
+                                                         path_type=Path))
+@click.option("--chunks-url", metavar="URL",
+              help="Where readers find the run files: a folder URL ending in '/' "
+                   "(s3://bucket/ds/runs/ after copying DIR/runs there) [default: "
+                   "file://DIR/runs/].")
+@click.option("--force", is_flag=True, help="Replace an existing index.")
+def index_cmd(ds_dir, chunks_url, force):
+    """Index the finished dataset DIR as a Zarr v3 store of virtual references to its run
+    files' chunks (an Icechunk repository, DIR/index.icechunk; nothing is copied), which
+    xarray.open_zarr reads as one dataset. Needs pendulum-daq[zarr]."""
+    from processing.dataset.zarr_index import write_zarr_index
+
+    out = write_zarr_index(ds_dir, chunks_url=chunks_url, force=force)
+    click.echo(f"wrote {out} (xarray.open_zarr(icechunk session store); "
+               "processing.dataset.open_zarr_index)")

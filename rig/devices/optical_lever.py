@@ -180,11 +180,6 @@ class OpticalLever:
                     math.sin(self.phi_rad), self.distance_m, u, v)
         return u.reshape(shape), v.reshape(shape)
 
-    def spot_linear_m(self, mirror_x_m, mirror_rot_rad) -> tuple[np.ndarray, np.ndarray]:
-        """Linearised spot position: (2 sin phi dx, 2 D cos phi theta) [m]."""
-        return (self.spot_per_translation * np.asarray(mirror_x_m, float),
-                self.spot_per_rotation_m * np.asarray(mirror_rot_rad, float))
-
     def row_params(self, fs_hz: float) -> LeverRow:
         """The numbers :func:`lever_row` takes at the rate ``fs_hz`` (the noise rms 0 without
         noise)."""
