@@ -186,7 +186,8 @@ def acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
         beside the first sink's ``target`` file.
     progress : called as ``progress(simulated_s, total_s)`` after every bench block.
     bench : ``bench(scene, seed) -> Bench``; default :func:`rig_bench`, in blocks of
-        :data:`daq.benches.BLOCK_S` or the shortest any sink asks for (its ``block_s``: a paced sink's).
+        :data:`daq.benches.BLOCK_S` or the shortest any sink asks for (its ``block_s``: a paced
+        sink's).
 
     Returns
     -------
