@@ -37,7 +37,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
-from daq.acquisition import acquire, rig_bench  # noqa: E402
+from daq.acquisition import acquire  # noqa: E402
+from daq.benches import rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 

@@ -29,7 +29,8 @@ ROOT = Path(__file__).resolve().parent.parent
 WORKER = r"""
 import sys
 sys.path.insert(0, {root!r})
-from daq.acquisition import acquire, rig_bench
+from daq.acquisition import acquire
+from daq.benches import rig_bench
 from daq.hdf5 import Hdf5Sink
 from rig.scene import load_scene
 base = ["acquisition.model={model}"]

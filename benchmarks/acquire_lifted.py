@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The paper's linear acquisition (30 x 100 s at 100 Hz from the 1 kHz bench, 330 s settling,
-seed 2009, written to a run file) in one warm process: the lifted, fused chain (rig.lifted, the
+seed 2009, written to a run file) in one warm process: the lifted, fused chain (rig.bench.fused, the
 default) against the per-sample path it replaces (``rig_bench(lifted=False)``, with the
 per-scene memo of the model choice and responses emptied before each of its runs, as every
 run paid before), interleaved; and the peer for the linear bench, ``scipy.signal.lsim``.
@@ -36,10 +36,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
-from daq.acquisition import BLOCK_S, acquire, rig_bench  # noqa: E402
+from daq.acquisition import acquire  # noqa: E402
+from daq.benches import BLOCK_S, rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink, read_run  # noqa: E402
 from rig import bench as rb  # noqa: E402
-from rig import lifted as rl  # noqa: E402
+from rig.bench import fused as rl  # noqa: E402
+from rig.sosfilt import lift_sections  # noqa: E402
 from rig.devices.source import generate, start_source  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 
@@ -94,7 +96,7 @@ def lsim_peer(seconds):
     st = rb.start(model, 2009)
     aa = np.zeros((0, 6))
     blk, _, _ = rl.advance_decimated(model, lifted, st, rl.start_decimated(aa), n,
-                                     rl.lift_sections(aa, q), (v, src))
+                                     lift_sections(aa, q), (v, src))
     th = x[::q, model.slices["theta_rad"]]
     err = np.max(np.abs(th - blk.truth["theta_rad"])) / np.sqrt(np.mean(th**2))
     return cpu, cpu * 3.33e6 / n, err
@@ -102,7 +104,7 @@ def lsim_peer(seconds):
 
 def parts(rounds):
     """CPU of the lifted run's parts, each alone and in sequence (no threads), medians: the
-    source, the fused kernel (in the run's blocks, :data:`daq.acquisition.BLOCK_S`; also with
+    source, the fused kernel (in the run's blocks, :data:`daq.benches.BLOCK_S`; also with
     the whole block as one chunk, the kernel of speed round 5), the model information (its
     probe), and whole acquisitions without a sink and with the run file."""
     from daq.acquisition import antialias_for
@@ -113,7 +115,7 @@ def parts(rounds):
     plan = RecordPlan.from_acquisition(acq)
     aa = antialias_for(acq, plan)
     model = rb.build_model(scene)
-    lifted, sections = rl.lift(model, model.decimation), rl.lift_sections(aa.sos, model.decimation)
+    lifted, sections = rl.lift(model, model.decimation), lift_sections(aa.sos, model.decimation)
     n_all, blk = plan.simulation_samples, int(round(BLOCK_S * plan.simulation_rate_hz))
     whole = "fused kernel, one chunk per block (round 5)"
     out = {k: [] for k in ("source", "fused kernel", whole, "model info", "acquire, no sink",

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Where the nonlinear acquisition's bench CPU goes, each part alone over the paper's whole run
-(3300 s at 1 kHz in the run's blocks, ``daq.acquisition.BLOCK_S``, or ``--block-s``; seed 2009,
+(3300 s at 1 kHz in the run's blocks, ``daq.benches.BLOCK_S``, or ``--block-s``; seed 2009,
 method etdab), medians of ``--rounds`` interleaved rounds of ``time.process_time``:
 
     .venv/bin/python benchmarks/acquire_nonlinear_parts.py --rounds 5
@@ -9,14 +9,13 @@ method etdab), medians of ``--rounds`` interleaved rounds of ``time.process_time
 Parts: ``source`` (the drive's blocks), ``bench`` (``rig.bench.run.bench_states`` on given source
 blocks: the etdab kernel and the per-sample state), ``kinematics`` (the mirror's exact x, z, rot
 from theta, numpy), ``noise`` (three ``standard_normal`` draws per block), ``fused kernel``
-(``rig.lifted._nonlinear_kernel``: the mirror's kinematics, the sensors' noise draws, the
+(``rig.bench.fused._nonlinear_kernel``: the mirror's kinematics, the sensors' noise draws, the
 sensors, geometry, clipping, flags, the lifted anti-alias filter, keep; ``kinematics`` and
 ``noise`` time what it includes, done apart), and the two whole paths: ``fused`` (``BenchSimulation.decimated_blocks``) and
 ``per-sample`` (``BenchSimulation.blocks`` then daq's filter and decimation).
 """
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
@@ -25,9 +24,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from daq.acquisition import BLOCK_S, antialias_for  # noqa: E402
+from daq.acquisition import antialias_for  # noqa: E402
+from daq.benches import BLOCK_S  # noqa: E402
 from daq.records import RecordPlan  # noqa: E402
-from rig import lifted as rl  # noqa: E402
+from rig.bench import fused as rl  # noqa: E402
+from rig.sosfilt import lift_sections  # noqa: E402
 from rig.bench import BenchSimulation  # noqa: E402
 from rig.bench.run import BenchState, _mirror_kinematics, bench_states  # noqa: E402
 from rig.devices.source import generate  # noqa: E402
@@ -82,9 +83,11 @@ def main(argv=None):
             rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
 
     acc, lever, q = model.accelerometer, model.lever, model.decimation
-    sections = rl.lift_sections(sos, q)
+    sections = lift_sections(sos, q)
     hp_col = m["accel_highpass_q_mps"].start if acc.n_states else -1
-    lengths = np.asarray(scene.chain.length_m, dtype=float)
+    layout = rl._MirrorLayout(m["theta_rad"].start, hp_col,
+                              np.asarray(scene.chain.length_m, dtype=float), scene.mirror.body,
+                              float(scene.mirror.position_m))
 
     def kernel():
         s_aa = np.zeros((3, 2 * sos.shape[0]))
@@ -93,15 +96,9 @@ def main(argv=None):
         mx, mrot = np.empty(n // q), np.empty(n // q)
         rngs = [np.random.default_rng(k) for k in range(3)]
         for _ in range(nb):
-            rl._nonlinear_kernel(keep["z_out"], keep["accel"], m["theta_rad"].start, hp_col,
-                                 acc.corner_rad_s, acc.volts_per_mps2, rngs[0],
-                                 acc.noise_rms_v(fs), acc.sensitivity_vpmps2 * acc.range_mps2,
-                                 lengths, scene.mirror.body, float(scene.mirror.position_m),
-                                 math.cos(lever.phi_rad), math.sin(lever.phi_rad),
-                                 lever.distance_m, rngs[1], rngs[2], lever.noise_rms_m(fs),
-                                 lever.half_size_m, lever.sign_x * lever.gain_vpm,
-                                 lever.sign_y * lever.gain_vpm, *sections, s_aa, q, carry,
-                                 volts, sat, mx, mrot, rl.CHUNK_INTERVALS)
+            rl._nonlinear_kernel(keep["z_out"], keep["accel"], layout, acc.row_params(fs),
+                                 lever.row_params(fs), *rngs, sections, s_aa, carry,
+                                 (volts, sat, mx, mrot), q, rl.CHUNK_INTERVALS)
 
     def fused():
         sim = BenchSimulation(scene, 2009, method="etdab")

@@ -12,9 +12,11 @@ it. Every sink receives ``stop`` whatever happens: with status "complete", "inte
 closed). Records are handed to the sinks with SIGINT deferred, so a sink sees a whole record or
 none.
 
-The bench is anything with the :class:`Bench` interface; the default is the emulated rig
-(:func:`rig_bench`, ``rig.bench``); :class:`FunctionBench` turns functions of time into a bench
-(tests, demos).
+The bench is anything with the :class:`daq.benches.Bench` interface; the default is the
+emulated rig (:func:`daq.benches.rig_bench`); :class:`daq.benches.FunctionBench` turns functions
+of time into a bench (tests, demos). The loop consumes filtered and decimated blocks
+(:class:`rig.blocks.DecimatedBlock`) only: a bench that does not decimate itself is adapted by
+:func:`daq.benches.decimating`.
 """
 
 from __future__ import annotations
@@ -28,26 +30,29 @@ import time
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Callable, Iterable, Iterator, Protocol
+from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
 from daq.adc import ADC
 from daq.antialias import AntiAliasFilter
+from daq.benches import (Bench, FunctionBench, StreamError, check_finite_volts, decimating,
+                         rig_bench)
 from daq.channels import channels_for
 from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan,
-                         Recording, TruthField)
+                         TruthField)
 from daq.sinks import Fanout, Sink
-from rig._check import positive
 from rig._io import software_version
 from rig._threads import prefetch, single_threaded_blas
 from rig.acquisition_settings import AcquisitionSettings
-from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
-from rig.errors import ConfigError, RigError
+from rig.blocks import DecimatedBlock
+from rig.errors import ConfigError
 from rig.scene import Scene
 
-class StreamError(RigError, RuntimeError):
-    """The bench broke the block contract (gap, wrong rate, missing channel, non-finite volts)."""
+#: re-exported here: the bench interface and the error of a broken block stream
+__all__ = ["acquire", "AcquisitionSummary", "AcquisitionInterrupted", "StreamError", "Bench",
+           "FunctionBench", "rig_bench", "model_response", "antialias_for", "check_seed",
+           "utc_now_iso"]
 
 
 class AcquisitionInterrupted(KeyboardInterrupt):
@@ -65,211 +70,6 @@ class AcquisitionInterrupted(KeyboardInterrupt):
 def utc_now_iso() -> str:
     """Current UTC time, ISO 8601 with microseconds and a ``Z`` (fixed length 27)."""
     return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
-
-
-# -- benches ---------------------------------------------------------------------------------
-
-class Bench(Protocol):
-    """What :func:`acquire` needs from a bench.
-
-    ``blocks()`` yields consecutive :class:`rig.blocks.AnalogBlock` s at ``fs_hz`` from t = 0, with
-    one volts entry per calibrated channel; it may be endless (the acquisition stops pulling).
-    ``expected_response(freqs_hz)`` gives exact complex responses (name -> (nf,) array): those
-    named like a channel are the analog chain up to that channel's ADC input (the anti-alias
-    filter is applied by the acquisition); ``units`` and ``long_names`` (optional dicts) say what
-    they are. ``model_info()`` says what was simulated (model, method, error estimate...) and,
-    for the rig, why (``reason``, ``selection``: the model chosen for the scene's error budget).
-
-    Optional members (the acquisition reads them with these defaults when a bench lacks them):
-
-    - ``truth_keys``: the truth series to record, in order (default: every key of the first
-      block's ``truth``);
-    - ``saturation_keys``: channel -> truth key of its sensor's saturation flag (bool at the
-      simulation rate: e.g. the spot off the PSD, the accelerometer over its range); the
-      acquisition stores, per sample, whether it was set within the sample's decimation
-      interval (default: none);
-    - ``units``, ``long_names``: response name -> unit / description of ``expected_response``
-      (default: none; a response dict may also carry its own ``"units"`` and ``"long_names"``).
-    """
-
-    fs_hz: float
-    truth_keys: tuple[str, ...] | None = None
-    saturation_keys: dict[str, str] | None = None
-    units: dict[str, str] | None = None
-    long_names: dict[str, str] | None = None
-
-    def blocks(self) -> Iterator[AnalogBlock]: ...
-
-    def calibrations(self) -> dict[str, Calibration]: ...
-
-    def expected_response(self, freqs_hz: np.ndarray) -> dict: ...
-
-    def model_info(self) -> dict: ...
-
-
-class FunctionBench:
-    """A bench whose signals are a function of time (sines, seeded noise...): tests and demos.
-
-    Parameters
-    ----------
-    fs_hz : simulation rate [Hz].
-    signals : ``signals(t_s, rng) -> (volts, truth)``, both dicts of arrays over the samples of
-        ``t_s`` (exact sample instants ``k / fs_hz``); ``rng`` is a :class:`numpy.random.Generator`
-        consumed in time order, so the stream does not depend on the block size.
-    calibrations : per channel name.
-    seed : seeds ``rng``.
-    block_samples : samples per block.
-    response : optional ``response(freqs_hz) -> dict`` of exact responses (see :class:`Bench`).
-    info : model description returned by :meth:`model_info`.
-    """
-
-    def __init__(self, fs_hz: float, signals: Callable, calibrations: dict[str, Calibration], *,
-                 seed: int = 0, block_samples: int = 1000, response: Callable | None = None,
-                 info: dict | None = None, units: dict | None = None):
-        self.fs_hz = float(fs_hz)
-        self._signals, self._cal, self._seed = signals, dict(calibrations), seed
-        self._block, self._response = int(block_samples), response
-        self._info = dict(info or {"model": "function", "method": "exact",
-                                   "error_estimate": 0.0})
-        self.units = dict(units or {})
-
-    def blocks(self) -> Iterator[AnalogBlock]:
-        rng = np.random.default_rng(self._seed)
-        k0 = 0
-        while True:
-            t = (k0 + np.arange(self._block)) / self.fs_hz
-            volts, truth = self._signals(t, rng)
-            yield AnalogBlock(t0_s=k0 / self.fs_hz, fs_hz=self.fs_hz, volts=volts, truth=truth)
-            k0 += self._block
-
-    def calibrations(self) -> dict[str, Calibration]:
-        return dict(self._cal)
-
-    def expected_response(self, freqs_hz) -> dict:
-        return {} if self._response is None else self._response(np.asarray(freqs_hz, float))
-
-    def model_info(self) -> dict:
-        return dict(self._info)
-
-
-def rig_bench(scene: Scene, seed: int, **bench_kw) -> Bench:
-    """The emulated rig of ``scene`` (:class:`rig.bench.BenchSimulation`) as a :class:`Bench`;
-    ``bench_kw`` (e.g. ``method="lawson4"``) go to the simulation, except ``lifted`` (the fused
-    chain, default True) and ``block_s`` (its block length [s], default :data:`BLOCK_S`; the
-    same samples whatever it is) (``functools.partial`` of this is an ``acquire(bench=...)``)."""
-    from rig import bench as rb
-
-    return _RigBench(rb, scene, seed, **bench_kw)
-
-
-#: Units of the responses of :func:`rig.bench.expected_response` (per source volt unless stated).
-RIG_RESPONSE_UNITS = {
-    "a": "V/V", "x": "V/V", "y": "V/V", "stage_accel": "(m/s^2)/V", "stage_disp": "m/V",
-    "mirror_x": "m/V", "mirror_rot": "rad/V", "h_t": "m/(m/s^2)", "theta_2": "rad/(m/s^2)",
-    "h_t_pendulum": "m/(m/s^2)", "theta_2_pendulum": "rad/(m/s^2)",
-    "h_t_pendulum_continuous": "m/(m/s^2)", "theta_2_pendulum_continuous": "rad/(m/s^2)",
-}
-RIG_RESPONSE_NAMES = {
-    "a": "channel a per source volt: DAC hold, amplifier, coil, stage, accelerometer",
-    "x": "channel x per source volt: ... stage, pendulum, optical lever (linearised)",
-    "y": "channel y per source volt: ... stage, pendulum, optical lever (linearised)",
-    "stage_accel": "stage acceleration per source volt",
-    "stage_disp": "stage displacement per source volt",
-    "mirror_x": "mirror translation relative to the stage per source volt",
-    "mirror_rot": "mirror rotation per source volt",
-    "h_t": "H_t = (x / cal_x) / (a / cal_a): what the analyzer measures (accelerometer high-pass "
-           "in the denominator)",
-    "theta_2": "Theta_2 = (y / cal_y) / (a / cal_a): what the analyzer measures",
-    "h_t_pendulum": "mirror translation / stage acceleration of the sampled bench",
-    "theta_2_pendulum": "mirror rotation / stage acceleration of the sampled bench",
-    "h_t_pendulum_continuous": "mirror translation / stage acceleration, continuous linear "
-                               "pendulum (rig.response.mirror_response)",
-    "theta_2_pendulum_continuous": "mirror rotation / stage acceleration, continuous linear "
-                                   "pendulum",
-}
-#: The ground truth recorded from the rig (the contract of rig.blocks.AnalogBlock); the bench's
-#: other truth series (coil current, stage velocity, spot positions, flags) are not stored.
-RIG_TRUTH = ("stage_accel_mps2", "theta_rad", "mirror_x_m", "mirror_rot_rad", "source_v")
-#: bench block length [s] (at most; a record if shorter): the paper's 100 s records come as one
-#: block each. Blocks of any length give the same samples (tests/rig/test_lifted.py); longer
-#: ones spread the per-block work (digitising, slicing, queueing) over more samples.
-BLOCK_S = 100.0
-
-
-class _RigBench:
-    """:class:`rig.bench.BenchSimulation` behind the :class:`Bench` interface.
-
-    ``expected_response`` is the exact discrete-time response of the simulated samples
-    (``sampled=True``: DAC hold and folding included) for every (nf,) response of the bench, plus
-    the continuous pendulum alone (``*_continuous``, from ``sampled=False``).
-    """
-
-    units = RIG_RESPONSE_UNITS
-    long_names = RIG_RESPONSE_NAMES
-    truth_keys = RIG_TRUTH
-    saturation_keys = {"a": "a_overrange", "x": "psd_off_detector", "y": "psd_off_detector"}
-
-    def __init__(self, rb, scene: Scene, seed: int, *, lifted: bool = True,
-                 block_s: float = BLOCK_S, **bench_kw):
-        self._rb, self._scene = rb, scene
-        acq = scene.acquisition
-        block_s = positive("block_s", block_s, valid=f"a bench block length > 0 s (default "
-                                                     f"{BLOCK_S:g} s)")
-        n = min(round(block_s * acq.rate_hz), round(acq.record_s * acq.rate_hz))
-        self._block_s = max(1, n) / acq.rate_hz  # a whole number of ADC samples
-        # exactly what the run consumes (nothing simulated beyond it, even when prefetching)
-        plan = RecordPlan.from_acquisition(acq)
-        self._duration_s = plan.simulation_samples / plan.simulation_rate_hz
-        # the source is made from now on, while the model is chosen and the kernels load
-        self._sim = rb.BenchSimulation(scene, seed, ahead=(self._block_s, self._duration_s),
-                                       **bench_kw)
-        self.fs_hz = float(self._sim.fs_hz)
-        self._lifted = bool(lifted)  # the fused chain (rig.lifted), either model
-
-    def blocks(self) -> Iterator[AnalogBlock]:
-        return self._sim.blocks(self._block_s, self._duration_s)
-
-    def decimated_blocks(self, sos: np.ndarray, decimation: int
-                         ) -> Iterator[DecimatedBlock] | None:
-        """The run through the anti-alias sections ``sos`` and kept every ``decimation``
-        samples by the fused chain (:mod:`rig.lifted`: the linear model lifted, the nonlinear
-        one fused after its per-sample bench), not with ``lifted=False`` (None: use
-        :meth:`blocks`)."""
-        if not self._lifted or decimation != self._sim.model.decimation:
-            return None
-        return self._sim.decimated_blocks(self._block_s, self._duration_s, sos)
-
-    def calibrations(self) -> dict[str, Calibration]:
-        return dict(self._sim.calibrations())
-
-    def expected_response(self, freqs_hz) -> dict:
-        exact = self._rb.expected_response(self._scene, freqs_hz, sampled=True)
-        cont = self._rb.expected_response(self._scene, freqs_hz, sampled=False)
-        out = {k: v for k, v in _as_dict(exact).items()
-               if isinstance(v, np.ndarray) and v.ndim == 1 and k != "freqs_hz"}
-        out["h_t_pendulum_continuous"] = cont.h_t_pendulum
-        out["theta_2_pendulum_continuous"] = cont.theta_2_pendulum
-        return out
-
-    def model_info(self) -> dict:
-        info = dict(self._sim.model_info())
-        if self._lifted:
-            from rig.lifted import LIFTED_STEP, PER_SAMPLE, PER_SAMPLE_NONLINEAR
-
-            linear = self._sim.model.model == "linear"
-            info["per_sample"] = dict(PER_SAMPLE if linear else PER_SAMPLE_NONLINEAR,
-                                      rate_hz=self.fs_hz)
-            if linear:  # what the lifted chain runs
-                info["method"] = self._rb.linear_method(self._sim.model, LIFTED_STEP)
-        return info
-
-
-def _as_dict(obj) -> dict:
-    if isinstance(obj, dict):
-        return dict(obj)
-    import dataclasses
-
-    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
 
 
 @contextlib.contextmanager
@@ -386,7 +186,8 @@ def acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
         beside the first sink's ``target`` file.
     progress : called as ``progress(simulated_s, total_s)`` after every bench block.
     bench : ``bench(scene, seed) -> Bench``; default :func:`rig_bench`, in blocks of
-        :data:`BLOCK_S` or the shortest any sink asks for (its ``block_s``: a paced sink's).
+        :data:`daq.benches.BLOCK_S` or the shortest any sink asks for (its ``block_s``: a paced
+        sink's).
 
     Returns
     -------
@@ -431,18 +232,14 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
     if bench is None:
         wanted = [s.block_s for s in sinks if getattr(s, "block_s", None) is not None]
         bench = functools.partial(rig_bench, block_s=min(wanted)) if wanted else rig_bench
-    the_bench = bench(scene, seed)
+    the_bench = decimating(bench(scene, seed), plan.simulation_samples)
     if not math.isclose(the_bench.fs_hz, plan.simulation_rate_hz, rel_tol=1e-12):
         raise ConfigError(f"the bench runs at {the_bench.fs_hz:g} Hz but acquisition."
                           f"simulation_rate_hz = {plan.simulation_rate_hz:g} Hz")
     channels = channels_for(scene.settings["acquisition"], the_bench.calibrations())
     response = model_response(the_bench, aa, plan, channels)
-    fused = getattr(the_bench, "decimated_blocks", None)
-    blocks = None
-    if fused is not None and tuple(c.name for c in channels) == ("a", "x", "y"):
-        # the bench filters and decimates itself (no simulation-rate arrays)
-        blocks = fused(np.zeros((0, 6)) if aa.kind == "none" else aa.sos, aa.decimation)
-    blocks = iter(the_bench.blocks() if blocks is None else blocks)
+    # the bench filters and decimates (no simulation-rate arrays reach the loop)
+    blocks = iter(the_bench.decimated_blocks(aa))
     # before the first block: the model's error probe takes its source samples from the blocks
     # made ahead, which the run then consumes (after it they would be made a second time)
     model_info = the_bench.model_info()
@@ -464,8 +261,7 @@ def _acquire(scene: Scene, *, seed: int, sinks: Iterable[Sink] = (),
         fan.send("start", header)
         # the bench simulates the next blocks on one core while this thread filters, digitises
         # and writes the previous one on the other (same blocks, same order)
-        _run(header, _chain(first, prefetch(blocks, 2)), fan, progress, clips, sats,
-             dict(getattr(the_bench, "saturation_keys", None) or {}))
+        _run(header, _chain(first, prefetch(blocks, 2)), fan, progress, clips, sats)
         status = "complete"
     except KeyboardInterrupt as exc:
         status = "interrupted"
@@ -542,37 +338,21 @@ def model_response(bench: Bench, aa: AntiAliasFilter, plan: RecordPlan,
     return ModelResponse(freqs_hz=f, values=values, units=units, long_names=long_names)
 
 
-def _interval_any(flags: np.ndarray, kept: slice, carry: bool) -> tuple[np.ndarray, bool]:
-    """Per kept instant j of a block: whether ``flags`` was set since the previous kept instant
-    (up to and including j; ``carry``: set after the previous block's last kept instant), and the
-    carry for the next block."""
-    flags = np.asarray(flags, bool)
-    idx = np.arange(kept.start, flags.size, kept.step)
-    if idx.size == 0:
-        return np.zeros(0, bool), bool(carry or flags.any())
-    starts = np.concatenate([[0], idx[:-1] + 1])
-    out = np.logical_or.reduceat(flags[:idx[-1] + 1], starts)
-    out[0] |= carry
-    return out, bool(flags[idx[-1] + 1:].any())
-
-
-def _run(header: Header, blocks: Iterator[AnalogBlock], fan: Fanout, progress,
-         clips: list, sats: list, saturation_keys: dict) -> None:
-    """The acquisition loop. Appends each finished record's clip counts to ``clips`` (and its
-    saturation counts to ``sats``) in the same SIGINT-free section that hands the record to the
-    sinks, so ``len(clips)`` is the number of records every sink has."""
-    plan, aa = header.plan, header.antialias
+def _run(header: Header, blocks: Iterator[DecimatedBlock], fan: Fanout, progress,
+         clips: list, sats: list) -> None:
+    """The acquisition loop over the bench's filtered and decimated blocks. Appends each
+    finished record's clip counts to ``clips`` (and its saturation counts to ``sats``) in the
+    same SIGINT-free section that hands the record to the sinks, so ``len(clips)`` is the number
+    of records every sink has."""
+    plan = header.plan
     names = header.names
     adcs = [c.adc for c in header.channels]
     truth_names = [t.name for t in header.truth]
     fs, n_rec, settle = plan.simulation_rate_hz, plan.samples, plan.settle_samples
     need = plan.simulation_samples
-    state = aa.initial_state(len(names))
     buf = RecordBuffer(header)
     done_sim = 0  # simulation samples consumed
     done_out = 0  # output samples produced
-    sat_keys = {k: v for k, v in saturation_keys.items() if k in names}
-    carry = {k: False for k in sat_keys}
     for ab in blocks:
         if not math.isclose(ab.fs_hz, fs, rel_tol=1e-12):
             raise StreamError(f"bench block at t = {ab.t0_s:g} s has fs = {ab.fs_hz:g} Hz; "
@@ -584,13 +364,14 @@ def _run(header: Header, blocks: Iterator[AnalogBlock], fan: Fanout, progress,
         if missing:
             raise StreamError(f"bench block at t = {ab.t0_s:g} s has no volts for channel(s) "
                               f"{', '.join(missing)}")
-        if isinstance(ab, DecimatedBlock):  # filtered and decimated by the bench itself
-            n, y, truth, saturated = _decimated(ab, names, truth_names, sat_keys, need - done_sim)
-        else:
-            n = min(ab.samples, need - done_sim)
-            y, truth, saturated, state = _filter_block(ab, n, names, aa, state, truth_names,
-                                                       sat_keys, carry)
-        m = y.shape[1]
+        if ab.samples > need - done_sim:
+            raise StreamError(f"bench block at t = {ab.t0_s:g} s has {ab.samples} samples; the "
+                              f"run needs {need - done_sim} more")
+        y = np.stack([np.asarray(ab.volts[k], dtype=float) for k in names])
+        check_finite_volts(y, names, ab.t0_s, ab.decimation / ab.fs_hz)
+        truth = {k: np.asarray(ab.truth[k]) for k in truth_names}
+        saturated = {k: np.asarray(ab.saturated[k]) for k in names if k in ab.saturated}
+        n, m = ab.samples, y.shape[1]
         codes, clipped = {}, {}
         for i, (k, adc) in enumerate(zip(names, adcs)):
             codes[k], clipped[k] = adc.digitize(y[i])
@@ -625,45 +406,3 @@ def _run(header: Header, blocks: Iterator[AnalogBlock], fan: Fanout, progress,
             return
     raise StreamError(f"the bench stopped at t = {done_sim / fs:g} s; the run needs "
                       f"{need / fs:g} s")
-
-
-def _check_finite_volts(x: np.ndarray, names, t0_s: float, dt_s: float) -> None:
-    if not np.isfinite(x).all():
-        bad = [k for i, k in enumerate(names) if not np.isfinite(x[i]).all()]
-        i = int(np.argmin(np.isfinite(x).all(axis=0)))
-        raise StreamError(f"non-finite volts on channel(s) {', '.join(bad)} at t = "
-                          f"{t0_s + i * dt_s:.6g} s")
-
-
-def _filter_block(ab: AnalogBlock, n: int, names, aa: AntiAliasFilter, state, truth_names,
-                  sat_keys: dict, carry: dict):
-    """The first ``n`` samples of a block at the simulation rate through the anti-alias filter
-    and the decimation: (filtered volts (channels, kept), truth and saturation flags at the kept
-    instants, the filter state after it); updates ``carry``."""
-    x = np.empty((len(names), n))
-    for i, k in enumerate(names):
-        x[i] = ab.volts[k][:n]
-    _check_finite_volts(x, names, ab.t0_s, 1 / ab.fs_hz)
-    kept = aa.kept(state, n)
-    y, state = aa.step(state, x)
-    truth = {k: np.asarray(ab.truth[k])[:n][kept] for k in truth_names}
-    saturated = {}
-    for k, key in sat_keys.items():
-        if key in ab.truth:
-            saturated[k], carry[k] = _interval_any(np.asarray(ab.truth[key])[:n], kept,
-                                                   carry[k])
-    return y, truth, saturated, state
-
-
-def _decimated(ab: DecimatedBlock, names, truth_names, sat_keys: dict, left: int):
-    """A block the bench filtered and decimated (:class:`rig.blocks.DecimatedBlock`): (its
-    samples, volts (channels, kept), truth, saturation flags), or StreamError if it runs past
-    the run or carries non-finite volts."""
-    if ab.samples > left:
-        raise StreamError(f"bench block at t = {ab.t0_s:g} s has {ab.samples} samples; the run "
-                          f"needs {left} more")
-    y = np.stack([np.asarray(ab.volts[k], dtype=float) for k in names])
-    _check_finite_volts(y, names, ab.t0_s, ab.decimation / ab.fs_hz)
-    truth = {k: np.asarray(ab.truth[k]) for k in truth_names}
-    saturated = {k: np.asarray(ab.saturated[k]) for k in sat_keys if k in ab.saturated}
-    return ab.samples, y, truth, saturated

@@ -53,7 +53,7 @@ import numpy as np
 
 from rig.acquisition_settings import decimation_factor
 from rig.errors import ConfigError
-from rig._sosfilt import sosfilt_inplace as _sosfilt_inplace
+from rig.sosfilt import sosfilt_inplace
 
 KINDS = ("elliptic", "none")
 
@@ -203,7 +203,7 @@ class AntiAliasFilter:
         else:
             y = np.array(x, dtype=float, order="C", ndmin=2)
             zi = np.array(state.zi, dtype=float, order="C")
-            _sosfilt_inplace(self.sos, y.reshape(-1, n), zi.reshape(len(self.sos), -1, 2))
+            sosfilt_inplace(self.sos, y.reshape(-1, n), zi.reshape(len(self.sos), -1, 2))
             y = y.reshape(x.shape)
         return (np.ascontiguousarray(y[..., sl]),
                 FilterState(zi=zi, phase=(state.phase - n) % self.decimation))

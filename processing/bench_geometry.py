@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rig._sosfilt import sosfilt_inplace
+from rig.sosfilt import sosfilt_inplace
 
 #: Angles in the bench drawing are multiplied by this by default ...
 MAGNIFICATION = 30.0

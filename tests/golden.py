@@ -45,7 +45,8 @@ def run_arrays(name: str, **bench_kw) -> dict[str, np.ndarray]:
     in place of the run's own."""
     import functools
 
-    from daq.acquisition import acquire, rig_bench
+    from daq.acquisition import acquire
+    from daq.benches import rig_bench
     from daq.hdf5 import Hdf5Sink, read_run
 
     bench = functools.partial(rig_bench, **(bench_kw or RUNS[name][1]))

@@ -11,7 +11,7 @@ from tests import golden
 
 #: the golden files' floats were written on another CPU: numpy's OpenBLAS picks its kernels by
 #: CPU (DYNAMIC_ARCH), so the matrix products and exponentials behind the truth and the model
-#: response (rig.lifted's Phi^q, scipy's expm, the response's solves) may differ there in the last
+#: response (rig.bench.fused's Phi^q, scipy's expm, the response's solves) may differ there in the last
 #: bits. Measured between the host that wrote them and an AMD EPYC (2026-12-02): truth at most
 #: 1.3e-14 of a series' largest value, model responses at most 1.8e-14; the bound is about a
 #: hundred times that. Codes and flags must match exactly.

@@ -31,13 +31,15 @@ Rooms
 -----
 ``model``       :class:`BenchModel`, :func:`build_model` (the state space and its exact step)
 ``run``         :class:`BenchState`, :func:`start`, :func:`advance` (one block), the stage kernel
+``fused``       the bench fused with its sensors and the anti-alias filter, kept at the output
+                rate (:meth:`BenchSimulation.decimated_blocks`, :func:`fused_model_info`)
 ``simulation``  :class:`BenchSimulation` (the stateful wrapper: blocks, calibrations, model info)
 ``response``    :func:`calibrations`, :func:`expected_response`, :class:`BenchResponse`,
                 :func:`stationary_levels`, :func:`signal_to_noise`
 ``selection``   :func:`predict_linearisation_error`, :func:`select_model`
 ``estimates``   :func:`model_info` and the error estimates (Richardson)
 
-Public API: the rooms' names above, re-exported here.
+Public API: the rooms' names above, re-exported here, and :func:`fused_model_info`.
 """
 
 from rig.bench.selection import (FIRST_ORDER_LIMIT, PREDICTOR_BATCHES, PREDICTOR_ENTROPY,
@@ -48,12 +50,13 @@ from rig.bench.run import (STREAMS, BenchState, _spawn, advance, stage_fine_kern
 from rig.bench.response import (BenchResponse, _as_linear, calibrations, expected_response,
                                 signal_to_noise, stationary_levels)
 from rig.bench.estimates import _kernel_theta, linear_method, model_info, model_seed
+from rig.bench.fused import fused_model_info
 from rig.bench.simulation import BenchSimulation
 
 __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
-           "model_info", "linear_method", "select_model", "predict_linearisation_error", "MODELS",
-           "NONLINEAR_METHODS", "STREAMS"]
+           "model_info", "linear_method", "fused_model_info", "select_model",
+           "predict_linearisation_error", "MODELS", "NONLINEAR_METHODS", "STREAMS"]
 
 
 from rig._exports import submodule_getattr  # noqa: E402

@@ -16,6 +16,7 @@ forms.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -40,6 +41,35 @@ def calibrations(scene: Scene) -> dict[str, Calibration]:
     return {"a": scene.accelerometer.calibration(), **scene.lever.calibrations()}
 
 
+#: Units of the responses of :func:`rig.bench.expected_response` (per source volt unless stated;
+#: ``*_continuous``: a field of its ``sampled=False`` response, as an acquisition records it).
+RESPONSE_UNITS = {
+    "a": "V/V", "x": "V/V", "y": "V/V", "stage_accel": "(m/s^2)/V", "stage_disp": "m/V",
+    "mirror_x": "m/V", "mirror_rot": "rad/V", "h_t": "m/(m/s^2)", "theta_2": "rad/(m/s^2)",
+    "h_t_pendulum": "m/(m/s^2)", "theta_2_pendulum": "rad/(m/s^2)",
+    "h_t_pendulum_continuous": "m/(m/s^2)", "theta_2_pendulum_continuous": "rad/(m/s^2)",
+}
+#: What each response of :func:`rig.bench.expected_response` is.
+RESPONSE_LONG_NAMES = {
+    "a": "channel a per source volt: DAC hold, amplifier, coil, stage, accelerometer",
+    "x": "channel x per source volt: ... stage, pendulum, optical lever (linearised)",
+    "y": "channel y per source volt: ... stage, pendulum, optical lever (linearised)",
+    "stage_accel": "stage acceleration per source volt",
+    "stage_disp": "stage displacement per source volt",
+    "mirror_x": "mirror translation relative to the stage per source volt",
+    "mirror_rot": "mirror rotation per source volt",
+    "h_t": "H_t = (x / cal_x) / (a / cal_a): what the analyzer measures (accelerometer high-pass "
+           "in the denominator)",
+    "theta_2": "Theta_2 = (y / cal_y) / (a / cal_a): what the analyzer measures",
+    "h_t_pendulum": "mirror translation / stage acceleration of the sampled bench",
+    "theta_2_pendulum": "mirror rotation / stage acceleration of the sampled bench",
+    "h_t_pendulum_continuous": "mirror translation / stage acceleration, continuous linear "
+                               "pendulum (rig.response.mirror_response)",
+    "theta_2_pendulum_continuous": "mirror rotation / stage acceleration, continuous linear "
+                                   "pendulum",
+}
+
+
 @dataclass(frozen=True, eq=False)
 class BenchResponse:
     """Exact linear responses of the bench, per source volt unless stated (complex, (nf,)).
@@ -60,7 +90,12 @@ class BenchResponse:
         (what an ideally anti-aliased measurement sees); True: the exact transfer function from
         the DAC samples to the simulated samples, ``C (e^{i w h} I - Phi)^-1 Gamma``, which also
         contains the hold's images folded back by sampling at the DAC rate.
+
+    ``UNITS``, ``LONG_NAMES`` (class constants): each response's unit and description.
     """
+
+    UNITS: ClassVar[dict] = RESPONSE_UNITS
+    LONG_NAMES: ClassVar[dict] = RESPONSE_LONG_NAMES
 
     freqs_hz: np.ndarray
     a: np.ndarray

@@ -103,6 +103,28 @@ def _rng(state: dict) -> np.random.Generator:
     return np.random.Generator(bg)
 
 
+#: the sensors' noise streams, in the order their generators are handed around
+SENSOR_STREAMS = ("accelerometer", "psd_x", "psd_y")
+
+
+def sensor_generators(state: BenchState) -> tuple[np.random.Generator, ...]:
+    """The noise generators of :data:`SENSOR_STREAMS` continuing from ``state``."""
+    return tuple(_rng(state.rng_states[k]) for k in SENSOR_STREAMS)
+
+
+def state_after(state: BenchState, n: int, z: np.ndarray, source: SourceState, generators,
+                native=None, h_next_s: float = float("nan")) -> BenchState:
+    """The :class:`BenchState` ``n`` samples after ``state``: the bench state ``z`` (kept,
+    read-only), the source's state, the sensors' generators' states (:data:`SENSOR_STREAMS`
+    order; fresh snapshots) and a nonlinear integrator's ``native`` state (copied) and next
+    step."""
+    rng_states = {k: g.bit_generator.state for k, g in zip(SENSOR_STREAMS, generators)}
+    return BenchState(index=state.index + n, z=_readonly(z), source=source,
+                      rng_states=rng_states,
+                      native=None if native is None else _readonly(np.array(native)),
+                      h_next_s=float(h_next_s), seed_entropy=state.seed_entropy)
+
+
 @njit(cache=True, nogil=True)
 def stage_fine_kernel(phi, gamma, row, v, m, z, z_out, a_fine):
     """Stage-only exact steps at h/m: z_out[k] = z at DAC instant k, a_fine[k m + j] = x0'' at
@@ -281,15 +303,10 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     # sensors
     acc = model.accelerometer
     q = z_out[:, sl["accel_highpass_q_mps"]][:, 0] if acc.n_states else None
-    rng_a = _rng(state.rng_states["accelerometer"])
-    rng_x = _rng(state.rng_states["psd_x"])
-    rng_y = _rng(state.rng_states["psd_y"])
+    rng_a, rng_x, rng_y = sensor_generators(state)
     sensed, a_v, a_over = acc.sense_and_output(accel, q, fs, rng_a)
     mx, mz, mrot = _mirror_kinematics(model.scene, theta, exact=model.model == "nonlinear")
     reading = model.lever.measure(mx, mrot, fs, rng_x, rng_y, mirror_z_m=mz)
-    rng_states = {"accelerometer": rng_a.bit_generator.state,  # fresh dicts (snapshots)
-                  "psd_x": rng_x.bit_generator.state,
-                  "psd_y": rng_y.bit_generator.state}
 
     truth = {
         "source_v": v,
@@ -310,10 +327,7 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     }
     block = AnalogBlock(t0_s=t0, fs_hz=fs, volts={"a": a_v, "x": reading.x_v, "y": reading.y_v},
                         truth=truth)
-    new = BenchState(index=state.index + n, z=_readonly(z), source=src, rng_states=rng_states,
-                     native=None if native is None else _readonly(np.array(native)),
-                     h_next_s=float(h_next), seed_entropy=state.seed_entropy)
-    return block, new
+    return block, state_after(state, n, z, src, (rng_a, rng_x, rng_y), native, h_next)
 
 
 def _block_sizes(fs: float, decimation: int, block_s, duration_s) -> list[int]:

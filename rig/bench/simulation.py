@@ -14,9 +14,11 @@ import numpy as np
 from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
 from rig.errors import ConfigError
 from rig._threads import Prefetch
+from rig.sosfilt import lift_sections
 from rig.scene import Scene
 from rig.devices.source import start_source
 from rig.bench.estimates import _model_info
+from rig.bench.fused import advance_decimated, advance_decimated_nonlinear, lift, start_decimated
 from rig.bench.model import build_model
 from rig.bench.response import _calibrations
 from rig.bench.run import _REL, _block_sizes, _source_blocks, _spawn, advance, start
@@ -121,27 +123,24 @@ class BenchSimulation:
                          ) -> Iterator[DecimatedBlock]:
         """Like :meth:`blocks`, but through the anti-alias sections ``sos`` (rows ``[b0, b1,
         b2, 1, a1, a2]``, (0, 6) for none) and kept at every ``decimation``-th sample, by the
-        fused chain (:mod:`rig.lifted`): the linear model lifted, the nonlinear one stepped per
-        sample and fused after the bench, the filter lifted in both (each equal to
+        fused chain (:mod:`rig.bench.fused`): the linear model lifted, the nonlinear one stepped
+        per sample and fused after the bench, the filter lifted in both (each equal to
         :meth:`blocks` filtered and decimated up to round-off). Starts at a kept instant."""
-        from rig import lifted as rl
-
         q = self.model.decimation
         if self.state.index % q:
             raise ConfigError(f"decimated_blocks must start at a kept instant (sample "
                               f"{self.state.index} is not a multiple of {q})")
-        chain = rl.start_decimated(sos)
-        sections = rl.lift_sections(sos, q)
+        chain = start_decimated(sos)
+        sections = lift_sections(sos, q)
         if self.model.model == "linear":
-            lifted = rl.lift(self.model, q)
+            lifted = lift(self.model, q)
 
             def step(k, src, chain):
-                return rl.advance_decimated(self.model, lifted, self.state, chain, k, sections,
-                                            src)
+                return advance_decimated(self.model, lifted, self.state, chain, k, sections, src)
         else:
             def step(k, src, chain):
-                return rl.advance_decimated_nonlinear(self.model, self.state, chain, k,
-                                                      sections, src)
+                return advance_decimated_nonlinear(self.model, self.state, chain, k, sections,
+                                                   src)
         sizes, made = self._sources(block_s, duration_s)
         try:
             for k, src in zip(sizes, made):

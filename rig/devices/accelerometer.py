@@ -30,13 +30,15 @@ signal-to-noise ratios they give are in ``docs/devices.md``.
 The noise is white over the simulation band: each sample gets ``|S| noise sqrt(fs / 2)`` rms (a
 one-sided density ``noise`` up to the Nyquist frequency).
 
-Public API: :class:`Accelerometer`, :class:`AccelerometerState`.
+Public API: :class:`Accelerometer`, :class:`AccelerometerState`, :class:`AccelerometerRow`,
+:func:`accelerometer_row`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -45,6 +47,18 @@ from rig.errors import ConfigError
 from rig._jit import njit
 from rig.params import check_fields, param
 from rig.solvers.exact import discretise
+
+
+class AccelerometerRow(NamedTuple):
+    """The output stage's numbers for the compiled row kernels (:meth:`Accelerometer.row_params`):
+    ``gain`` = sign S [V/(m/s^2)], ``limit_v`` = |S| range (the clip), ``noise_sd_v`` the noise
+    rms per sample (0: none drawn), ``corner_rad_s`` = w_c (the sensed acceleration is
+    x0'' - w_c q)."""
+
+    gain: float
+    limit_v: float
+    noise_sd_v: float
+    corner_rad_s: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,6 +127,14 @@ class Accelerometer:
     def noise_rms_v(self, fs_hz: float) -> float:
         """Rms of the white noise per sample at the rate ``fs_hz`` [V]."""
         return self.sensitivity_vpmps2 * self.noise_mps2_rthz * math.sqrt(fs_hz / 2)
+
+    def row_params(self, fs_hz: float) -> AccelerometerRow:
+        """The numbers :func:`accelerometer_row` takes at the rate ``fs_hz`` (the noise rms 0
+        without noise)."""
+        return AccelerometerRow(
+            float(self.volts_per_mps2), float(self.sensitivity_vpmps2 * self.range_mps2),
+            float(self.noise_rms_v(fs_hz)) if self.noise_mps2_rthz > 0 else 0.0,
+            float(self.corner_rad_s))
 
     # -- measurement ------------------------------------------------------------------------
     def output(self, sensed_mps2, fs_hz: float, rng: np.random.Generator | None, *,
@@ -236,3 +258,24 @@ def _sense_output_kernel(accel, q, wc, volts_per_mps2, w, sd, lim, sensed, volts
             v = v + sd * w[k]
         over[k] = abs(v) > lim
         volts[k] = min(max(v, -lim), lim)
+
+
+@njit(cache=True, nogil=True)
+def accelerometer_row(r, w, p, out, flag):
+    """One sample of every interval of a chunk: the sensed accelerations ``r`` [m/s^2] times
+    the gain, plus the noise ``w`` [V] (empty: none), clipped at ``+-p.limit_v`` into ``out``
+    and flagged beyond it (``p``: :class:`AccelerometerRow`; :meth:`Accelerometer.output`'s
+    arithmetic, a loop that vectorises). The bench's fused chain (:mod:`rig.bench.fused`) runs
+    the accelerometer so; equal to it bit for bit (tests/rig/devices/test_fused_sensors.py)."""
+    gain = p.gain
+    lim = p.limit_v
+    if w.shape[0]:
+        for j in range(r.shape[0]):
+            va = gain * r[j] + w[j]
+            flag[j] = abs(va) > lim
+            out[j] = min(max(va, -lim), lim)
+    else:
+        for j in range(r.shape[0]):
+            va = gain * r[j]
+            flag[j] = abs(va) > lim
+            out[j] = min(max(va, -lim), lim)

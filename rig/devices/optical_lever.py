@@ -30,13 +30,14 @@ samples must not be trusted.
 Defaults: the fields of :class:`OpticalLever`; the spot excursions and signal-to-noise ratios
 they give are in ``docs/devices.md``.
 
-Public API: :class:`OpticalLever`, :class:`PsdReading`.
+Public API: :class:`OpticalLever`, :class:`PsdReading`, :class:`LeverRow`, :func:`lever_row`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -44,6 +45,21 @@ from rig.blocks import Calibration
 from rig.errors import ConfigError
 from rig._jit import njit
 from rig.params import check_fields, param
+
+
+class LeverRow(NamedTuple):
+    """The lever's numbers for the compiled row kernels (:meth:`OpticalLever.row_params`):
+    ``cphi``, ``sphi`` = cos, sin of the incidence, ``distance_m`` = D, ``half_m`` (the
+    detector's edge), ``gain_x``, ``gain_y`` = the signed gains [V/m], ``noise_sd_m`` the spot
+    noise rms per sample and axis (0: none drawn)."""
+
+    cphi: float
+    sphi: float
+    distance_m: float
+    half_m: float
+    gain_x: float
+    gain_y: float
+    noise_sd_m: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,6 +163,14 @@ class OpticalLever:
                     math.sin(self.phi_rad), self.distance_m, u, v)
         return u.reshape(shape), v.reshape(shape)
 
+    def row_params(self, fs_hz: float) -> LeverRow:
+        """The numbers :func:`lever_row` takes at the rate ``fs_hz`` (the noise rms 0 without
+        noise)."""
+        return LeverRow(math.cos(self.phi_rad), math.sin(self.phi_rad), float(self.distance_m),
+                        float(self.half_size_m), float(self.sign_x * self.gain_vpm),
+                        float(self.sign_y * self.gain_vpm),
+                        float(self.noise_rms_m(fs_hz)) if self.noise_m_rthz > 0 else 0.0)
+
     # -- measurement ------------------------------------------------------------------------
     def measure(self, mirror_x_m, mirror_rot_rad, fs_hz: float,
                 rng_x: np.random.Generator | None, rng_y: np.random.Generator | None, *,
@@ -170,10 +194,7 @@ class OpticalLever:
             sd, wx, wy = 0.0, np.zeros(0), np.zeros(0)
         u0, v0, x_v, y_v = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         off = np.empty(n, dtype=np.bool_)
-        _measure_kernel(dx, dz, th, math.cos(self.phi_rad), math.sin(self.phi_rad),
-                        self.distance_m, wx, wy, sd, self.half_size_m,
-                        self.sign_x * self.gain_vpm, self.sign_y * self.gain_vpm, u0, v0, x_v,
-                        y_v, off)
+        _measure_kernel(dx, dz, th, self.row_params(fs_hz), wx, wy, sd, u0, v0, x_v, y_v, off)
         return PsdReading(x_v=x_v, y_v=y_v, spot_u_m=u0, spot_v_m=v0, off_detector=off)
 
 
@@ -183,7 +204,7 @@ SMALL_ANGLE_RAD = 2.0 ** -6
 # The spot's kernels divide under numpy's error model: a zero divisor (a lever at 90 degrees or
 # a mirror edge-on, neither a measurement) gives inf or nan, which the bench's finite checks
 # report, instead of Python's ZeroDivisionError, whose test in every division keeps a loop of
-# spots from vectorising (rig.lifted._lever_row).
+# spots from vectorising (lever_row).
 
 
 @njit(cache=True, nogil=True)
@@ -248,10 +269,11 @@ def spot_kernel(dx, dz, th, cphi, sphi, dist, u, v):
 
 
 @njit(cache=True, nogil=True)
-def _measure_kernel(dx, dz, th, cphi, sphi, dist, wx, wy, sd, h, gx, gy, u, v, x_v, y_v, off):
+def _measure_kernel(dx, dz, th, p, wx, wy, sd, u, v, x_v, y_v, off):
     """Per sample: the exact spot (``u``, ``v``), plus noise ``sd wx``, ``sd wy`` (``wx`` empty:
-    none), clipped at the edge ``h`` and flagged there (``off``), times the signed gains
-    (``x_v``, ``y_v``); one pass."""
+    none), clipped at the edge and flagged there (``off``), times the signed gains (``x_v``,
+    ``y_v``; ``p``: :class:`LeverRow`); one pass."""
+    cphi, sphi, dist, h, gx, gy = p.cphi, p.sphi, p.distance_m, p.half_m, p.gain_x, p.gain_y
     noisy = wx.shape[0] > 0
     for k in range(dx.shape[0]):
         uk, vk = _spot(dx[k], dz[k], th[k], cphi, sphi, dist)
@@ -263,3 +285,42 @@ def _measure_kernel(dx, dz, th, cphi, sphi, dist, wx, wy, sd, h, gx, gy, u, v, x
         off[k] = (abs(uk) > h) or (abs(vk) > h)
         x_v[k] = gx * min(max(uk, -h), h)
         y_v[k] = gy * min(max(vk, -h), h)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lever_row(dx, dz, th, wx, wy, p, out_x, out_y, flag):
+    """One sample of every interval of a chunk: the exact spot (:func:`_spot`) of the mirror's
+    translations ``dx``, heights ``dz`` and rotations ``th``, plus the noise ``wx``, ``wy`` [m]
+    (empty: none), clipped at the detector's edge ``+-p.half_m`` times the signed gains into
+    ``out_x``, ``out_y`` and flagged beyond it (``p``: :class:`LeverRow`;
+    :meth:`OpticalLever.measure`'s arithmetic). Where every tilt is within the small-angle
+    polynomial's range (a mirror's tilts are microradians) and there is noise, the spot is
+    :func:`_spot_small`, the same arithmetic without a branch or a call, so the loop
+    vectorises. The bench's fused chain (:mod:`rig.bench.fused`) runs the lever so; equal to
+    :meth:`OpticalLever.measure` bit for bit (tests/rig/devices/test_fused_sensors.py)."""
+    cphi, sphi, dist, half, gain_x, gain_y = p.cphi, p.sphi, p.distance_m, p.half_m, p.gain_x, \
+        p.gain_y
+    n = dx.shape[0]
+    small = wx.shape[0] > 0
+    for j in range(n):
+        small = small & (abs(th[j]) <= SMALL_ANGLE_RAD)
+    if small:
+        for j in range(n):
+            uk, vk = _spot_small(dx[j], dz[j], th[j], cphi, sphi, dist)
+            flag[j], out_x[j], out_y[j] = _lever_out(uk + wx[j], vk + wy[j], half, gain_x,
+                                                     gain_y)
+    else:
+        for j in range(n):
+            uk, vk = _spot(dx[j], dz[j], th[j], cphi, sphi, dist)
+            if wx.shape[0]:
+                uk = uk + wx[j]
+                vk = vk + wy[j]
+            flag[j], out_x[j], out_y[j] = _lever_out(uk, vk, half, gain_x, gain_y)
+
+
+@njit(cache=True, nogil=True)
+def _lever_out(uk, vk, half, gain_x, gain_y):
+    """The detector's flag (the spot beyond its edge ``+-half``) and its two outputs, the spot
+    clipped at the edge times the signed gains."""
+    return ((abs(uk) > half) | (abs(vk) > half), gain_x * min(max(uk, -half), half),
+            gain_y * min(max(vk, -half), half))

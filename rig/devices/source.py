@@ -37,7 +37,7 @@ types draw nothing. The one-sided PSD of the DAC samples is ``2 L^2 |H(f)|^2 / f
 docs/devices.md.
 
 Public API: :class:`Source`, :class:`SourceState`, :func:`start_source`, :func:`generate`,
-:data:`SOURCE_TYPES`.
+:data:`SOURCE_TYPES`, :func:`fill_standard_normal`.
 """
 
 from __future__ import annotations
@@ -371,12 +371,14 @@ def standard_normals(rng: np.random.Generator, n: int) -> np.ndarray:
     same state, drawn in compiled code (numba's Generator runs numpy's ziggurat on the same bit
     generator, faster than numpy's own loop: docs/benchmarks/history.md)."""
     out = np.empty(int(n))
-    _fill_standard_normal(rng, out)
+    fill_standard_normal(rng, out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def _fill_standard_normal(rng, out):
+def fill_standard_normal(rng, out):
+    """``out`` filled with ``rng``'s standard normals in order (compiled: the same values and
+    generator state as ``rng.standard_normal(out.size)``)."""
     for i in range(out.shape[0]):
         out[i] = rng.standard_normal()
 

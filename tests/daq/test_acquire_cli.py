@@ -9,7 +9,8 @@ import pytest
 from click.testing import CliRunner
 
 import daq.acquisition
-from daq.acquisition import FunctionBench, acquire
+from daq.acquisition import acquire
+from daq.benches import FunctionBench
 from daq.cli import main
 from daq.hdf5 import Hdf5Sink, read_run
 from daq.sinks import Sink

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from daq.acquisition import AcquisitionInterrupted, FunctionBench, StreamError, acquire
+from daq.acquisition import AcquisitionInterrupted, acquire
+from daq.benches import FunctionBench, StreamError
 from daq.antialias import AntiAliasFilter
 from daq.hdf5 import Hdf5Sink
 from daq.sinks import MemorySink, Sink
@@ -348,7 +349,7 @@ def test_rig_channels_are_the_sensor_chain_of_the_truth_within_half_an_lsb():
         err = np.abs(rec.volts(c.name) - ref)
         assert err.max() <= c.adc.lsb_v / 2 + 1e-12 * c.range_v, c.name
     # the truth in the file is the bench's truth at the sample instants, up to the lifted
-    # chain's round-off (1e-11 of the rms, tests/rig/test_lifted.py)
+    # chain's round-off (1e-11 of the rms, tests/rig/bench/test_fused.py)
     want = tr["mirror_x_m"][::10][500:]
     assert np.max(np.abs(rec.truth["mirror_x_m"].reshape(-1) - want)) <= 1e-11 * np.sqrt(
         np.mean(want**2))

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import daq
-from daq.acquisition import FunctionBench, acquire
+from daq.acquisition import acquire
+from daq.benches import FunctionBench
 from daq.hdf5 import Hdf5Sink, open_run, read_run, run_info
 from daq.repair import clear_write_flags
 from daq.sinks import MemorySink

@@ -6,7 +6,8 @@ import h5py
 import numpy as np
 import pytest
 
-from daq.acquisition import _interval_any, acquire
+from daq.acquisition import acquire
+from daq.benches import interval_any
 from daq.hdf5 import Hdf5Sink, read_run, run_info
 from processing.analyzer import analyze
 from rig.bench import BenchSimulation
@@ -34,7 +35,7 @@ def test_interval_flags_do_not_depend_on_how_the_run_is_split_into_blocks(q):
             n = min(int(n), f.size - pos)
             if n <= 0:
                 break
-            got, carry = _interval_any(f[pos:pos + n], slice(phase, n, q), carry)
+            got, carry = interval_any(f[pos:pos + n], slice(phase, n, q), carry)
             out.append(got)
             phase, pos = (phase - n) % q, pos + n
         got = np.concatenate(out)

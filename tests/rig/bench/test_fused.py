@@ -1,4 +1,4 @@
-"""The linear acquisition lifted to the output rate and fused (rig.lifted): equal to the
+"""The linear acquisition lifted to the output rate and fused (rig.bench.fused): equal to the
 per-sample path (rig.bench.advance, then the anti-alias filter and the decimation of
 daq.antialias) within round-off on the paper's scene, a strongly driven scene that clips, a
 near-degenerate design and a long chain; block-wise equal to one-shot; the same seed, the same
@@ -22,7 +22,8 @@ import math
 import numpy as np
 import pytest
 
-from daq.acquisition import _interval_any, antialias_for
+from daq.acquisition import antialias_for
+from daq.benches import interval_any
 from daq.records import RecordPlan
 from rig.bench import BenchSimulation
 from rig.scene import load_scene
@@ -68,7 +69,7 @@ def _per_sample(scene, seed, duration_s, block_s=10.0, **kw):
         for k in TRUTH:
             out[k].append(np.asarray(b.truth[k])[kept])
         for k, key in (("a", "a_overrange"), ("x", "psd_off_detector")):
-            s, carry[k] = _interval_any(b.truth[key], kept, carry[k])
+            s, carry[k] = interval_any(b.truth[key], kept, carry[k])
             out["sat_" + k].append(s)
     return {k: np.concatenate(v) for k, v in out.items()}, aa, sim
 
@@ -122,7 +123,7 @@ def test_lifted_blocks_reproduce_a_one_shot_run_bit_for_bit():
 
 def test_the_fused_kernel_gives_the_same_bytes_whatever_intervals_it_takes_at_a_time(
         monkeypatch):
-    import rig.lifted as rl
+    import rig.bench.fused as rl
 
     scene = _scene("driven_clipping")
     aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
@@ -147,7 +148,7 @@ def test_the_lifted_chain_gives_the_same_bytes_for_the_same_seed_and_others_for_
 
 def test_the_lifted_chain_refuses_a_nonlinear_model_unlifted_sections_and_a_mid_interval_start():
     from rig.errors import ConfigError
-    from rig.lifted import advance_decimated, lift, start_decimated
+    from rig.bench.fused import advance_decimated, lift, start_decimated
 
     scene = load_scene("ishizaki2009", ["acquisition.model=nonlinear"])
     with pytest.raises(ConfigError, match="linear model"):
@@ -200,7 +201,7 @@ def _nl(name):
 @pytest.mark.parametrize("name", list(NONLINEAR))
 def test_the_fused_nonlinear_chain_equals_the_per_sample_path_up_to_the_filter_s_round_off(
         name):
-    # up to the filter the same arithmetic in the same order (rig.lifted.
+    # up to the filter the same arithmetic in the same order (rig.bench.fused.
     # advance_decimated_nonlinear): the truth, the flags, the bench and the noise streams are
     # the per-sample path's own; the kept volts come from the filter lifted to the interval
     # (its sums in another order): within ROUND_OFF of each series' rms, the bound of the lifted
@@ -229,7 +230,7 @@ def test_the_fused_nonlinear_chain_equals_the_per_sample_path_up_to_the_filter_s
 
 def test_the_fused_nonlinear_kernel_gives_the_same_bytes_whatever_intervals_it_takes_at_a_time(
         monkeypatch):
-    import rig.lifted as rl
+    import rig.bench.fused as rl
 
     scene, kw, _ = _nl("driven_clipping")
     aa = antialias_for(scene.acquisition, RecordPlan.from_acquisition(scene.acquisition))
@@ -264,7 +265,8 @@ def test_the_fused_nonlinear_chain_gives_the_same_bytes_for_the_same_seed_only()
 
 def test_the_fused_nonlinear_chain_refuses_a_linear_model_an_odd_block_and_unlifted_sections():
     from rig.errors import ConfigError
-    from rig.lifted import advance_decimated_nonlinear, lift_sections, start_decimated
+    from rig.bench.fused import advance_decimated_nonlinear, start_decimated
+    from rig.sosfilt import lift_sections
 
     lin = BenchSimulation(_scene("paper"), 1)
     aa = antialias_for(lin.model.scene.acquisition,
@@ -284,42 +286,25 @@ def test_the_fused_nonlinear_chain_refuses_a_linear_model_an_odd_block_and_unlif
         next(sim.decimated_blocks(1.0, 2.0, aa.sos))
 
 
-@pytest.mark.parametrize("height", [True, False])
-@pytest.mark.parametrize("noisy", [True, False])
-@pytest.mark.parametrize("tilt_rad", [3e-6, 0.05])
-def test_the_fused_sensor_rows_equal_the_sensors_sample_by_sample_bit_for_bit(tilt_rad, noisy,
-                                                                              height):
-    # rig.lifted's per-row sensors against the devices' own per-sample arithmetic: the lever's
-    # vectorised small-angle spot where every tilt is below SMALL_ANGLE_RAD (3e-6 rad) and the
-    # general one where one is not (0.05 rad), the mirror's height given (the nonlinear
-    # bench's) or 0 (the linear one's), the noise added or not, clipped and flagged
-    from rig.devices.optical_lever import SMALL_ANGLE_RAD, _spot
-    from rig.lifted import _accelerometer_row, _lever_row
+def test_no_kernel_of_the_fused_chain_takes_more_than_15_arguments():
+    # one tuple of parameters per system (the lifted bench, each sensor, the lifted filter,
+    # the mirror's layout, the outputs) instead of their numbers one by one
+    import inspect
 
-    rng = np.random.default_rng(7)
-    n = 301  # not a multiple of any vector width
-    dx = rng.standard_normal(n) * 2e-3
-    th = rng.standard_normal(n) * tilt_rad
-    wx, wy, wa = (rng.standard_normal(n) * 1e-4 if noisy else np.zeros(0) for _ in range(3))
-    dz = rng.standard_normal(n) * 1e-4 if height else np.zeros(n)
-    assert (np.max(np.abs(th)) > SMALL_ANGLE_RAD) == (tilt_rad > SMALL_ANGLE_RAD)
-    cphi, sphi, dist, gx, gy = math.cos(0.3), math.sin(0.3), 0.5, -250.0, 250.0
-    spots = []
-    for j in range(n):
-        u, v = _spot(float(dx[j]), float(dz[j]), float(th[j]), cphi, sphi, dist)
-        if noisy:
-            u, v = u + float(wx[j]), v + float(wy[j])
-        spots.append((u, v))
-    half = float(np.quantile(np.max(np.abs(spots), axis=1), 0.9))  # a tenth off the detector
-    out_x, out_y, flag = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
-    _lever_row(dx, dz, th, wx, wy, cphi, sphi, dist, half, gx, gy, out_x, out_y, flag)
-    acc, acc_flag = np.empty(n), np.empty(n, dtype=np.bool_)
-    r = rng.standard_normal(n) * 0.3
-    _accelerometer_row(r, wa, 10.0, 4.0, acc, acc_flag)
-    for j, (u, v) in enumerate(spots):
-        assert flag[j] == (abs(u) > half or abs(v) > half)
-        assert out_x[j] == gx * min(max(u, -half), half)
-        assert out_y[j] == gy * min(max(v, -half), half)
-        a = 10.0 * float(r[j]) + (float(wa[j]) if noisy else 0.0)
-        assert acc_flag[j] == (abs(a) > 4.0) and acc[j] == min(max(a, -4.0), 4.0)
-    assert flag.any() and not flag.all() and acc_flag.any()  # both sides of the edge seen
+    import rig.bench.fused
+    import rig.devices.accelerometer
+    import rig.devices.optical_lever
+    import rig.sosfilt
+
+    modules = (rig.bench.fused, rig.sosfilt, rig.devices.accelerometer,
+               rig.devices.optical_lever)
+    counts = {}
+    for mod in modules:
+        for name, obj in vars(mod).items():
+            func = getattr(obj, "py_func", None)  # a lazy kernel or numba's dispatcher
+            if func is not None and func.__module__ == mod.__name__:
+                counts[f"{mod.__name__}.{name}"] = len(inspect.signature(func).parameters)
+    assert {"rig.bench.fused._fused_chunk", "rig.bench.fused._nonlinear_kernel",
+            "rig.sosfilt.lifted_sections_pass",
+            "rig.devices.optical_lever.lever_row"} <= set(counts)
+    assert {k: v for k, v in counts.items() if v > 15} == {}

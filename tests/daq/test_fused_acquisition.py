@@ -1,4 +1,4 @@
-"""The acquisition through the bench's fused chain (rig.lifted, the default) equals the
+"""The acquisition through the bench's fused chain (rig.bench.fused, the default) equals the
 per-sample path (``rig_bench(lifted=False)``): a linear run (lifted) within round-off, a
 nonlinear one (fused after its per-sample bench) bit for bit; the run file says which parts ran
 per sample."""
@@ -8,12 +8,13 @@ import functools
 import numpy as np
 import pytest
 
-from daq.acquisition import acquire, rig_bench
+from daq.acquisition import acquire
+from daq.benches import rig_bench
 from daq.sinks import MemorySink
 from rig.scene import load_scene
 
 SHORT = ["acquisition.records=2", "acquisition.record_s=4", "acquisition.settle_s=10"]
-#: tests/rig/test_lifted.py: the largest difference of a series over its rms
+#: tests/rig/bench/test_fused.py: the largest difference of a series over its rms
 ROUND_OFF = 1e-11
 
 
@@ -52,7 +53,7 @@ def _same(new, old):
 @pytest.mark.parametrize("over", [[], ["source.level_vrms=1.0"]], ids=["paper", "driven_1v"])
 def test_a_fused_nonlinear_run_equals_the_per_sample_run_bit_for_bit(over):
     # the nonlinear bench runs per sample either way; after it the fused chain does the
-    # per-sample path's own arithmetic in its order (rig.lifted.advance_decimated_nonlinear)
+    # per-sample path's own arithmetic in its order (rig.bench.fused.advance_decimated_nonlinear)
     over = ["acquisition.model=nonlinear", *over]
     new, old = _run(over), _run(over, lifted=False)
     _same(new, old)
