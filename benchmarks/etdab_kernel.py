@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The nonlinear bench's step alone: etdab's loop kernel (``rig.coupled.etd_ab_kernel``) against
+"""The nonlinear bench's step alone: etdab's loop kernel (``rig.solvers.etdab.etd_ab_kernel``) against
 the same step unrolled for the matrices' zero pattern (``rig.unrolled.etdab_kernel``, what the
 acquisition runs), each with the remainder at every step and every 5 steps (the default on this
 drive, ``rig.bench.model.remainder_every``), on the paper's bench (nonlinear model, 12 states)
@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from rig import unrolled  # noqa: E402
 from rig.bench import BenchSimulation, build_model  # noqa: E402
-from rig.coupled import etd_ab_kernel  # noqa: E402
+from rig.solvers.etdab import etd_ab_kernel  # noqa: E402
 from rig.devices.source import generate  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 
@@ -44,7 +44,7 @@ def main(argv=None):
     assert model.every == 5 and every5.every == 5  # the default on the paper's drive
     every1 = build_model(scene, method="etdab", every=1)
     kernels = {  # name: (kernel, model)
-        "loop, remainder every step (rig.coupled.etd_ab_kernel)": (etd_ab_kernel, every1),
+        "loop, remainder every step (rig.solvers.etdab.etd_ab_kernel)": (etd_ab_kernel, every1),
         "unrolled, remainder every step (rig.unrolled.etdab_kernel)":
             (unrolled.etdab_kernel(*every1.etdab[:3], 4, prm.n), every1),
         "loop, remainder every 5 steps": (etd_ab_kernel, every5),

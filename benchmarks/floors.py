@@ -22,7 +22,7 @@ code with the 128-bit step as LLVM's i128 arithmetic, the three streams interlea
 numpy's state (checked).
 
 ``etd4m``: the pendulum's nonlinear paper run (target 3) by its kernel
-(:func:`rig.solvers._kernels.etd4m_kernel2h`, 3000 s, m = 10, 0.01 s rows) with its per-step
+(:func:`rig.solvers.etd4m.etd4m_kernel2h`, 3000 s, m = 10, 0.01 s rows) with its per-step
 input FIR (480 multiply-adds a step) in the loop (speed round 6) and as BLAS products (now),
 against the same kernel with the FIR taken out and read from an array computed beforehand: the
 bound of the serial chain if the FIR were free (the loop's rows, checked).
@@ -232,7 +232,7 @@ def etd4m_part(rounds: int) -> None:
     from benchmarks.targets import paper_input
     from rig.scene import load_scene
     from rig.simulate import simulate
-    from rig.solvers._kernels import etd4m_kernel2h
+    from rig.solvers.etd4m import etd4m_kernel2h
 
     chain = load_scene("ishizaki2009").chain
     base = paper_input(3000.0)
@@ -276,7 +276,7 @@ def _fir_free_kernel():
     """etd4m_kernel2h with ``acc = given[k]`` in place of its FIR (compiled from its source)."""
     import inspect
 
-    import rig.solvers._kernels as k
+    import rig.solvers.etd4m as k
     from numba import njit
 
     src = inspect.getsource(k.etd4m_kernel2h.py_func if hasattr(k.etd4m_kernel2h, "py_func")

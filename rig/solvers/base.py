@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from rig.errors import ConfigError, DivergenceError
-from rig.solvers._kernels import (NONFINITE, STEP_TOO_SMALL, momentum_to_omega,
+from rig.solvers.primitives import (NONFINITE, STEP_TOO_SMALL, momentum_to_omega,
                                   omega_to_momentum)
 
 if TYPE_CHECKING:
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 HOLDS = ("zoh", "linear")
 
 #: what a solver can step: the pendulum on a prescribed base (rig.solvers), the coupled bench
-#: (stage, reaction and pendulum as one system: rig.coupled, stepped by rig.bench)
+#: (stage, reaction and pendulum as one system: rig.solvers.coupled, stepped by rig.bench)
 PENDULUM, COUPLED_BENCH = "pendulum on a prescribed base", "coupled bench"
 
 

@@ -2,26 +2,29 @@
 
 The linear bench exactly (``Phi``, ``Gamma`` at ``h = 1 / (fs substeps)``), the nonlinear remainder
 ``f`` by the polynomial through its values at the last four nodes integrated against ``e^{A s}``
-(weights :func:`rig.coupled.etd_ab_phase_weights`). The nodes are every ``every`` steps: at
+(weights :func:`etd_ab_phase_weights`). The nodes are every ``every`` steps: at
 every step (``every`` = 1), or, by default where the nonlinearity is weak and the drive's band
 allows, every 5 (:func:`rig.bench.model.remainder_every`: the remainder carries the drive's band,
 so four nodes 5 ms apart resolve it), the polynomial extrapolated over the steps between. The
 native state is those four remainder values (``(4, rows)``; with ``every`` > 1 one more row: the
 steps since the newest node), so blocks continue bit for bit; the first steps after a start
-build it up. Kernel and equations: :func:`rig.coupled.etd_ab_kernel`, run unrolled for the
+build it up. Kernel: :func:`etd_ab_kernel` (equations: :mod:`rig.solvers.coupled`), run unrolled for the
 matrices' exact-zero pattern (:func:`rig.unrolled.etdab_kernel`: the same values).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
+from rig._jit import njit
 from rig.errors import ConfigError
 from rig.solvers.base import whole_number
 from rig.solvers.bench_base import BenchSolver
+from rig.solvers.coupled import kernel_scratch, remainder2_fast, remainder_n
 
 ETDAB_ORDER = 4  # past remainder values per step (the order of the method)
 
@@ -74,3 +77,164 @@ class Etdab(BenchSolver):
         if self.every > 1:
             hist = np.vstack([hist, np.full((1, nf), float(phase[0]))])
         return z_out, accel, hist
+
+
+# ================================================================================================
+# compiled kernels
+# ================================================================================================
+
+def etd_ab_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, lag: int = 0
+                   ) -> np.ndarray:
+    """Weights of :func:`etd_ab_kernel` with the remainder at every step:
+    ``etd_ab_phase_weights(a, rows, h, order, 1, lag)[0][0]``, (order, nf, nz)."""
+    return etd_ab_phase_weights(a, rows, h, order, 1, lag)[0][0]
+
+
+def etd_ab_phase_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, every: int,
+                         lag: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of :func:`etd_ab_kernel` for a remainder evaluated at every ``every``-th step
+    (its nodes ``H = every h`` apart): ``(w, lagv)``.
+
+    ``w`` (every, order, nf, nz) (transposed for the kernel's loop): for the step that starts
+    ``i`` steps after the newest node, ``W^(i)_j = int_0^h e^{A(h-s)} P L_j((i h + s) / H) ds``,
+    where ``P`` puts the remainder's ``nf`` rows into z and ``L_j`` is the Lagrange polynomial
+    through the nodes ``x = -lag, .., -(lag + order - 1)`` (in units of H) that is 1 at ``x =
+    -(lag + j)``. ``lagv`` (every, order): ``L_j(i / every)``, the remainder at that step's start.
+    Read off one matrix exponential of the system augmented by the monomials (Van Loan): block m
+    of its first block row is ``int_0^h e^{A(h-s)} P (s/h)^m ds / m!``; ``L_j(i / every + u /
+    every)`` is expanded in powers of ``u = s / h`` (``every`` = 1: the powers of ``L_j``'s own
+    coefficients, exactly)."""
+    a = np.asarray(a, float)
+    nz = a.shape[0]
+    nf = rows.size
+    size = nz + order * nf
+    big = np.zeros((size, size))
+    big[:nz, :nz] = a * h
+    big[rows, nz + np.arange(nf)] = h
+    for m in range(order - 1):
+        r0 = nz + m * nf
+        big[r0:r0 + nf, r0 + nf:r0 + 2 * nf] = np.eye(nf)
+    import scipy.linalg
+
+    e = scipy.linalg.expm(big)
+    ks = [math.factorial(m) * e[:nz, nz + m * nf:nz + (m + 1) * nf] for m in range(order)]
+    nodes = -(lag + np.arange(order, dtype=float))
+    poly = np.polynomial.polynomial
+    w = np.zeros((every, order, nz, nf))
+    lagv = np.zeros((every, order))
+    for j in range(order):
+        others = np.delete(nodes, j)
+        coef = poly.polyfromroots(others) / np.prod(nodes[j] - others)
+        for i in range(every):
+            if every == 1:
+                comp = coef
+            else:
+                comp = np.zeros(1)
+                for m, cm in enumerate(coef):
+                    comp = poly.polyadd(comp, cm * poly.polypow([i / every, 1.0 / every], m))
+            lagv[i, j] = poly.polyval(i / every, coef)
+            for m in range(min(order, comp.size)):
+                w[i, j] += comp[m] * ks[m]
+    return np.ascontiguousarray(w.transpose(0, 1, 3, 2)), lagv
+
+
+def etd_ab_sparsity(w: np.ndarray, a_rows: np.ndarray) -> tuple[int, int]:
+    """Where :func:`etd_ab_kernel`'s products are not identically zero: ``w_rows``, the rows of
+    z the weights reach (a prefix: the source's reconstruction filter, last in z, never sees the
+    remainder), and ``a_cols``, the columns of ``a_rows`` in use (a prefix). Skipping exact zeros
+    leaves every sum's value unchanged (finite states); it saves ~5 % of a step (skipping
+    Phi's zero blocks by ranges per column cost more than it saved: the loops no longer
+    vectorise)."""
+    rows = np.flatnonzero(np.abs(w).reshape(-1, w.shape[-1]).sum(axis=0))
+    cols = np.flatnonzero(np.abs(a_rows).sum(axis=0))
+    return int(rows[-1] + 1 if rows.size else 0), int(cols[-1] + 1 if cols.size else 0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
+                  m_stage, reaction, th0, q_idx, wc, rows, a_rows, phi_t, gam, w, lagv, w_rows,
+                  a_cols, nsub, have, hist, phase, v, z, z_out, ax_out):
+    """Exponential Adams-Bashforth over len(v) DAC intervals, ``nsub`` steps of h each::
+
+        z_{k+1} = Phi z_k + Gamma v + sum_j W^(i)_j f(z at node n - lag - j),  j = 0 .. order - 1
+
+    (``phi_t`` = Phi transposed and ``gam`` over h; ``w``, ``lagv`` from
+    :func:`etd_ab_phase_weights`, ``every`` = len(w), lag = len(hist) - order): the linear
+    bench and the held source exactly, the remainder's integral over the step by the polynomial
+    through its values at ``order`` past nodes, which are every ``every``-th step; ``i`` is the
+    step's place after the newest node (``phase[0]``, in/out: 0 .. every - 1 at the block's
+    start). At a node, one evaluation of f at the step's own state, which also gives the
+    nonlinear x0''; between nodes x0'' is the linear row plus f's first row interpolated
+    (``lagv``). ``ax_out[k]`` = x0'' and ``z_out[k]`` = z at DAC instant k. ``every`` = 1: f at
+    every step (with lag >= 1 the step does not wait for the newest evaluation); the
+    acquisition's default is :func:`rig.bench.model.remainder_every`.
+
+    ``w_rows, a_cols`` (:func:`etd_ab_sparsity`) skip exact zeros of the products. ``hist``
+    (lag + order, nf) holds f at the last nodes (newest first) and is updated; ``have`` False:
+    none yet (a start, which is a node: every entry is taken as f(z_0)). ``z`` (in/out) ends at
+    the instant len(v). The rows are summed in a fixed order, so block splits reproduce one-shot
+    runs bit for bit. Compiled with FMA contraction (``fastmath={"contract"}``, no reordering):
+    the acquisition runs the same arithmetic unrolled for the matrices' zero pattern
+    (:func:`rig.unrolled.etdab_kernel`, the same values), this loop is its reference and the
+    path of benches too large to unroll."""
+    n, two, nz, nf, work, alpha = kernel_scratch(mass, rows, z)
+    every = w.shape[0]
+    order = w.shape[1]
+    nh = hist.shape[0]
+    lag = nh - order
+    f = np.empty(nf)
+    zn = np.empty(nz)
+    zw = np.empty(nz)
+    first = not have
+    ph = phase[0]
+    ax = 0.0
+    for kk in range(v.shape[0]):
+        vk = v[kk]
+        for sub in range(nsub):
+            if ph == 0:
+                if two:
+                    ax = remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0,
+                                          q_idx, wc, a_rows, a_cols, z, f)
+                else:
+                    ax = remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
+                                      m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha,
+                                      f)
+                if first:
+                    first = False
+                    for j in range(nh):
+                        for i in range(nf):
+                            hist[j, i] = f[i]
+                else:
+                    for j in range(nh - 1, 0, -1):
+                        for i in range(nf):
+                            hist[j, i] = hist[j - 1, i]
+                    for i in range(nf):
+                        hist[0, i] = f[i]
+            elif sub == 0:
+                ax = 0.0
+                for col in range(a_cols):
+                    ax += a_rows[0, col] * z[col]
+                for j in range(order):
+                    ax += lagv[ph, j] * hist[lag + j, 0]
+            if sub == 0:
+                ax_out[kk] = ax
+                for r in range(nz):
+                    z_out[kk, r] = z[r]
+            for r in range(nz):
+                zn[r] = gam[r] * vk
+                zw[r] = 0.0
+            for col in range(nz):
+                zc = z[col]
+                for r in range(nz):
+                    zn[r] += phi_t[col, r] * zc
+            for j in range(order - 1, -1, -1):
+                for i in range(nf):
+                    x = hist[lag + j, i]
+                    for r in range(w_rows):
+                        zw[r] += w[ph, j, i, r] * x
+            for r in range(nz):
+                z[r] = zn[r] + zw[r]
+            ph += 1
+            if ph == every:
+                ph = 0
+    phase[0] = ph

@@ -1,5 +1,5 @@
 """The etdab step unrolled for one exact-zero pattern (rig.unrolled) gives the loop kernel's
-values (rig.coupled.etd_ab_kernel) bit for bit, whatever the pattern, chain, history lag, steps
+values (rig.solvers.etdab.etd_ab_kernel) bit for bit, whatever the pattern, chain, history lag, steps
 per DAC interval or block split; its generated module is written once and reused."""
 
 import math
@@ -9,7 +9,7 @@ import pytest
 
 from rig import unrolled
 from rig.bench import build_model
-from rig.coupled import etd_ab_kernel, etd_ab_phase_weights
+from rig.solvers.etdab import etd_ab_kernel, etd_ab_phase_weights
 from rig.scene import load_scene
 from rig.solvers.exact import discretise
 

@@ -8,7 +8,7 @@ import pytest
 from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers import SOLVERS, integrate, solver_named
-from rig.solvers._kernels import etd3m_kernel
+from rig.solvers.etd3m import etd3m_kernel
 from rig.solvers.etd3m import etd3m_coefficients
 from rig.solvers.exact import discretise, lift_linear
 from rig.simulate import BaseInput, simulate

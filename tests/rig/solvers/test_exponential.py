@@ -9,7 +9,8 @@ import pytest
 
 from rig.errors import DivergenceError
 from rig.solvers import SOLVERS, integrate, solver_named
-from rig.solvers._kernels import SINCOS_POLY_MAX, _sincos_poly, etd3_kernel
+from rig.solvers.etd3 import etd3_kernel
+from rig.solvers.primitives import SINCOS_POLY_MAX, sincos_poly
 from rig.solvers.etd3 import etd3_coefficients
 from rig.solvers.rhs import nonlinear_remainder, rhs
 from rig.scene import load_scene
@@ -43,7 +44,7 @@ def paper_input(seconds, seed=5):
 def test_sincos_polynomial_is_within_two_ulp_of_libm():
     @numba.njit
     def both(x):
-        return _sincos_poly(x)
+        return sincos_poly(x)
 
     for x in np.linspace(-SINCOS_POLY_MAX, SINCOS_POLY_MAX, 40001):
         s, c = both(x)
