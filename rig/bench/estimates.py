@@ -27,7 +27,7 @@ import numpy as np
 
 from rig.solvers import Exact, integrate
 from rig.solvers.etdab import ETDAB_ORDER
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 from rig.scene import Scene
 from rig.devices.source import generate, start_source
 from rig.bench.model import BenchModel, build_model

@@ -30,7 +30,7 @@ from rig.errors import ConfigError
 from rig.solvers import ExactBench, solver_named
 from rig.solvers.coupled import CoupledParams, coupled_params
 from rig.solvers.etdab import ETDAB_ORDER, etd_ab_phase_weights, etd_ab_sparsity
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 from rig.solvers.lawson4 import lawson_matrices
 from rig.devices.optical_lever import OpticalLever
 from rig.scene import Scene

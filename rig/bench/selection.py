@@ -49,7 +49,7 @@ from rig.chain import Chain
 from rig._jit import njit
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers.coupled import coupled_params, kernel_scratch, remainder_fast_at
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 from rig.scene import Scene
 from rig.scene_memo import per_scene
 from rig.devices.source import generate, start_source

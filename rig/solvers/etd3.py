@@ -20,10 +20,10 @@ import numpy as np
 
 
 from rig._jit import njit
+from rig.linear import discretise, monomial_integrals
 from rig.solvers.primitives import NONFINITE, OK, sincos4, store
 from rig.solvers.remainder import nsplit2, nsplit_n
 from rig.solvers.base import SubstepSolver
-from rig.solvers.exact import discretise
 
 if TYPE_CHECKING:
     from rig.chain import Chain
@@ -32,32 +32,6 @@ if TYPE_CHECKING:
 #: the two Gauss-Legendre nodes c_1,2 = 1/2 -+ sqrt(3)/6 (the model: the comment above
 #: :func:`etd3_kernel`)
 ETD3_NODES = (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0)
-
-
-def _expm(a):
-    """scipy.linalg.expm, imported on first use (importing rig.solvers stays light)."""
-    import scipy.linalg
-
-    return scipy.linalg.expm(a)
-
-
-def _phi_integrals(a: np.ndarray, n: int, h: float, kmax: int):
-    """e^{Ah} and K_k = int_0^h e^{A(h-s)} E (s/h)^k ds for k = 0..kmax (E = [0; I], (2n, n)).
-
-    One matrix exponential of the augmented system x' = A x + E y_0, y_k' = y_{k+1} (in t / h):
-    block (0, k) of ``expm`` is int_0^h e^{A(h-s)} E (s/h)^k / k! ds.
-    """
-    n2 = a.shape[0]
-    size = n2 + (kmax + 1) * n
-    big = np.zeros((size, size))
-    big[:n2, :n2] = a * h
-    big[n:n2, n2:n2 + n] = np.eye(n) * h
-    for k in range(kmax):
-        r0 = n2 + k * n
-        big[r0:r0 + n, r0 + n:r0 + 2 * n] = np.eye(n)
-    e = _expm(big)
-    ks = [math.factorial(k) * e[:n2, n2 + k * n:n2 + (k + 1) * n] for k in range(kmax + 1)]
-    return e[:n2, :n2].copy(), ks
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,14 +70,15 @@ def etd3_coefficients(chain: Chain, h: float, hold: str) -> Etd3Coefficients:
     a, b = chain.state_space()
     n = chain.n
     c = ETD3_NODES
-    phi, ks = _phi_integrals(a, n, h, 1)
+    rows = np.arange(n, 2 * n)  # E = [0; I]: the remainder enters omega'
+    phi, ks = monomial_integrals(a, rows, h, 2)
     _, g0, g1 = discretise(a, b, h, hold)
     # l_0(x) = (x - c_2)/(c_1 - c_2), l_1(x) = (x - c_1)/(c_2 - c_1)
     wq = np.array([(-c[1] * ks[0] + ks[1]) / (c[0] - c[1]),
                    (-c[0] * ks[0] + ks[1]) / (c[1] - c[0])])
     phic, g0c, g1c, pc = [], [], [], []
     for ci in c:
-        ph, kc = _phi_integrals(a, n, ci * h, 0)
+        ph, kc = monomial_integrals(a, rows, ci * h, 1)
         _, gc0, gc1 = discretise(a, b, ci * h, hold)
         phic.append(ph)
         g0c.append(gc0[:, 0])

@@ -20,20 +20,14 @@ import numpy as np
 from rig.errors import ConfigError
 
 from rig._jit import njit
+from rig.linear import expm, monomial_integrals
 from rig.solvers.primitives import NONFINITE, OK, sincos4, sincos_pair, store
 from rig.solvers.remainder import nsplit2, nsplit_n
 from rig.solvers.base import HOLDS, PendulumSolver, Refinement, multisample_refinement
-from rig.solvers.etd3 import ETD3_NODES, Etd3, _phi_integrals, etd3_hist2
+from rig.solvers.etd3 import ETD3_NODES, Etd3, etd3_hist2
 
 if TYPE_CHECKING:
     from rig.chain import Chain
-
-
-def _expm(a):
-    """scipy.linalg.expm, imported on first use (importing rig.solvers stays light)."""
-    import scipy.linalg
-
-    return scipy.linalg.expm(a)
 
 
 # ================================================================================================
@@ -121,9 +115,9 @@ def _piece_integral(a: np.ndarray, n: int, t_end: float, s_a: float, s_b: float,
     (2n, n): e^{A(t_end - s_b)} sum_k p~_k K_k(s_b - s_a), p~ p in x = (s - s_a)/(s_b - s_a)."""
     length = s_b - s_a
     coef = poly(np.polynomial.Polynomial([s_a, length])).coef
-    _, ks = _phi_integrals(a, n, length, max(coef.size - 1, 0))
+    _, ks = monomial_integrals(a, np.arange(n, 2 * n), length, max(coef.size - 1, 0) + 1)
     acc = sum(cf * ks[k] for k, cf in enumerate(coef))
-    return _expm(a * (t_end - s_b)) @ acc
+    return expm(a * (t_end - s_b)) @ acc
 
 
 def check_hold_and_m(hold: str, m) -> None:
@@ -197,7 +191,7 @@ def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoe
     poly = np.polynomial.Polynomial
     lag = [poly([-c[1], 1.0 / big_h]) / (c[0] - c[1]), poly([-c[0], 1.0 / big_h]) / (c[1] - c[0])]
     wt = staircase_weights(a, n, h_in, m, la, c, lag)
-    phic = np.array([_expm(a * (ci * big_h)) for ci in c])
+    phic = np.array([expm(a * (ci * big_h)) for ci in c])
     nodes = (c[0] - 1.0, c[1] - 1.0)
     xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
                     (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
@@ -207,7 +201,7 @@ def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoe
     widths = np.array([e0, e1, 4 * n2 * n, 3 * n2 * n, 2 * n2 * n], dtype=np.int64)
     arr = np.ascontiguousarray
     return Etd3mCoefficients(
-        m=m, phi=arr(_expm(a * big_h)), phic=arr(phic),
+        m=m, phi=arr(expm(a * big_h)), phic=arr(phic),
         wt=arr(wt.reshape(m + la, ETD3M_BLOCKS * n2 * n)), wq=arr(wt[:, :2].sum(axis=0)),
         pc=arr(wt[:, :1:-1].sum(axis=0)), xp=arr(xp), ck=ck, lohi=lohi, widths=widths,
         **linear_parts(chain, b))

@@ -50,6 +50,7 @@ import numpy as np
 
 
 from rig._jit import njit
+from rig.linear import expm
 from rig.solvers.primitives import NONFINITE, OK, sincos6, sincos_pair, store
 from rig.solvers.remainder import n2_at, nsplit2, nsplit2h, nsplit_n
 from rig.solvers.base import Refinement, multisample_refinement
@@ -60,13 +61,6 @@ from rig.solvers.etd3m import (MultiSample, _piece_integral, check_hold_and_m,
 
 if TYPE_CHECKING:
     from rig.chain import Chain
-
-
-def _expm(a):
-    """scipy.linalg.expm, imported on first use (importing rig.solvers stays light)."""
-    import scipy.linalg
-
-    return scipy.linalg.expm(a)
 
 
 _R15 = math.sqrt(15.0)
@@ -162,13 +156,13 @@ def etd4m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd4mCoe
     pn = np.array([[_piece_integral(a, n, ci * big_h, 0.0, ci * big_h, lprev[j])
                     for j in range(3)] for ci in c])
     xp = np.array([[lprev[j](0.5 * ci * big_h) for j in range(3)] for ci in c])
-    phic = np.array([_expm(a * (ci * big_h)) for ci in c])
+    phic = np.array([expm(a * (ci * big_h)) for ci in c])
     ck, lohi = sawtooth_corrections(c, m, la, h_in)
     widths = np.array([min(int(math.ceil(ci * m * (1.0 + 1e-12) - 1e-12)) + la, m + la)
                        for ci in c], dtype=np.int64)
     arr = np.ascontiguousarray
     return Etd4mCoefficients(
-        m=m, phi=arr(_expm(a * big_h)), phic=arr(phic),
+        m=m, phi=arr(expm(a * big_h)), phic=arr(phic),
         wt=arr(wt.reshape(m + la, ETD4M_SETS * n2 * n)), wq=arr(wt[:, :3].sum(axis=0)),
         pn=arr(pn), xp=arr(xp), ck=ck, lohi=lohi, widths=widths, **linear_parts(chain, b))
 

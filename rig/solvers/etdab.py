@@ -14,13 +14,13 @@ matrices' exact-zero pattern (:func:`rig.unrolled.etdab_kernel`: the same values
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from rig._jit import njit
+from rig.linear import monomial_integrals
 from rig.errors import ConfigError
 from rig.solvers.base import whole_number
 from rig.solvers.bench_base import BenchSolver
@@ -104,20 +104,9 @@ def etd_ab_phase_weights(a: np.ndarray, rows: np.ndarray, h: float, order: int, 
     of its first block row is ``int_0^h e^{A(h-s)} P (s/h)^m ds / m!``; ``L_j(i / every + u /
     every)`` is expanded in powers of ``u = s / h`` (``every`` = 1: the powers of ``L_j``'s own
     coefficients, exactly)."""
-    a = np.asarray(a, float)
-    nz = a.shape[0]
+    nz = np.shape(a)[0]
     nf = rows.size
-    size = nz + order * nf
-    big = np.zeros((size, size))
-    big[:nz, :nz] = a * h
-    big[rows, nz + np.arange(nf)] = h
-    for m in range(order - 1):
-        r0 = nz + m * nf
-        big[r0:r0 + nf, r0 + nf:r0 + 2 * nf] = np.eye(nf)
-    import scipy.linalg
-
-    e = scipy.linalg.expm(big)
-    ks = [math.factorial(m) * e[:nz, nz + m * nf:nz + (m + 1) * nf] for m in range(order)]
+    _, ks = monomial_integrals(a, rows, h, order)
     nodes = -(lag + np.arange(order, dtype=float))
     poly = np.polynomial.polynomial
     w = np.zeros((every, order, nz, nf))

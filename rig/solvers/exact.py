@@ -16,6 +16,7 @@ from typing import ClassVar
 import numpy as np
 
 from rig._jit import njit
+from rig.linear import discretise
 from rig.solvers.primitives import NONFINITE, OK, store
 from rig.solvers.base import Refinement, SubstepSolver
 
@@ -23,36 +24,6 @@ from rig.solvers.base import Refinement, SubstepSolver
 # ================================================================================================
 # exact discretisation of the linear model
 # ================================================================================================
-
-def discretise(a, b, h, hold="zoh"):
-    """Exact discretisation of z' = A z + B u over one step h for a held input (Van Loan).
-
-    With ``u(t_k + s) = u_k + (u_{k+1} - u_k) s / h`` (``linear``; ``zoh`` drops the second term)::
-
-        z_{k+1} = Phi z_k + Gamma0 u_k + Gamma1 (u_{k+1} - u_k)
-        Phi = e^{A h},  Gamma0 = int_0^h e^{A r} dr B,  Gamma1 = int_0^h e^{A (h - r)} B r / h dr
-
-    all read off ``expm([[A h, B h, 0], [0, 0, I], [0, 0, 0]]) = [[Phi, Gamma0, Gamma1], ...]``.
-    No one-sample delay and no start-up transient are introduced (unlike ``zpk2sos`` of a hold
-    model or ``dlsim`` with first-order hold from a zero state).
-
-    Returns (Phi (N, N), Gamma0 (N, m), Gamma1 (N, m)); Gamma1 is zero for ``zoh``.
-    """
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    nz, m = b.shape
-    big = np.zeros((nz + 2 * m, nz + 2 * m))
-    big[:nz, :nz] = a * h
-    big[:nz, nz:nz + m] = b * h
-    big[nz:nz + m, nz + m:] = np.eye(m)
-    import scipy.linalg
-
-    e = scipy.linalg.expm(big)
-    phi = e[:nz, :nz].copy()
-    g0 = e[:nz, nz:nz + m].copy()
-    g1 = e[:nz, nz + m:].copy() if hold == "linear" else np.zeros_like(g0)
-    return phi, g0, g1
-
 
 # -- lifted to the output rate --------------------------------------------------------------------
 #

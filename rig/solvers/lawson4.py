@@ -16,6 +16,7 @@ from typing import ClassVar
 import numpy as np
 
 from rig._jit import njit
+from rig.linear import van_loan
 from rig.solvers.bench_base import BenchSolver
 from rig.solvers.coupled import kernel_scratch, remainder_at
 
@@ -51,12 +52,7 @@ def lawson_matrices(a: np.ndarray, b: np.ndarray, h: float):
     nz = a.shape[0]
     out = []
     for t in (h, h / 2):
-        big = np.zeros((nz + 1, nz + 1))
-        big[:nz, :nz] = a * t
-        big[:nz, nz] = b[:, 0] * t
-        import scipy.linalg
-
-        e = scipy.linalg.expm(big)
+        e = van_loan(a, np.asarray(b, float)[:, :1], t, ramp=False)
         out.append((np.ascontiguousarray(e[:nz, :nz]), np.ascontiguousarray(e[:nz, nz])))
     (e_h, g_h), (e_2, g_2) = out
     return e_h, e_2, g_h, g_2

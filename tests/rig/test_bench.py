@@ -381,7 +381,7 @@ def test_coupled_bench_difference_from_linear_is_the_first_order_perturbation():
     phi, gam = m.phi, m.gamma
     bf = np.zeros((m.n_states, p.rows.size))
     bf[p.rows, np.arange(p.rows.size)] = 1.0
-    from rig.solvers.exact import discretise
+    from rig.linear import discretise
 
     _, gf0, gf1 = discretise(m.a, bf, 1e-3, "linear")
     v, _ = generate(m.source, start_source(m.source, np.random.SeedSequence(8).spawn(4)[0]),

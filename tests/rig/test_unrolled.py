@@ -11,7 +11,7 @@ from rig import unrolled
 from rig.bench import build_model
 from rig.solvers.etdab import etd_ab_kernel, etd_ab_phase_weights
 from rig.scene import load_scene
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 
 BETA2 = [f"pendulum.r1_m={0.999 * 9.80665 / (2 * math.pi * 2.4783) ** 2!r}", "pendulum.eps=1.001",
          f"pendulum.f2_hz={math.sqrt(0.999 * 9.80665 / 0.000846) / (2 * math.pi)!r}"]

@@ -10,7 +10,8 @@ from rig.errors import ConfigError, DivergenceError
 from rig.solvers import SOLVERS, integrate, solver_named
 from rig.solvers.etd3m import etd3m_kernel
 from rig.solvers.etd3m import etd3m_coefficients
-from rig.solvers.exact import discretise, lift_linear
+from rig.linear import discretise
+from rig.solvers.exact import lift_linear
 from rig.simulate import BaseInput, simulate
 
 from chains import (assert_blocks_reproduce_one_shot, dop853_fixed, multisample_run,
