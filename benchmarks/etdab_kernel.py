@@ -55,7 +55,7 @@ def main(argv=None):
         z, hist = z0.copy(), np.zeros((4, prm.rows.size))
         z_out, ax = np.empty((n, z.size)), np.empty(n)
         c = time.process_time()
-        kernel(*prm.args(), *m.etdab, 1, False, hist, np.zeros(1, np.int64), v, z, z_out, ax)
+        kernel(prm.args(), m.etdab, 1, False, hist, np.zeros(1, np.int64), v, z, z_out, ax)
         return time.process_time() - c, (z_out, ax, z, hist)
 
     outs = {k: run(*f)[1] for k, f in kernels.items()}  # warm-up (compiled code loaded)

@@ -46,7 +46,7 @@ def main(argv=None):
     for name, weights in (("nonlinear", w), ("linear", np.zeros_like(w))):  # no remainder
         z, hist = np.array(sim.state.z, dtype=float), np.zeros((4, prm.rows.size))
         z_out = np.empty((n, z.size))
-        kern(*prm.args(), phi_t, gam, weights, lagv, w_rows, a_cols, 1, False, hist,
+        kern(prm.args(), (phi_t, gam, weights, lagv, w_rows, a_cols), 1, False, hist,
              np.zeros(1, np.int64), v, z, z_out, np.empty(n))
         runs[name] = z_out
     th = model.slices["theta_rad"]

@@ -12,8 +12,8 @@ linear bench is ``z' = A z + B V`` (:meth:`rig.devices.stage.Stage.state_space` 
 reconstruction filter and the high-pass ``q' = x0'' - w_c q``), and its exact zero-order-hold
 step ``z_{k+1} = Phi z_k + Gamma V_k`` (:func:`rig.solvers.exact.discretise`, Van Loan's matrix
 exponential). :func:`build_model` also precomputes what the nonlinear path needs: the coupled
-kernels' parameters and matrices (lawson4, etdab: :mod:`rig.solvers.coupled`) or the stage-only exact
-step at ``h / oversample`` (the prescribed-stage methods rk4, gauss4, dop853, reaction off).
+kernels' parameters and matrices (lawson4, etdab: :mod:`rig.solvers.coupled`) or the stage-only
+exact step at ``h / oversample`` (the prescribed-stage methods rk4, gauss4, dop853, reaction off).
 Cost: a few matrix exponentials of the ``(n_states, n_states)`` system per build.
 """
 
@@ -29,7 +29,7 @@ from rig.chain import Chain
 from rig.errors import ConfigError
 from rig.solvers import ExactBench, solver_named
 from rig.solvers.coupled import CoupledParams, coupled_params
-from rig.solvers.etdab import ETDAB_ORDER, etd_ab_phase_weights, etd_ab_sparsity
+from rig.solvers.etdab import ETDAB_ORDER, EtdabMatrices, etd_ab_phase_weights, etd_ab_sparsity
 from rig.linear import discretise
 from rig.solvers.lawson4 import lawson_matrices
 from rig.devices.optical_lever import OpticalLever
@@ -96,7 +96,7 @@ class BenchModel:
     coupled: CoupledParams | None = None
     lawson: tuple | None = None
     selection: dict | None = None
-    etdab: tuple | None = None
+    etdab: EtdabMatrices | None = None
 
     @property
     def chain(self) -> Chain:
@@ -282,8 +282,8 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
             phi_s, g_s, _ = discretise(a, b, hs, "zoh")
             phi_t = np.ascontiguousarray(phi_s.T)
             w, lagv = etd_ab_phase_weights(a, prm.rows, hs, ETDAB_ORDER, every)
-            kw = dict(coupled=prm, etdab=(phi_t, np.ascontiguousarray(g_s[:, 0]), w, lagv)
-                      + etd_ab_sparsity(w, prm.a_rows))
+            kw = dict(coupled=prm, etdab=EtdabMatrices(phi_t, np.ascontiguousarray(g_s[:, 0]), w,
+                                                       lagv, *etd_ab_sparsity(w, prm.a_rows)))
     elif model == "nonlinear":
         sa, sb, srow, _ = _bench_state_space(stage, chain, acc, with_chain=False, source=source)
         sphi, sg0, _ = discretise(sa, sb, h / oversample, "zoh")

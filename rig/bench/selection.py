@@ -16,8 +16,8 @@ and with the run length up to a few amplitude time constants ``tau = Q / (pi f)`
 The predictor: first-order perturbation
 ---------------------------------------
 ``z_nl = z_lin + d + O(theta^2 d)`` with ``d' = A d + f(z_lin(t))``, ``f`` the nonlinear
-remainder of the accelerations (:mod:`rig.solvers.coupled`): the linearisation error to first order is
-the linear bench's response to the remainder evaluated along the *linear* trajectory. It is
+remainder of the accelerations (:mod:`rig.solvers.coupled`): the linearisation error to first
+order is the linear bench's response to the remainder evaluated along the *linear* trajectory. It is
 computed for the scene's own source type, level, initial state and run length on a surrogate
 drive: the scene's source regenerated at a reduced rate (>= 8 times the highest source or
 pendulum frequency; its own random stream, so the choice is a property of the scene, not of the
@@ -156,8 +156,8 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
     for r, child in enumerate(np.random.SeedSequence(PREDICTOR_ENTROPY).spawn(k_runs)):
         v, _ = generate(src, start_source(src, child), n_tot + 1)
         z, d = z0.copy(), np.zeros(nz)
-        first_order_kernel(*prm.args(), phi, g0c, g1c, gf0, gf1, v, z, d, k_rec,
-                                    batches, sums[r], peaks[r])
+        first_order_kernel(prm.args(), phi, g0c, g1c, gf0, gf1, v, z, d, k_rec,
+                           batches, sums[r], peaks[r])
         if not (np.all(np.isfinite(z)) and np.all(np.isfinite(d))):
             raise DivergenceError("the linearisation-error predictor diverged (is the linear "
                                   "bench unstable?)", 0.0, z)
@@ -292,9 +292,7 @@ def select_model(scene: Scene) -> dict:
 # ================================================================================================
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
-                       m_stage, reaction, th0, q_idx, wc, rows, a_rows, phi, g0, g1, gf0, gf1, v,
-                       z, d, k_rec, n_batches, sums, peaks):
+def first_order_kernel(prm, phi, g0, g1, gf0, gf1, v, z, d, k_rec, n_batches, sums, peaks):
     """Linear bench z and its first-order linearisation error d over len(v) - 1 intervals.
 
     z_{k+1} = Phi z_k + G0 v_k + G1 (v_{k+1} - v_k);  d_{k+1} = Phi d_k + GF0 f_k + GF1 (f_{k+1}
@@ -308,9 +306,8 @@ def first_order_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm
     For n = 2, f is :func:`remainder2_fast`'s (polynomial sines, one division: the dense
     equations rounded differently, a few ulp), as etdab's; the state products run row beside
     row (each row's sum over the columns in order, as a loop per row would form it)."""
-    n, two, nz, nf, work, alpha = kernel_scratch(mass, rows, z)
-    prm = (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
-           reaction, th0, q_idx, wc, rows, a_rows)
+    n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
+    th0, a_rows = prm.th0, prm.a_rows
     f = np.empty(nf)
     fn = np.empty(nf)
     zt = np.empty(nz)

@@ -21,7 +21,8 @@ lawson4    4      lawson4      coupled bench: Lawson RK4, the linear bench exact
 etdab      4      etdab        coupled bench: exponential Adams-Bashforth 4 (the default)
 =========  =====  ===========  ============================================================
 
-The last two step the coupled bench (:mod:`rig.bench`, kernels in :mod:`rig.solvers.coupled`), as does
+The last two step the coupled bench (:mod:`rig.bench`; its equations in
+:mod:`rig.solvers.coupled`), as does
 :class:`ExactBench` (the exact linear bench, ``acquisition.model = "linear"``, not a method name);
 the others the pendulum on a prescribed base.
 

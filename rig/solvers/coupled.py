@@ -6,8 +6,8 @@ The bench state is the one of :mod:`rig.bench` (named slices there)::
 
     z = (i, x0, v0, theta (n), omega (n) [, q] [, r ...])
 
-and its exact linear model is ``z' = A z + B V`` (:meth:`rig.devices.stage.Stage.state_space` plus the
-source's reconstruction filter and the accelerometer's high-pass). The nonlinear bench differs from
+and its exact linear model is ``z' = A z + B V`` (:meth:`rig.devices.stage.Stage.state_space`
+plus the source's reconstruction filter and the accelerometer's high-pass). The nonlinear bench differs from
 it only in the mechanical accelerations: with ``F_ext = Kf i - k x0 - c v0`` the stage and the
 chain obey::
 
@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -50,6 +50,33 @@ from rig.solvers.primitives import SINCOS_POLY_MAX, sincos_poly
 if TYPE_CHECKING:
     from rig.chain import Chain
     from rig.devices.stage import Stage
+
+
+class CoupledArgs(NamedTuple):
+    """The coupled bench as every kernel here takes it, one argument (:meth:`CoupledParams.args`;
+    the fields as :class:`CoupledParams`'s)."""
+
+    mass: np.ndarray
+    length: np.ndarray
+    com: np.ndarray
+    inertia: np.ndarray
+    gamma: np.ndarray
+    relative: bool
+    g: float
+    hc: np.ndarray
+    s: np.ndarray
+    cm: np.ndarray
+    mtot: float
+    kf: float
+    k: float
+    c: float
+    m_stage: float
+    reaction: bool
+    th0: int
+    q_idx: int
+    wc: float
+    rows: np.ndarray
+    a_rows: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,12 +120,12 @@ class CoupledParams:
     rows: np.ndarray
     a_rows: np.ndarray
 
-    def args(self) -> tuple:
-        """The leading kernel arguments, in kernel order."""
-        return (self.mass, self.length, self.com, self.inertia, self.gamma, self.relative,
-                self.g, self.hc, self.s, self.cm, self.mtot, self.kf, self.k, self.c,
-                self.m_stage, self.reaction, self.th0, self.q_idx, self.wc, self.rows,
-                self.a_rows)
+    def args(self) -> CoupledArgs:
+        """The kernels' first argument."""
+        return CoupledArgs(
+            self.mass, self.length, self.com, self.inertia, self.gamma, self.relative, self.g,
+            self.hc, self.s, self.cm, self.mtot, self.kf, self.k, self.c, self.m_stage,
+            self.reaction, self.th0, self.q_idx, self.wc, self.rows, self.a_rows)
 
 
 def coupled_params(chain: Chain, stage: Stage, a: np.ndarray, *, q_idx: int = -1,
@@ -125,12 +152,15 @@ def coupled_params(chain: Chain, stage: Stage, a: np.ndarray, *, q_idx: int = -1
 # ================================================================================================
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _accel(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, reaction, th0,
-           z, work, alpha):
+def _accel(prm, z, work, alpha):
     """Stage acceleration x0'' (returned) and alpha = theta'' of the coupled nonlinear bench at
     state z. ``work`` (n, 7) scratch. Backward pass: articulated inertia (c11, c12, c22) and the
     bias forces split into the part at x0'' = 0 (cb1, cb2; beta) and the part per unit x0''
-    (ca1, ca2; beta_a: the inertial force -m x0'' of every body in the base frame)."""
+    (ca1, ca2; beta_a: the inertial force -m x0'' of every body in the base frame). ``prm``:
+    :class:`CoupledArgs`."""
+    mass, length, com, inertia, gamma = prm.mass, prm.length, prm.com, prm.inertia, prm.gamma
+    relative, g, kf, k, c = prm.relative, prm.g, prm.kf, prm.k, prm.c
+    m_stage, reaction, th0 = prm.m_stage, prm.reaction, prm.th0
     n = mass.shape[0]
     om0 = th0 + n
     c11 = 0.0
@@ -210,7 +240,7 @@ def _accel(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, re
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _dense2_equations(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s1, c1, s2, c2):
+def _dense2_equations(prm, z, s1, c1, s2, c2):
     """The dense n = 2 equations of :func:`_accel2` at state ``z``, given the angles' sines and
     cosines ``s1, c1, s2, c2``: ``(b0, r0, u1, u2, h11, h12, h22, r1, r2)`` of::
 
@@ -221,6 +251,8 @@ def _dense2_equations(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s
     with ``b0 = M + m, r0 = F_ext + S1 s1 w1^2 + S2 s2 w2^2`` (reaction) or ``b0 = M, r0 = F_ext``.
     The one set-up of :func:`_accel2` and :func:`remainder2_fast`, which solve it each their
     own way."""
+    g, hc, s, cm, mtot = prm.g, prm.hc, prm.s, prm.cm, prm.mtot
+    kf, k, c, m_stage, reaction, th0 = prm.kf, prm.k, prm.c, prm.m_stage, prm.reaction, prm.th0
     w1 = z[th0 + 2]
     w2 = z[th0 + 3]
     c12 = c1 * c2 + s1 * s2
@@ -242,7 +274,7 @@ def _dense2_equations(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
+def _accel2(prm, z, alpha):
     """The same as :func:`_accel` for n = 2, from the dense equations (one division)::
 
         [[M + m, S1 c1, S2 c2], [S1 c1, H11, H12 c12], [S2 c2, H12 c12, H22]] (x0'', alpha)
@@ -251,10 +283,10 @@ def _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha):
 
     (c_j = cos th_j, s12 = sin(th1 - th2); without the reaction the first row is M x0'' =
     F_ext), solved for alpha on the Schur complement of the stage entry."""
+    th0 = prm.th0
     b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(
-        g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, math.sin(z[th0]),
-        math.cos(z[th0]), math.sin(z[th0 + 1]), math.cos(z[th0 + 1]))
-    if reaction:
+        prm, z, math.sin(z[th0]), math.cos(z[th0]), math.sin(z[th0 + 1]), math.cos(z[th0 + 1]))
+    if prm.reaction:
         h11 = h11 - u1 * u1 / b0
         h22 = h22 - u2 * u2 / b0
         h12 = h12 - u1 * u2 / b0
@@ -295,48 +327,38 @@ def _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows, z,
-                alpha, f):
+def _remainder2(prm, z, alpha, f):
     """The remainder f for n = 2 (dense accelerations); returns the nonlinear x0''."""
-    ax = _accel2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, alpha)
-    _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f)
+    ax = _accel2(prm, z, alpha)
+    _rows_minus_linear(ax, alpha, z, prm.q_idx, prm.wc, prm.a_rows, f)
     return ax
 
 
 @njit(cache=True, error_model="numpy")
-def remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, reaction,
-                 th0, q_idx, wc, a_rows, z, work, alpha, f):
+def remainder_n(prm, z, work, alpha, f):
     """The remainder f for any n (O(n) recursion); returns the nonlinear x0''. Not inlined:
     kernels branch between it and :func:`_remainder2`, and inlining both into one loop makes
     the n = 2 path several times slower."""
-    ax = _accel(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage, reaction, th0,
-                z, work, alpha)
-    _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f)
+    ax = _accel(prm, z, work, alpha)
+    _rows_minus_linear(ax, alpha, z, prm.q_idx, prm.wc, prm.a_rows, f)
     return ax
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def kernel_scratch(mass, rows, z):
+def kernel_scratch(prm, z):
     """``(n, two, nz, nf, work, alpha)``: the kernels' sizes (bodies, n = 2?, states, remainder
     rows) and the recursion's scratch ``work`` (n, 7) and ``alpha`` (n,)."""
-    n = mass.shape[0]
-    return n, n == 2, z.shape[0], rows.shape[0], np.empty((n, 7)), np.empty(n)
+    n = prm.mass.shape[0]
+    return n, n == 2, z.shape[0], prm.rows.shape[0], np.empty((n, 7)), np.empty(n)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def remainder_at(two, prm, z, work, alpha, f):
     """The remainder f and the nonlinear x0'': :func:`_remainder2` where ``two`` (n = 2, inlined),
-    else :func:`remainder_n` (a call). ``prm`` is the kernels' leading arguments as one tuple
-    (:meth:`CoupledParams.args`), which a kernel packs from its own arguments: the kernels keep
-    them as separate arguments (taken out of a tuple *argument* the arrays made etdab's step
-    slower)."""
-    (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
-     reaction, th0, q_idx, wc, rows, a_rows) = prm
+    else :func:`remainder_n` (a call); ``prm``: :class:`CoupledArgs`."""
     if two:
-        return _remainder2(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
-                           a_rows, z, alpha, f)
-    return remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage,
-                        reaction, th0, q_idx, wc, a_rows, z, work, alpha, f)
+        return _remainder2(prm, z, alpha, f)
+    return remainder_n(prm, z, work, alpha, f)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -344,13 +366,9 @@ def remainder_fast_at(two, prm, a_cols, z, work, alpha, f):
     """:func:`remainder_at` with :func:`remainder2_fast` where ``two`` (polynomial sines, one
     division; ``a_rows`` read in its first ``a_cols`` columns), else :func:`remainder_n` (a
     call)."""
-    (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
-     reaction, th0, q_idx, wc, rows, a_rows) = prm
     if two:
-        return remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc,
-                                a_rows, a_cols, z, f)
-    return remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c, m_stage,
-                        reaction, th0, q_idx, wc, a_rows, z, work, alpha, f)
+        return remainder2_fast(prm, a_cols, z, f)
+    return remainder_n(prm, z, work, alpha, f)
 
 
 def accelerations(params: CoupledParams, z, *, recursive: bool = False
@@ -361,11 +379,9 @@ def accelerations(params: CoupledParams, z, *, recursive: bool = False
     z = np.ascontiguousarray(z, dtype=float)
     alpha = np.empty(p.n)
     if p.n == 2 and not recursive:
-        ax = _accel2(p.g, p.hc, p.s, p.cm, p.mtot, p.kf, p.k, p.c, p.m_stage, p.reaction, p.th0, z,
-                     alpha)
+        ax = _accel2(p.args(), z, alpha)
     else:
-        ax = _accel(p.mass, p.length, p.com, p.inertia, p.gamma, p.relative, p.g, p.kf, p.k, p.c,
-                    p.m_stage, p.reaction, p.th0, z, np.empty((p.n, 7)), alpha)
+        ax = _accel(p.args(), z, np.empty((p.n, 7)), alpha)
     return float(ax), alpha
 
 
@@ -379,11 +395,11 @@ def remainder(params: CoupledParams, z) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx, wc, a_rows,
-                     a_cols, z, f):
+def remainder2_fast(prm, a_cols, z, f):
     """:func:`_remainder2` (n = 2) with polynomial sines where both angles are <= 0.8 rad and
     one division: the same equations, rounded differently (a few ulp); ``a_rows`` is read in
     its first ``a_cols`` columns (the others are zero). Returns x0''."""
+    th0, q_idx, wc, a_rows = prm.th0, prm.q_idx, prm.wc, prm.a_rows
     t1 = z[th0]
     t2 = z[th0 + 1]
     if max(abs(t1), abs(t2)) <= SINCOS_POLY_MAX:
@@ -391,9 +407,8 @@ def remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, q_idx,
         s2, c2 = sincos_poly(t2)
     else:
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(
-        g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0, z, s1, c1, s2, c2)
-    if reaction:
+    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(prm, z, s1, c1, s2, c2)
+    if prm.reaction:
         # the Schur complement of the stage entry, det * b0 * b0 kept as one division
         h11b = h11 * b0 - u1 * u1
         h22b = h22 * b0 - u2 * u2

@@ -22,7 +22,7 @@ from rig._jit import njit
 from rig.solvers.primitives import (NONFINITE, OK, STEP_TOO_SMALL, rhs2, rhs_alg, rhs_n, rhs_rec,
                                     store)
 from rig.solvers.base import Refinement, SubstepSolver
-from rig.solvers.rhs import bodies_array, rhs_algorithm
+from rig.solvers.rhs import bodies_array, chain_args, rhs_algorithm
 
 
 # -- Dormand-Prince 8(5,3) coefficients -----------------------------------------------------------
@@ -169,13 +169,12 @@ class Dop853(SubstepSolver):
         y = native
         y_out = self.out_rows(chain, y, held)
         alg = rhs_algorithm(chain, self.algorithm)
-        ax, ay, sa, la = held.kernel_args
         n_int, h_in = held.n_intervals, held.h_in
         min_step = 10.0 * np.spacing(max(abs(held.t0_s) + n_int * h_in, h_in))
         (status, nrow, i_done, s_fail, h_next, n_steps, n_rej,
-         nfev) = dop853_kernel(chain.H, chain.S, chain.C, chain.g_mps2, bodies_array(chain), alg,
-                               ax, ay, sa, la, h_in, n_int, held.out_every, y, y_out, self.rtol,
-                               self.atol, h0_s, min_step, self.adaptive_steps, self.substeps)
+         nfev) = dop853_kernel(chain_args(chain), bodies_array(chain), alg, held.kernel_args, h_in,
+                               n_int, held.out_every, y, y_out, self.rtol, self.atol, h0_s,
+                               min_step, self.adaptive_steps, self.substeps)
         if not self.adaptive_steps:
             h_next = float("nan")
         return self.finish(chain, status, y, y_out, nrow, i_done, held, s_fail=s_fail,
@@ -188,11 +187,12 @@ class Dop853(SubstepSolver):
 # ================================================================================================
 
 @njit(cache=True)
-def _dop_step(hc, s, cm, g, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, yt, work, st0):
+def _dop_step(chain, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, yt, work, st0):
     """One DOP853 step of size h from local time s_loc.
 
     Evaluates kk[0] = f(s_loc, y) if st0 = 0 (else kk[0] must hold it), the stages kk[1..11],
     yt = y_new = y + h sum_j b_j k_j (DOP_A[12] = b) and kk[12] = f(s_loc + h, y_new)."""
+    hc, s, cm, g = chain
     n2 = y.shape[0]
     for st in range(st0, 13):
         for c in range(n2):
@@ -243,19 +243,22 @@ def _rms_scaled(v, r, y, rtol, atol):
 
 
 @njit(cache=True, nogil=True)
-def dop853_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, n_int, out_every, y, y_out,
-                  rtol, atol, h_prop, min_step, adaptive, nsub):
+def dop853_kernel(chain, bod, alg, inp, h_in, n_int, out_every, y, y_out, rtol, atol, h_prop,
+                  min_step, adaptive, nsub):
     """Dormand-Prince 8(5,3) over ``n_int`` input intervals.
 
     Adaptive (``adaptive=True``): steps never cross a sample instant; the rest of an interval is
     split into equal steps no longer than the proposal ``h_prop`` (computed by Hairer's initial
     step algorithm if it is not > 0) nor than ``h_in / nsub``; the proposal is carried over to the
     next interval. Fixed (``adaptive=False``): ``nsub`` equal steps per interval, no error control
-    (used to measure the order of the tableau).
+    (used to measure the order of the tableau). ``chain``, ``bod``, ``alg``, ``inp``: as
+    :func:`rig.solvers.rk4.rk4_kernel`'s.
 
     Returns (status, rows written, intervals done, local time reached in that interval,
     next proposed step, accepted steps, rejected steps, rhs evaluations).
     """
+    hc, s, cm, g = chain
+    ax, ay, sa, la = inp
     n2 = y.shape[0]
     n = n2 // 2
     kk = np.zeros((13, n2))
@@ -324,7 +327,7 @@ def dop853_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, n_int, out_every
                 else:
                     m = nsub - int(round(s_loc * nsub * inv))
                 h = rem if m == 1 else rem / m
-                _dop_step(hc, s, cm, g, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, y_new, work,
+                _dop_step(chain, bod, alg, y, h, s_loc, a0, da, b0, db, inv, kk, y_new, work,
                           0 if fresh else 1)
                 nfev += 13 if fresh else 12
                 fresh = False

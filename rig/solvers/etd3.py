@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from rig.linear import discretise, monomial_integrals
 from rig.solvers.primitives import NONFINITE, OK, sincos4, store
 from rig.solvers.remainder import nsplit2, nsplit_n
 from rig.solvers.base import SubstepSolver
+from rig.solvers.rhs import chain_args
 
 if TYPE_CHECKING:
     from rig.chain import Chain
@@ -34,9 +35,9 @@ if TYPE_CHECKING:
 ETD3_NODES = (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0)
 
 
-@dataclass(frozen=True, eq=False)
-class Etd3Coefficients:
-    """Everything :func:`etd3_kernel` needs for one chain, step and hold (all arrays C-contiguous).
+class Etd3Coefficients(NamedTuple):
+    """Everything :func:`etd3_kernel` needs for one chain, step and hold, its second argument (all
+    arrays C-contiguous).
 
     Attributes
     ----------
@@ -114,16 +115,14 @@ class Etd3(SubstepSolver):
     def advance(self, chain, native, held, *, h0_s=float("nan")):
         y = native
         y_out = self.out_rows(chain, y, held)
-        ax, ay, sa, la = held.kernel_args
         sub = self.substeps
         h = held.h_in / sub
         co = etd3_coefficients(chain, float(h), held.hold)
         z, hist, have = self.split_history(chain, y, h)
         kernel = etd3_kernel2 if chain.n == 2 else etd3_kernel
         status, nrow, i_done, nfev = kernel(
-            chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.g0, co.g1,
-            co.phic, co.g0c, co.g1c, co.pc, co.wq, co.xp, ax, ay, sa, la, held.h_in, sub,
-            held.n_intervals, held.out_every, z, y_out, hist, have)
+            chain_args(chain), co, held.kernel_args, held.h_in, sub, held.n_intervals,
+            held.out_every, z, y_out, hist, have)
         y = np.concatenate([z, [1.0, h], hist.reshape(-1)])
         return self.finish(chain, status, y, y_out, nrow, i_done, held, substeps=sub,
                            n_steps=i_done * sub, n_fev=nfev)
@@ -162,15 +161,19 @@ class Etd3(SubstepSolver):
 # the previous stages are part of the method's native state, so blocks continue bit for bit.
 
 @njit(cache=True, nogil=True)
-def etd3_kernel(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp, ax, ay, sa, la,
-                h_in, nsub, n_int, out_every, y, y_out, hist, have):
+def etd3_kernel(chain, co, inp, h_in, nsub, n_int, out_every, y, y_out, hist, have):
     """etd3 (see the section comment above), ``nsub`` steps per input interval, any n.
 
     ``hist`` (2, 3n) holds (N0, N1, N2) at the previous step's two stages and is updated in place;
     ``have`` says whether it is valid (else the first step predicts with N(y), which costs one
-    more evaluation). ``y`` (2n,) is overwritten with the end state. Returns (status, rows
+    more evaluation). ``chain``, ``inp``: as :func:`rig.solvers.rk4.rk4_kernel`'s; ``co``:
+    :class:`Etd3Coefficients`. ``y`` (2n,) is overwritten with the end state. Returns (status, rows
     written, intervals done, remainder evaluations).
     """
+    hc, s, cm, g = chain
+    ax, ay, sa, la = inp
+    p, q, bw, phi, g0, g1 = co.p, co.q, co.bw, co.phi, co.g0, co.g1
+    phic, g0c, g1c, pc, wq, xp = co.phic, co.g0c, co.g1c, co.pc, co.wq, co.xp
     n2 = y.shape[0]
     n = n2 // 2
     zs = np.empty((3, n2))
@@ -255,10 +258,13 @@ def etd3_kernel(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp,
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def etd3_kernel2(hc, s, cm, g, p, q, bw, phi, g0, g1, phic, g0c, g1c, pc, wq, xp, ax, ay, sa, la,
-                 h_in, nsub, n_int, out_every, y, y_out, hist, have):
+def etd3_kernel2(chain, co, inp, h_in, nsub, n_int, out_every, y, y_out, hist, have):
     """:func:`etd3_kernel` for n = 2 in scalar code (the same arithmetic up to the order of the
     sums; the state and history stay in registers). Same arguments and returns."""
+    hc, s, cm, g = chain
+    ax, ay, sa, la = inp
+    p, q, bw, phi, g0, g1 = co.p, co.q, co.bw, co.phi, co.g0, co.g1
+    phic, g0c, g1c, pc, wq, xp = co.phic, co.g0c, co.g1c, co.pc, co.wq, co.xp
     z0 = y[0]
     z1 = y[1]
     z2 = y[2]

@@ -13,7 +13,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from rig.linear import expm, monomial_integrals
 from rig.solvers.primitives import NONFINITE, OK, sincos4, sincos_pair, store
 from rig.solvers.remainder import nsplit2, nsplit_n
 from rig.solvers.base import HOLDS, PendulumSolver, Refinement, multisample_refinement
+from rig.solvers.rhs import chain_args
 from rig.solvers.etd3 import ETD3_NODES, Etd3, etd3_hist2
 
 if TYPE_CHECKING:
@@ -72,9 +73,9 @@ if TYPE_CHECKING:
 ETD3M_BLOCKS = 4  # weight sets per sample: end node 0, end node 1, stage 1, stage 0
 
 
-@dataclass(frozen=True, eq=False)
-class Etd3mCoefficients:
-    """Everything :func:`etd3m_kernel` needs for one chain, input interval, m and hold.
+class Etd3mCoefficients(NamedTuple):
+    """Everything :func:`etd3m_kernel` needs for one chain, input interval, m and hold, its second
+    argument.
 
     Attributes
     ----------
@@ -275,9 +276,8 @@ class Etd3m(MultiSample):
         z, hist, have = self.split_history(chain, y, big_h)
         kernel = etd3m_kernel2 if chain.n == 2 else etd3m_kernel
         status, nrow, i_done, nfev = kernel(
-            chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic, co.wt,
-            co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths, ax, ay, sa, m, held.n_intervals // m,
-            held.out_every // m, z, y_out, hist, have)
+            chain_args(chain), co, ax, ay, sa, m, held.n_intervals // m, held.out_every // m, z,
+            y_out, hist, have)
         y = np.concatenate([z, [1.0, big_h], hist.reshape(-1)])
         return self.finish(chain, status, y, y_out, nrow, i_done, held, n_steps=i_done // m,
                            n_fev=nfev)
@@ -316,15 +316,18 @@ def _etd3m_eval(hc, s, cm, g, p, q, bw, zs, i, hn, w):
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def etd3m_kernel(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pc, xp, ck, lohi, widths, ax, ay,
-                 sa, m, n_steps, out_steps, y, y_out, hist, have):
+def etd3m_kernel(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, have):
     """etd3m (see the section comment above): ``n_steps`` steps of ``m`` input samples, any n.
 
-    ``ax``, ``ay`` hold the samples (``ay`` read with stride ``sa``: 0 for none), ``wt`` the
-    per-sample weights (:class:`Etd3mCoefficients`); a row is stored every ``out_steps`` steps
+    ``chain``: :class:`rig.solvers.primitives.ChainArgs`; ``co``: :class:`Etd3mCoefficients`
+    (``co.wt`` the per-sample weights). ``ax``, ``ay`` hold the samples (``ay`` read with stride
+    ``sa``: 0 for none); a row is stored every ``out_steps`` steps
     and at the end. ``hist`` (2, 3n) and ``have`` as :func:`etd3_kernel`. ``y`` (2n,) is
     overwritten with the end state. Returns (status, rows written, input intervals done,
     remainder evaluations)."""
+    hc, s, cm, g = chain
+    p, q, bw, phi, phic, wt = co.p, co.q, co.bw, co.phi, co.phic, co.wt
+    wq, pc, xp, ck, lohi, widths = co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths
     n2 = y.shape[0]
     n = n2 // 2
     nw = n2 * n
@@ -416,9 +419,10 @@ def _etd3m_w2(r, acc, accv, base, pc, ip, e0, e1, g0, g1, v0, v1):
 
 
 @njit(cache=True, inline="always")
-def _etd3m_row2(mat, i, r, z0, z1, z2, z3, acc, accv, base, pc, ip, e0, e1, g0, g1, v0, v1):
+def _etd3m_row2(mat, i, r, z, acc, accv, base, pc, ip, e0, e1, g0, g1, v0, v1):
     """Row r of mat[i] @ z + pc[ip] @ e + the (4, 2) blocks at ``base`` of acc @ g and accv @ v
-    (n = 2)."""
+    (n = 2; ``z`` the state's four numbers)."""
+    z0, z1, z2, z3 = z
     k = base + 2 * r
     return (((mat[i, r, 0] * z0 + mat[i, r, 1] * z1) + (mat[i, r, 2] * z2 + mat[i, r, 3] * z3))
             + ((acc[k] * g0 + acc[k + 1] * g1) + (pc[ip, r, 0] * e0 + pc[ip, r, 1] * e1))
@@ -426,10 +430,12 @@ def _etd3m_row2(mat, i, r, z0, z1, z2, z3, acc, accv, base, pc, ip, e0, e1, g0, 
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def etd3m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pc, xp, ck, lohi, widths, ax, ay,
-                  sa, m, n_steps, out_steps, y, y_out, hist, have):
+def etd3m_kernel2(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, have):
     """:func:`etd3m_kernel` for the n = 2 chain: the state, the stages and the remainder parts in
     scalars, the four stage angles' sin and cos in one branch (:func:`sincos4`)."""
+    hc, s, cm, g = chain
+    p, q, bw, phi, phic, wt = co.p, co.q, co.bw, co.phi, co.phic, co.wt
+    wq, pc, xp, ck, lohi, widths = co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths
     kw = wt.shape[1]
     acc = np.empty(kw)
     accv = np.zeros(kw)
@@ -470,13 +476,13 @@ def etd3m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pc, xp, ck, lohi, w
         v1 = x0 * a21 + x1 * b21
         du = ck[0] * (ax[i0 + lohi[0, 1]] - ax[i0 + lohi[0, 0]])
         dv = ck[0] * (ay[(i0 + lohi[0, 1]) * sa] - ay[(i0 + lohi[0, 0]) * sa])
-        p0 = _etd3m_row2(phic, 0, 0, z0, z1, z2, z3, acc, accv, 24, pc, 0, e0,
+        p0 = _etd3m_row2(phic, 0, 0, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
                          e1, g0, g1, v0, v1)
-        p1 = _etd3m_row2(phic, 0, 1, z0, z1, z2, z3, acc, accv, 24, pc, 0, e0,
+        p1 = _etd3m_row2(phic, 0, 1, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
                          e1, g0, g1, v0, v1)
-        p2 = _etd3m_row2(phic, 0, 2, z0, z1, z2, z3, acc, accv, 24, pc, 0, e0,
+        p2 = _etd3m_row2(phic, 0, 2, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
                          e1, g0, g1, v0, v1)
-        p3 = _etd3m_row2(phic, 0, 3, z0, z1, z2, z3, acc, accv, 24, pc, 0, e0,
+        p3 = _etd3m_row2(phic, 0, 3, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
                          e1, g0, g1, v0, v1)
         p2 += du * g0 + dv * v0
         p3 += du * g1 + dv * v1
@@ -491,13 +497,13 @@ def etd3m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pc, xp, ck, lohi, w
         v1 = x0 * a21 + x1 * b21
         du = ck[1] * (ax[i0 + lohi[1, 1]] - ax[i0 + lohi[1, 0]])
         dv = ck[1] * (ay[(i0 + lohi[1, 1]) * sa] - ay[(i0 + lohi[1, 0]) * sa])
-        q0 = _etd3m_row2(phic, 1, 0, z0, z1, z2, z3, acc, accv, 16, pc, 1, e0,
+        q0 = _etd3m_row2(phic, 1, 0, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
                          e1, g0, g1, v0, v1)
-        q1 = _etd3m_row2(phic, 1, 1, z0, z1, z2, z3, acc, accv, 16, pc, 1, e0,
+        q1 = _etd3m_row2(phic, 1, 1, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
                          e1, g0, g1, v0, v1)
-        q2 = _etd3m_row2(phic, 1, 2, z0, z1, z2, z3, acc, accv, 16, pc, 1, e0,
+        q2 = _etd3m_row2(phic, 1, 2, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
                          e1, g0, g1, v0, v1)
-        q3 = _etd3m_row2(phic, 1, 3, z0, z1, z2, z3, acc, accv, 16, pc, 1, e0,
+        q3 = _etd3m_row2(phic, 1, 3, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
                          e1, g0, g1, v0, v1)
         q2 += du * g0 + dv * v0
         q3 += du * g1 + dv * v1
@@ -508,19 +514,19 @@ def etd3m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pc, xp, ck, lohi, w
                                                 cq0, sq1, cq1)
         nev += 2
         # the step: e^{AH} z + node 0's and node 1's weights
-        n0 = (_etd3m_row2(phi3, 0, 0, z0, z1, z2, z3, acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+        n0 = (_etd3m_row2(phi3, 0, 0, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
                           bw1 + a11, a20, a21)
               + _etd3m_w2(0, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
                           b21))
-        n1 = (_etd3m_row2(phi3, 0, 1, z0, z1, z2, z3, acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+        n1 = (_etd3m_row2(phi3, 0, 1, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
                           bw1 + a11, a20, a21)
               + _etd3m_w2(1, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
                           b21))
-        n2 = (_etd3m_row2(phi3, 0, 2, z0, z1, z2, z3, acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+        n2 = (_etd3m_row2(phi3, 0, 2, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
                           bw1 + a11, a20, a21)
               + _etd3m_w2(2, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
                           b21))
-        n3 = (_etd3m_row2(phi3, 0, 3, z0, z1, z2, z3, acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+        n3 = (_etd3m_row2(phi3, 0, 3, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
                           bw1 + a11, a20, a21)
               + _etd3m_w2(3, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
                           b21))

@@ -44,7 +44,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -55,6 +55,7 @@ from rig.solvers.primitives import NONFINITE, OK, sincos6, sincos_pair, store
 from rig.solvers.remainder import n2_at, nsplit2, nsplit2h, nsplit_n
 from rig.solvers.base import Refinement, multisample_refinement
 from rig.solvers.dop853 import Dop853
+from rig.solvers.rhs import chain_args
 from rig.solvers.etd3m import (MultiSample, _piece_integral, check_hold_and_m,
                                check_samples_per_step, linear_parts, sawtooth_corrections,
                                staircase_weights)
@@ -91,9 +92,9 @@ def fir_chunk_steps(window: int) -> int:
     return max(1, min(FIR_CHUNK_STEPS, BLAS_ONE_THREAD_MULADDS // (48 * window)))
 
 
-@dataclass(frozen=True, eq=False)
-class Etd4mCoefficients:
-    """Everything :func:`etd4m_kernel` needs for one chain, input interval, m and hold.
+class Etd4mCoefficients(NamedTuple):
+    """Everything :func:`etd4m_kernel` needs for one chain, input interval, m and hold, its second
+    argument.
 
     Attributes
     ----------
@@ -199,14 +200,12 @@ class Etd4m(MultiSample):
         z, hist, have = self.split_history(chain, y, big_h)
         if chain.n == 2 and not sa and HORIZONTAL_KERNEL:
             status, nrow, i_done, nfev = etd4m_kernel2h(
-                chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic,
-                co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, ax, m, held.n_intervals // m,
-                held.out_every // m, z, y_out, hist, have, fir_chunk_steps(co.wt.shape[0]))
+                chain_args(chain), co, ax, m, held.n_intervals // m, held.out_every // m, z, y_out,
+                hist, have, fir_chunk_steps(co.wt.shape[0]))
         else:
             status, nrow, i_done, nfev = (etd4m_kernel2 if chain.n == 2 else etd4m_kernel)(
-                chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic,
-                co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, co.widths, ax, ay, sa, m,
-                held.n_intervals // m, held.out_every // m, z, y_out, hist, have)
+                chain_args(chain), co, ax, ay, sa, m, held.n_intervals // m, held.out_every // m,
+                z, y_out, hist, have)
         y = np.concatenate([z, [1.0, big_h], hist.reshape(-1)])
         return self.finish(chain, status, y, y_out, nrow, i_done, held, n_steps=i_done // m,
                            n_fev=nfev)
@@ -245,15 +244,18 @@ def _etd4m_eval(hc, s, cm, g, p, q, bw, zs, i, hn, w):
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def etd4m_kernel(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, widths, ax, ay,
-                 sa, m, n_steps, out_steps, y, y_out, hist, have):
+def etd4m_kernel(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, have):
     """etd4m (module docstring): ``n_steps`` steps of ``m`` input samples, any n.
 
+    ``chain``: :class:`rig.solvers.primitives.ChainArgs`; ``co``: :class:`Etd4mCoefficients`.
     ``ax``, ``ay`` hold the samples (``ay`` read with stride ``sa``: 0 for none); a row is stored
     every ``out_steps`` steps and at the end. ``hist`` (3, 3n) holds (N0, N1, N2) at the previous
     step's three stages and is updated in place; ``have`` says whether it is valid. ``y`` (2n,)
     is overwritten with the end state. Returns (status, rows written, input intervals done,
     remainder evaluations)."""
+    hc, s, cm, g = chain
+    p, q, bw, phi, phic, wt = co.p, co.q, co.bw, co.phi, co.phic, co.wt
+    wq, pn, xp, ck, lohi, widths = co.wq, co.pn, co.xp, co.ck, co.lohi, co.widths
     n2 = y.shape[0]
     n = n2 // 2
     nw = n2 * n
@@ -372,10 +374,12 @@ def _etd4m_end2(r, acc, accv, wq, i, e0, e1, g0, g1, v0, v1):
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def etd4m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, widths, ax, ay,
-                  sa, m, n_steps, out_steps, y, y_out, hist, have):
+def etd4m_kernel2(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, have):
     """:func:`etd4m_kernel` for the n = 2 chain: the state, the stages and the remainder parts in
     scalars (the same arithmetic to round-off)."""
+    hc, s, cm, g = chain
+    p, q, bw, phi, phic, wt = co.p, co.q, co.bw, co.phi, co.phic, co.wt
+    wq, pn, xp, ck, lohi = co.wq, co.pn, co.xp, co.ck, co.lohi
     nw = 8
     acc = np.empty(6 * nw)
     accv = np.zeros(6 * nw)
@@ -467,21 +471,24 @@ def etd4m_kernel2(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, w
             ok = store(y, y_out, row)
             row += 1
             if not ok:
-                _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21,
-                             d00, d01, d10, d11, d20, d21)
+                _etd4m_hist2(hist, (a00, a01, a10, a11, a20, a21),
+                             (b00, b01, b10, b11, b20, b21), (d00, d01, d10, d11, d20, d21))
                 return NONFINITE, row, (k + 1) * m, nev
     y[0] = z0
     y[1] = z1
     y[2] = z2
     y[3] = z3
-    _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
-                 d11, d20, d21)
+    _etd4m_hist2(hist, (a00, a01, a10, a11, a20, a21), (b00, b01, b10, b11, b20, b21),
+                 (d00, d01, d10, d11, d20, d21))
     return OK, row, n_steps * m, nev
 
 
 @njit(cache=True)
-def _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
-                 d11, d20, d21):
+def _etd4m_hist2(hist, a, b, d):
+    """hist[0], hist[1], hist[2] = a, b, d (each the remainder's six numbers at a stage)."""
+    a00, a01, a10, a11, a20, a21 = a
+    b00, b01, b10, b11, b20, b21 = b
+    d00, d01, d10, d11, d20, d21 = d
     hist[0, 0], hist[0, 1], hist[0, 2], hist[0, 3], hist[0, 4], hist[0, 5] = (
         a00, a01, a10, a11, a20, a21)
     hist[1, 0], hist[1, 1], hist[1, 2], hist[1, 3], hist[1, 4], hist[1, 5] = (
@@ -507,9 +514,13 @@ def _etd4m_end2h(r, acc, wq, i, e0, e1, g0, g1):
 
 
 @njit(cache=True, inline="always")
-def _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, i, z0, z1, z2, z3, bw0, bw1, a00, a01,
-                   a10, a11, b00, b01, b10, b11, d00, d01, d10, d11):
-    """Stage i of :func:`etd4m_kernel2h` (n = 2): its four numbers."""
+def _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, i, z, bw0, bw1, a, b, d):
+    """Stage i of :func:`etd4m_kernel2h` (n = 2): its four numbers (``z`` the state's four,
+    ``a``, ``b``, ``d`` the first four of the remainder at the previous step's stages)."""
+    z0, z1, z2, z3 = z
+    a00, a01, a10, a11 = a
+    b00, b01, b10, b11 = b
+    d00, d01, d10, d11 = d
     x0 = xp[i, 0]
     x1 = xp[i, 1]
     x2 = xp[i, 2]
@@ -532,8 +543,7 @@ def _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, i, z0, z1, z2, z3, bw0, 
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, ax, m, n_steps,
-                   out_steps, y, y_out, hist, have, fir_chunk):
+def etd4m_kernel2h(chain, co, ax, m, n_steps, out_steps, y, y_out, hist, have, fir_chunk):
     """:func:`etd4m_kernel2` for a run without a vertical input: neither the vertical gain N2 at
     the stages nor its products with the (zero) vertical input are formed, except N2 at the
     last step's stages, which the native state carries (so a next block with a vertical input
@@ -553,6 +563,9 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
     test_etd4m_horizontal.py); for one chunk size every step's sums are formed by the same
     arithmetic wherever the step falls, so blocks continue a run bit for bit (measured in
     BENCHMARKS.md, speed round 7)."""
+    hc, s, cm, g = chain
+    p, q, bw, phi, phic, wt = co.p, co.q, co.bw, co.phi, co.phic, co.wt
+    wq, pn, xp, ck, lohi = co.wq, co.pn, co.xp, co.ck, co.lohi
     nw = 8
     acc = np.empty(6 * nw)
     nq = wt.shape[0]
@@ -601,15 +614,15 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
             acc = accs[kk]
         else:
             _etd4m_fir48(ax, i0, 1, wt, acc)
-        p0, p1, p2, p3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, zero, z0, z1, z2,
-                                        z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
-                                        d00, d01, d10, d11)
-        q0, q1, q2, q3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, one, z0, z1, z2,
-                                        z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
-                                        d00, d01, d10, d11)
-        r0, r1, r2, r3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, one + one, z0, z1,
-                                        z2, z3, bw0, bw1, a00, a01, a10, a11, b00, b01, b10, b11,
-                                        d00, d01, d10, d11)
+        p0, p1, p2, p3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, zero,
+                                        (z0, z1, z2, z3), bw0, bw1, (a00, a01, a10, a11),
+                                        (b00, b01, b10, b11), (d00, d01, d10, d11))
+        q0, q1, q2, q3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, one,
+                                        (z0, z1, z2, z3), bw0, bw1, (a00, a01, a10, a11),
+                                        (b00, b01, b10, b11), (d00, d01, d10, d11))
+        r0, r1, r2, r3 = _etd4m_stage2h(phic, pn, xp, ck, lohi, ax, i0, acc, one + one,
+                                        (z0, z1, z2, z3), bw0, bw1, (a00, a01, a10, a11),
+                                        (b00, b01, b10, b11), (d00, d01, d10, d11))
         (sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1, sr0, cr0, sr1,
          cr1) = sincos6(p0, p1, q0, q1, r0, r1)
         a00, a01, a10, a11, _, _ = nsplit2h(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0, cp0,
@@ -660,8 +673,8 @@ def etd4m_kernel2h(hc, s, cm, g, p, q, bw, phi, phic, wt, wq, pn, xp, ck, lohi, 
         s0, c0, s1, c1 = sincos_pair(z0, z1)
         a20, a21 = n2_at(hc, s, s0, c0, s1, c1)
         b20, b21, d20, d21 = a20, a21, a20, a21
-    _etd4m_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21, d00, d01, d10,
-                 d11, d20, d21)
+    _etd4m_hist2(hist, (a00, a01, a10, a11, a20, a21), (b00, b01, b10, b11, b20, b21),
+                 (d00, d01, d10, d11, d20, d21))
     return status, row, done * m, nev
 
 

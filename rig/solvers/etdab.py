@@ -8,14 +8,14 @@ allows, every 5 (:func:`rig.bench.model.remainder_every`: the remainder carries 
 so four nodes 5 ms apart resolve it), the polynomial extrapolated over the steps between. The
 native state is those four remainder values (``(4, rows)``; with ``every`` > 1 one more row: the
 steps since the newest node), so blocks continue bit for bit; the first steps after a start
-build it up. Kernel: :func:`etd_ab_kernel` (equations: :mod:`rig.solvers.coupled`), run unrolled for the
-matrices' exact-zero pattern (:func:`rig.unrolled.etdab_kernel`: the same values).
+build it up. Kernel: :func:`etd_ab_kernel` (equations: :mod:`rig.solvers.coupled`), run
+unrolled for the matrices' exact-zero pattern (:func:`rig.unrolled.etdab_kernel`: the same values).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
@@ -27,6 +27,20 @@ from rig.solvers.bench_base import BenchSolver
 from rig.solvers.coupled import kernel_scratch, remainder2_fast, remainder_n
 
 ETDAB_ORDER = 4  # past remainder values per step (the order of the method)
+
+
+class EtdabMatrices(NamedTuple):
+    """The matrices of :func:`etd_ab_kernel` for one bench and step, its second argument.
+
+    phi_t, gam : the linear bench's step Phi (transposed) and Gamma over h (zero-order hold).
+    w, lagv : :func:`etd_ab_phase_weights`; w_rows, a_cols : :func:`etd_ab_sparsity`."""
+
+    phi_t: np.ndarray
+    gam: np.ndarray
+    w: np.ndarray
+    lagv: np.ndarray
+    w_rows: int
+    a_cols: int
 
 
 @dataclass(frozen=True)
@@ -72,7 +86,7 @@ class Etdab(BenchSolver):
             if self.every > 1:
                 phase[0] = int(native[ETDAB_ORDER, 0])
         kernel = unrolled.etdab_kernel(*model.etdab[:3], hist.shape[0], model.coupled.n)
-        kernel(*model.coupled.args(), *model.etdab, self.substeps, native is not None, hist,
+        kernel(model.coupled.args(), model.etdab, self.substeps, native is not None, hist,
                phase, v, z, z_out, accel)
         if self.every > 1:
             hist = np.vstack([hist, np.full((1, nf), float(phase[0]))])
@@ -140,9 +154,7 @@ def etd_ab_sparsity(w: np.ndarray, a_rows: np.ndarray) -> tuple[int, int]:
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
-                  m_stage, reaction, th0, q_idx, wc, rows, a_rows, phi_t, gam, w, lagv, w_rows,
-                  a_cols, nsub, have, hist, phase, v, z, z_out, ax_out):
+def etd_ab_kernel(prm, mats, nsub, have, hist, phase, v, z, z_out, ax_out):
     """Exponential Adams-Bashforth over len(v) DAC intervals, ``nsub`` steps of h each::
 
         z_{k+1} = Phi z_k + Gamma v + sum_j W^(i)_j f(z at node n - lag - j),  j = 0 .. order - 1
@@ -166,7 +178,9 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
     the acquisition runs the same arithmetic unrolled for the matrices' zero pattern
     (:func:`rig.unrolled.etdab_kernel`, the same values), this loop is its reference and the
     path of benches too large to unroll."""
-    n, two, nz, nf, work, alpha = kernel_scratch(mass, rows, z)
+    n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
+    phi_t, gam, w, lagv, w_rows, a_cols = mats
+    a_rows = prm.a_rows
     every = w.shape[0]
     order = w.shape[1]
     nh = hist.shape[0]
@@ -182,12 +196,9 @@ def etd_ab_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mto
         for sub in range(nsub):
             if ph == 0:
                 if two:
-                    ax = remainder2_fast(g, hc, s, cm, mtot, kf, k, c, m_stage, reaction, th0,
-                                          q_idx, wc, a_rows, a_cols, z, f)
+                    ax = remainder2_fast(prm, a_cols, z, f)
                 else:
-                    ax = remainder_n(mass, length, com, inertia, gamma, relative, g, kf, k, c,
-                                      m_stage, reaction, th0, q_idx, wc, a_rows, z, work, alpha,
-                                      f)
+                    ax = remainder_n(prm, z, work, alpha, f)
                 if first:
                     first = False
                     for j in range(nh):

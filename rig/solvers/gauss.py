@@ -20,6 +20,7 @@ from rig._jit import njit
 from rig.solvers.primitives import (NO_CONVERGENCE, NONFINITE, OK, all_finite, canon2, canon_n,
                                     lu_factor, lu_solve, store)
 from rig.solvers.base import SubstepSolver
+from rig.solvers.rhs import chain_args
 
 
 # -- Gauss-Legendre coefficients ----------------------------------------------------------------
@@ -44,11 +45,10 @@ class _Gauss(SubstepSolver):
     def advance(self, chain, native, held, *, h0_s=float("nan")):
         y = native
         y_out = self.out_rows(chain, y, held)
-        ax, ay, sa, la = held.kernel_args
         sub = self.substeps
         status, nrow, i_done, s_fail, nfev, n_newton = gauss_kernel(
-            chain.H, chain.S, chain.C, chain.g_mps2, ax, ay, sa, la, held.h_in, sub,
-            held.n_intervals, held.out_every, y, y_out, *self.tableau)
+            chain_args(chain), held.kernel_args, held.h_in, sub, held.n_intervals,
+            held.out_every, y, y_out, *self.tableau)
         return self.finish(chain, status, y, y_out, nrow, i_done, held, s_fail=s_fail,
                            substeps=sub, n_steps=i_done * sub, n_fev=nfev, n_newton=n_newton)
 
@@ -128,12 +128,13 @@ def _converged(d, old):
 
 
 @njit(cache=True)
-def _gauss_newton(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gc, z, zold, ff, yt, work,
-                  jac, big, piv, rhs, fy):
+def _gauss_newton(chain, y, h, s_loc, a0, da, b0, db, inv, ga, gc, scratch):
     """Solve the stage equations Z = h A F(y + Z) by simplified Newton,
     (I - h A (x) J) dZ = h A F(y + Z) - Z with J = dF/dy at y by forward differences.
     On success ff holds F(y + Z) at the solution. Returns (converged, rhs evaluations).
     (Any n; one call site per right-hand side keeps the compiled code small.)"""
+    hc, s, cm, g = chain
+    z, zold, ff, yt, work, jac, big, piv, rhs, fy = scratch
     ns, n2 = z.shape
     nfev = 0
     fr = (s_loc + 0.5 * h) * inv
@@ -195,8 +196,7 @@ def _gauss_newton(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gc, z, zol
 
 
 @njit(cache=True)
-def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, zold, ff, yt,
-                work, jac, big, piv, rhs, fy):
+def _gauss_step(chain, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, scratch):
     """One Gauss-Legendre step (stages ``ga``, ``gb``, ``gc``) of y = (theta, p) in place.
 
     Fixed-point iteration Z <- h A F(y + Z) from Z = 0 until :func:`_converged` (round-off); if
@@ -204,6 +204,8 @@ def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, z
     (:func:`_gauss_newton`). Then y <- y + h sum_i b_i F(y + Z_i).
     Returns (status, rhs evaluations, used Newton).
     """
+    hc, s, cm, g = chain
+    z, zold, ff, yt, work, jac, big, piv, rhs, fy = scratch
     ns, n2 = z.shape
     two = hc.shape[0] == 2
     nfev = 0
@@ -242,8 +244,7 @@ def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, z
         if not all_finite(y):
             return OK, nfev, False  # leave y non-finite: the next output check reports it
         used_newton = True
-        ok, nf = _gauss_newton(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gc, z, zold,
-                               ff, yt, work, jac, big, piv, rhs, fy)
+        ok, nf = _gauss_newton(chain, y, h, s_loc, a0, da, b0, db, inv, ga, gc, scratch)
         nfev += nf
         if not ok:
             return NO_CONVERGENCE, nfev, True
@@ -257,12 +258,13 @@ def _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, z, z
 
 
 @njit(cache=True, nogil=True)
-def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out,
-                 ga, gb, gc):
+def gauss_kernel(chain, inp, h_in, nsub, n_int, out_every, y, y_out, ga, gb, gc):
     """Gauss-Legendre collocation (tableau ga, gb, gc) in y = (theta, p), nsub steps per interval.
 
-    Returns (status, rows written, intervals done, local time reached, rhs evaluations,
+    ``chain``, ``inp``: as :func:`rig.solvers.rk4.rk4_kernel`'s. Returns (status, rows written, intervals done, local time reached, rhs evaluations,
     steps that needed Newton)."""
+    hc, s, cm, g = chain
+    ax, ay, sa, la = inp
     n2 = y.shape[0]
     n = n2 // 2
     ns = gb.shape[0]
@@ -276,6 +278,7 @@ def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, 
     big = np.empty((ns * n2, ns * n2))
     piv = np.empty(ns * n2, dtype=np.int64)
     rhs = np.empty(ns * n2)
+    scratch = (z, zold, ff, yt, work, jac, big, piv, rhs, fy)
     h = h_in / nsub
     inv = 1.0 / h_in
     nfev = 0
@@ -292,8 +295,8 @@ def gauss_kernel(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, 
         db = ay[(i + la) * sa] - b0
         for j in range(nsub):
             s_loc = j * h
-            status, nf, used = _gauss_step(hc, s, cm, g, y, h, s_loc, a0, da, b0, db, inv, ga, gb,
-                                           gc, z, zold, ff, yt, work, jac, big, piv, rhs, fy)
+            status, nf, used = _gauss_step(chain, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc,
+                                           scratch)
             nfev += nf
             if used:
                 n_newton += 1

@@ -4,8 +4,8 @@ The linear bench (its stiff coil, the reconstruction filter, the held source vol
 propagated exactly by ``e^{A h}`` and ``int e^{A s} B ds``, only the small nonlinear remainder
 ``f`` by the classical RK4 weights, ``substeps`` steps of ``h = 1 / (fs substeps)`` per DAC
 interval: the error is fourth order *in the remainder* (~ theta^2 h^4), independent of the
-electrical stiffness. Kernel: :func:`lawson4_kernel`; equations: :mod:`rig.solvers.coupled`. Cost ~ 4 O(n)
-recursions and 2 dense + 4 thin mat-vecs per step. No state between blocks.
+electrical stiffness. Kernel: :func:`lawson4_kernel`; equations: :mod:`rig.solvers.coupled`.
+Cost ~ 4 O(n) recursions and 2 dense + 4 thin mat-vecs per step. No state between blocks.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ class Lawson4(BenchSolver):
         z_out = np.empty((v.size, z.size))
         accel = np.empty(v.size)
         e_h, e_2, g_h, g_2 = model.lawson
-        lawson4_kernel(*model.coupled.args(), e_h, e_2, g_h, g_2,
+        lawson4_kernel(model.coupled.args(), e_h, e_2, g_h, g_2,
                        1.0 / (model.fs_hz * self.substeps), self.substeps, v, z, z_out, accel)
         return z_out, accel, native
 
@@ -59,17 +59,14 @@ def lawson_matrices(a: np.ndarray, b: np.ndarray, h: float):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def lawson4_kernel(mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c,
-                   m_stage, reaction, th0, q_idx, wc, rows, a_rows, e_h, e_2, g_h, g_2, h, nsub,
-                   v, z, z_out, ax_out):
+def lawson4_kernel(prm, e_h, e_2, g_h, g_2, h, nsub, v, z, z_out, ax_out):
     """Lawson RK4 (module docstring) over len(v) DAC intervals, ``nsub`` steps of ``h`` each.
 
     z_out[k] = z and ax_out[k] = x0'' at DAC instant k (k < len(v)); ``z`` (in/out) ends at the
     instant len(v). Every row is summed in a fixed order, so block splits reproduce one-shot runs
-    bit for bit."""
-    n, two, nz, nf, work, alpha = kernel_scratch(mass, rows, z)
-    prm = (mass, length, com, inertia, gamma, relative, g, hc, s, cm, mtot, kf, k, c, m_stage,
-           reaction, th0, q_idx, wc, rows, a_rows)
+    bit for bit. ``prm``: :class:`rig.solvers.coupled.CoupledArgs`."""
+    n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
+    rows = prm.rows
     f1 = np.empty(nf)
     f2 = np.empty(nf)
     f3 = np.empty(nf)

@@ -17,8 +17,8 @@ turns into :class:`rig.errors.DivergenceError`. Some are compiled with ``fastmat
 (fused multiply-adds only: no reassociation, the same results for any block split).
 
 These primitives are called from the methods' modules, :mod:`rig.chain` (the Cholesky solve) and
-:mod:`rig.solvers.coupled` (the polynomial sines); numba's on-disk cache would not see a change here from
-there (numba/numba#1833), so :mod:`rig._jit` keys the cache directory by a hash of every kernel
+:mod:`rig.solvers.coupled` (the polynomial sines); numba's on-disk cache would not see a change
+here from there (numba/numba#1833), so :mod:`rig._jit` keys the cache directory by a hash of every kernel
 file. Tests hold the right-hand sides to :func:`rig.chain.accel_kernel`.
 
 References
@@ -30,6 +30,7 @@ algorithm).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,6 +38,29 @@ from rig._jit import njit
 
 # Kernel status codes
 OK, NONFINITE, STEP_TOO_SMALL, NO_CONVERGENCE = 0, 1, 2, 3
+
+
+class ChainArgs(NamedTuple):
+    """The chain as the pendulum kernels take it, one argument (:func:`rig.solvers.rhs.
+    chain_args`): ``hc`` the mass matrix's constant H (n, n) [kg m^2], ``s`` the static moments S
+    (n,) [kg m], ``cm`` the damping C (n, n) [N m s], ``g`` [m/s^2]."""
+
+    hc: np.ndarray
+    s: np.ndarray
+    cm: np.ndarray
+    g: float
+
+
+class HeldArgs(NamedTuple):
+    """The held base input as the kernels take it, one argument (:attr:`rig.solvers.base.
+    HeldInput.kernel_args`): ``ax`` the horizontal samples [m/s^2], ``ay`` the vertical ones (a
+    1-sample dummy with ``sa`` = 0 where there are none), ``la`` 1 for the linear hold, 0 for
+    zoh."""
+
+    ax: np.ndarray
+    ay: np.ndarray
+    sa: int
+    la: int
 
 # _NOTE_LITERALS: numba compiles a separate copy of a jitted function for every integer *literal*
 # it is called with (f(x, 0) and f(x, 1) are two compilations, each inlined where called); the

@@ -18,7 +18,7 @@ from rig._jit import njit
 from rig.solvers.primitives import (ALG_TWO, NONFINITE, OK, SINCOS_POLY_MAX, rhs2, rhs_n, rhs_rec,
                                     sincos_poly, store)
 from rig.solvers.base import SubstepSolver
-from rig.solvers.rhs import bodies_array, rhs_algorithm
+from rig.solvers.rhs import bodies_array, chain_args, rhs_algorithm
 
 
 @dataclass(frozen=True)
@@ -39,16 +39,14 @@ class RK4(SubstepSolver):
         y = native
         y_out = self.out_rows(chain, y, held)
         alg = rhs_algorithm(chain, self.algorithm)
-        ax, ay, sa, la = held.kernel_args
-        hc, s, cm, g = chain.H, chain.S, chain.C, chain.g_mps2
+        inp, ca = held.kernel_args, chain_args(chain)
         sub = self.substeps
         if alg == ALG_TWO:
-            status, nrow, i_done = rk4_kernel2(hc, s, cm, g, ax, ay, sa, la, held.h_in, sub,
-                                               held.n_intervals, held.out_every, y, y_out)
+            status, nrow, i_done = rk4_kernel2(ca, inp, held.h_in, sub, held.n_intervals,
+                                               held.out_every, y, y_out)
         else:
-            status, nrow, i_done = rk4_kernel(hc, s, cm, g, bodies_array(chain), alg, ax, ay, sa,
-                                              la, held.h_in, sub, held.n_intervals,
-                                              held.out_every, y, y_out)
+            status, nrow, i_done = rk4_kernel(ca, bodies_array(chain), alg, inp, held.h_in, sub,
+                                              held.n_intervals, held.out_every, y, y_out)
         return self.finish(chain, status, y, y_out, nrow, i_done, held, substeps=sub,
                            n_steps=i_done * sub, n_fev=4 * i_done * sub)
 
@@ -58,18 +56,22 @@ class RK4(SubstepSolver):
 # ================================================================================================
 
 @njit(cache=True, nogil=True)
-def rk4_kernel(hc, s, cm, g, bod, alg, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
+def rk4_kernel(chain, bod, alg, inp, h_in, nsub, n_int, out_every, y, y_out):
     """Classic RK4, ``nsub`` equal steps per input interval, over ``n_int`` intervals.
 
     Input (all kernels): interval i holds ``ax[i] + (ax[i + la] - ax[i]) s / h_in`` (la = 1 for
     linear hold, 0 for zoh) and likewise ``ay[i sa]`` (sa = 0 with ay = [0.]: no vertical input);
     written with indices rather than branches so LLVM does not unswitch (duplicate) the loops.
 
-    ``y`` (2n,) is the state at the start and is overwritten with the state at the end. Rows of
-    ``y_out`` receive the state at interval counts 0, out_every, 2 out_every, ..., n_int.
+    ``chain``: :class:`rig.solvers.primitives.ChainArgs`; ``inp``: the held input,
+    :class:`rig.solvers.primitives.HeldArgs`. ``y`` (2n,) is the state at the start and is
+    overwritten with the state at the end. Rows of ``y_out`` receive the state at interval
+    counts 0, out_every, 2 out_every, ..., n_int.
     ``bod``, ``alg``: the right-hand side's body table and algorithm (:func:`rhs_alg`).
     Returns (status, rows written, intervals done).
     """
+    hc, s, cm, g = chain
+    ax, ay, sa, la = inp
     n2 = y.shape[0]
     n = n2 // 2
     kk = np.zeros((4, n2))
@@ -141,10 +143,12 @@ def _acc2(hc, s, cm, g, th0, th1, w0, w1, ax, ay):
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
-def rk4_kernel2(hc, s, cm, g, ax, ay, sa, la, h_in, nsub, n_int, out_every, y, y_out):
+def rk4_kernel2(chain, inp, h_in, nsub, n_int, out_every, y, y_out):
     """:func:`rk4_kernel` for n = 2 in scalar code (the state in registers, the sines and
     cosines from the inlined polynomial, fused multiply-adds). Same arguments (without the body
     table) and returns."""
+    hc, s, cm, g = chain
+    ax, ay, sa, la = inp
     z0 = y[0]
     z1 = y[1]
     z2 = y[2]

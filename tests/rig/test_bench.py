@@ -388,7 +388,7 @@ def test_coupled_bench_difference_from_linear_is_the_first_order_perturbation():
                     60_000)
     np.testing.assert_array_equal(v, nl.truth["source_v"])
     sums, peaks = np.zeros((1, 3, 2)), np.zeros((2, 2))
-    first_order_kernel(*p.args(), phi, gam, np.zeros_like(gam), gf0, gf1, v,
+    first_order_kernel(p.args(), phi, gam, np.zeros_like(gam), gf0, gf1, v,
                        np.zeros(m.n_states), np.zeros(m.n_states), 0, 1, sums, peaks)
     predicted = np.sqrt(sums[0, 1] / sums[0, 0])
     assert np.max(peaks[1]) < 0.1 * np.max(peaks[0])  # the first order holds all along

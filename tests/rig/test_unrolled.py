@@ -40,7 +40,7 @@ def _run(kernel, model, v, z, hist, have, nsub=1, mats=None, phase=None):
     phase = np.zeros(1, np.int64) if phase is None else phase
     z_out = np.empty((v.size, z.size))
     ax = np.empty(v.size)
-    kernel(*model.coupled.args(), *(mats or model.etdab), nsub, have, hist, phase, v, z, z_out,
+    kernel(model.coupled.args(), tuple(mats or model.etdab), nsub, have, hist, phase, v, z, z_out,
            ax)
     return z_out, ax
 
@@ -74,7 +74,7 @@ def test_the_unrolled_step_equals_the_loop_kernel_with_substeps_and_a_lagged_his
     h = 1.0 / (2 * model.fs_hz)
     phi, g0, _ = discretise(model.a, model.b, h, "zoh")
     w, lagv = etd_ab_phase_weights(model.a, model.coupled.rows, h, 4, 1, lag=1)
-    mats = (np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w, lagv) + model.etdab[4:]
+    mats = (np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w, lagv) + tuple(model.etdab[4:])
     (zl, al, el, hl), (zu, au, eu, hu) = _both(model, _drive("driven_3v", 5000), nsub=2, lag=1,
                                                mats=mats)
     for a, b in ((zl, zu), (al, au), (el, eu), (hl, hu)):

@@ -159,7 +159,7 @@ def test_etdab_skipping_the_exact_zeros_changes_no_bit():
     out = []
     for rows_, cols_ in ((w_rows, a_cols), (m.n_states, m.n_states)):
         z, z_out, ax = np.zeros(m.n_states), np.empty((v.size, m.n_states)), np.empty(v.size)
-        etd_ab_kernel(*m.coupled.args(), phi_t, gam, w, lagv, rows_, cols_, 1, False,
+        etd_ab_kernel(m.coupled.args(), (phi_t, gam, w, lagv, rows_, cols_), 1, False,
                       np.zeros((w.shape[1], m.coupled.rows.size)), np.zeros(1, np.int64), v, z,
                       z_out, ax)
         out.append((z_out, ax))
