@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""The nonlinear bench's step alone: etdab's loop kernel (``rig.solvers.etdab.etd_ab_kernel``) against
-the same step unrolled for the matrices' zero pattern (``rig.unrolled.etdab_kernel``, what the
-acquisition runs), each with the remainder at every step and every 5 steps (the default on this
+"""The nonlinear bench's step alone: etdab's loop kernel (``rig.solvers.etdab.etd_ab_kernel``)
+against the same step unrolled for the matrices' zero pattern (``rig.unrolled.etdab_kernel``, what
+the acquisition runs), each with the remainder at every step and every 5 steps (the default on this
 drive, ``rig.bench.model.remainder_every``), on the paper's bench (nonlinear model, 12 states)
 over the paper's drive (the source's first ``--seconds`` of seed 2009, held at 1 kHz),
 interleaved rounds, medians and quartiles of CPU per DAC sample, the angles' difference, and

@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """How smooth the coupled bench's nonlinear remainder is: the case for stepping it coarser than
 the DAC rate. Runs the paper's bench (nonlinear, etdab) over the source's first ``--seconds`` at
-``--level`` volts, evaluates the remainder ``f`` (``rig.solvers.coupled.remainder``: the nonlinear minus
-the linear derivative, rows v0, omega_1, omega_2, q) at every DAC sample of the trajectory, and
-prints per row its rms and the fraction of its power above 5, 20 and 50 Hz (Welch, 16,384-point
+``--level`` volts, evaluates the remainder ``f`` (``rig.solvers.coupled.remainder``: the nonlinear
+minus the linear derivative, rows v0, omega_1, omega_2, q) at every DAC sample of the trajectory,
+and prints per row its rms and the fraction of its power above 5, 20 and 50 Hz (Welch, 16,384-point
 segments), next to how far the nonlinear angles are from the linear bench's on the same drive.
 
     .venv/bin/python benchmarks/remainder_spectrum.py                # 300 s at the paper's 0.1 V

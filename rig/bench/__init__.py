@@ -16,8 +16,8 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     :func:`predict_linearisation_error`).
 ``nonlinear``
     ``method="etdab"`` (default): the whole bench, nonlinear pendulum *and* its reaction on the
-    stage (or without it), integrated as one system by :mod:`rig.solvers.coupled`: the linear bench is
-    propagated exactly (the matrix exponential of the exact linear model) and only the nonlinear
+    stage (or without it), integrated as one system by :mod:`rig.solvers.coupled`: the linear bench
+    is propagated exactly (the matrix exponential of the exact linear model) and only the nonlinear
     remainder (relative size ~theta^2) is integrated, by exponential Adams-Bashforth of order 4
     (:func:`rig.solvers.etdab.etd_ab_kernel`: the remainder's integral over a step from the
     polynomial through its values at the last 4 steps; one evaluation per step, at the step's

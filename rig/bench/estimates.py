@@ -6,8 +6,8 @@ of the model that runs, measured on a ``probe_s`` run of the scene's own drive f
 
 - ``linear``: the predicted linearisation error plus the discretisation's (one exact step
   against two exact half steps per DAC sample: round-off only);
-- ``etdab`` / ``lawson4`` (the coupled bench, :mod:`rig.solvers.coupled`): Richardson against twice the
-  steps per DAC sample, ``|theta - theta_fine| 2^p / (2^p - 1)`` with the method's order ``p``
+- ``etdab`` / ``lawson4`` (the coupled bench, :mod:`rig.solvers.coupled`): Richardson against twice
+  the steps per DAC sample, ``|theta - theta_fine| 2^p / (2^p - 1)`` with the method's order ``p``
   (the error is the small nonlinear remainder's: the linear part is exact), and the
   nonlinear-minus-linear difference on the probe;
 - ``rk4`` / ``gauss4`` / ``dop853`` (reaction off, the pendulum on the prescribed stage

@@ -39,8 +39,9 @@ acceleration* are unchanged, so H_t = x/a is not (that is why the analyzer divid
 measured a). With ``reaction = false`` the stage ignores the
 pendulum altogether (neither its mass nor its swinging loads the stage). Nonlinear, the reaction
 is ``F_p = m x0'' + sum_j S_j (cos th_j th_j'' - sin th_j th_j'^2)``, the rate of the momentum
-above; :mod:`rig.solvers.coupled` integrates stage and nonlinear pendulum together with it (the chain's
-force is affine in ``x0''``, so the stage equation is solved for ``x0''`` at every evaluation).
+above; :mod:`rig.solvers.coupled` integrates stage and nonlinear pendulum together with it (the
+chain's force is affine in ``x0''``, so the stage equation is solved for ``x0''`` at every
+evaluation).
 
 Defaults: ``G = 1 V/V, Kf = 1 N/A, R = 8 ohm, L = 4 mH, M = 2 kg, k = 0.8 N/m, c = 1 N
 s/m`` (the fields of :class:`Stage`); their justification and the levels they give are in

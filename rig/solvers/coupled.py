@@ -7,9 +7,9 @@ The bench state is the one of :mod:`rig.bench` (named slices there)::
     z = (i, x0, v0, theta (n), omega (n) [, q] [, r ...])
 
 and its exact linear model is ``z' = A z + B V`` (:meth:`rig.devices.stage.Stage.state_space`
-plus the source's reconstruction filter and the accelerometer's high-pass). The nonlinear bench differs from
-it only in the mechanical accelerations: with ``F_ext = Kf i - k x0 - c v0`` the stage and the
-chain obey::
+plus the source's reconstruction filter and the accelerometer's high-pass). The nonlinear bench
+differs from it only in the mechanical accelerations: with ``F_ext = Kf i - k x0 - c v0`` the stage
+and the chain obey::
 
     M x0'' = F_ext + F_chain(theta, omega, x0'')          (reaction on; without it F_chain = 0)
     theta'' = alpha(theta, omega, x0'')                    (the chain on a moving base, SPEC 2)

@@ -261,8 +261,8 @@ def _gauss_step(chain, y, h, s_loc, a0, da, b0, db, inv, ga, gb, gc, scratch):
 def gauss_kernel(chain, inp, h_in, nsub, n_int, out_every, y, y_out, ga, gb, gc):
     """Gauss-Legendre collocation (tableau ga, gb, gc) in y = (theta, p), nsub steps per interval.
 
-    ``chain``, ``inp``: as :func:`rig.solvers.rk4.rk4_kernel`'s. Returns (status, rows written, intervals done, local time reached, rhs evaluations,
-    steps that needed Newton)."""
+    ``chain``, ``inp``: as :func:`rig.solvers.rk4.rk4_kernel`'s. Returns (status, rows written,
+    intervals done, local time reached, rhs evaluations, steps that needed Newton)."""
     hc, s, cm, g = chain
     ax, ay, sa, la = inp
     n2 = y.shape[0]

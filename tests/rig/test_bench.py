@@ -348,7 +348,7 @@ def test_linear_model_info_reports_round_off_and_the_predicted_linearisation_err
     assert info["budget_met"] and info["selection"]["linear_meets_budget"]
 
 
-# -- the coupled nonlinear bench (rig.solvers.coupled, method lawson4) ---------------------------------
+# -- the coupled nonlinear bench (rig.solvers.coupled, method lawson4) ----------------------------
 
 def test_coupled_nonlinear_bench_at_small_amplitude_is_the_exact_linear_bench():
     # 1 mV drive: theta ~ 6e-5 rad, the nonlinearity ~ Q theta^2 ~ 1e-6 relative; the Lawson

@@ -1,6 +1,6 @@
 """The etdab step unrolled for one exact-zero pattern (rig.unrolled) gives the loop kernel's
-values (rig.solvers.etdab.etd_ab_kernel) bit for bit, whatever the pattern, chain, history lag, steps
-per DAC interval or block split; its generated module is written once and reused."""
+values (rig.solvers.etdab.etd_ab_kernel) bit for bit, whatever the pattern, chain, history lag,
+steps per DAC interval or block split; its generated module is written once and reused."""
 
 import math
 
@@ -74,7 +74,8 @@ def test_the_unrolled_step_equals_the_loop_kernel_with_substeps_and_a_lagged_his
     h = 1.0 / (2 * model.fs_hz)
     phi, g0, _ = discretise(model.a, model.b, h, "zoh")
     w, lagv = etd_ab_phase_weights(model.a, model.coupled.rows, h, 4, 1, lag=1)
-    mats = (np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w, lagv) + tuple(model.etdab[4:])
+    mats = ((np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w, lagv)
+            + tuple(model.etdab[4:]))
     (zl, al, el, hl), (zu, au, eu, hu) = _both(model, _drive("driven_3v", 5000), nsub=2, lag=1,
                                                mats=mats)
     for a, b in ((zl, zu), (al, au), (el, eu), (hl, hu)):

@@ -190,7 +190,7 @@ def test_bad_stage_value_in_a_scene_is_reported_when_the_scene_is_loaded():
         ishizaki("stage.moving_mass_kg=-3")
 
 
-# -- the nonlinear reaction (rig.solvers.coupled) --------------------------------------------------------
+# -- the nonlinear reaction (rig.solvers.coupled) -------------------------------------------------
 
 @pytest.mark.parametrize("reaction", [True, False])
 @pytest.mark.parametrize("mode", ["absolute", "relative"])
