@@ -19,10 +19,10 @@ import numpy as np
 
 from rig.errors import ConfigError
 from rig._jit import njit
-from rig.solvers.primitives import (NONFINITE, OK, STEP_TOO_SMALL, rhs2, rhs_alg, rhs_n, rhs_rec,
-                                    store)
+from rig.solvers.primitives import (NONFINITE, OK, STEP_TOO_SMALL, chain_args, rhs2, rhs_alg,
+                                    rhs_n, rhs_rec, store)
 from rig.solvers.base import Refinement, SubstepSolver
-from rig.solvers.rhs import bodies_array, chain_args, rhs_algorithm
+from rig.solvers.rhs import bodies_array, rhs_algorithm
 
 
 # -- Dormand-Prince 8(5,3) coefficients -----------------------------------------------------------

@@ -21,10 +21,9 @@ import numpy as np
 
 from rig._jit import njit
 from rig.linear import discretise, monomial_integrals
-from rig.solvers.primitives import NONFINITE, OK, sincos4, store
+from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos4, store
 from rig.solvers.remainder import nsplit2, nsplit_n
 from rig.solvers.base import SubstepSolver
-from rig.solvers.rhs import chain_args
 
 if TYPE_CHECKING:
     from rig.chain import Chain

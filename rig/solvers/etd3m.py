@@ -21,10 +21,9 @@ from rig.errors import ConfigError
 
 from rig._jit import njit
 from rig.linear import expm, monomial_integrals
-from rig.solvers.primitives import NONFINITE, OK, sincos4, sincos_pair, store
+from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos4, sincos_pair, store
 from rig.solvers.remainder import nsplit2, nsplit_n
 from rig.solvers.base import HOLDS, PendulumSolver, Refinement, multisample_refinement
-from rig.solvers.rhs import chain_args
 from rig.solvers.etd3 import ETD3_NODES, Etd3, etd3_hist2
 
 if TYPE_CHECKING:

@@ -51,11 +51,10 @@ import numpy as np
 
 from rig._jit import njit
 from rig.linear import expm
-from rig.solvers.primitives import NONFINITE, OK, sincos6, sincos_pair, store
+from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos6, sincos_pair, store
 from rig.solvers.remainder import n2_at, nsplit2, nsplit2h, nsplit_n
 from rig.solvers.base import Refinement, multisample_refinement
 from rig.solvers.dop853 import Dop853
-from rig.solvers.rhs import chain_args
 from rig.solvers.etd3m import (MultiSample, _piece_integral, check_hold_and_m,
                                check_samples_per_step, linear_parts, sawtooth_corrections,
                                staircase_weights)

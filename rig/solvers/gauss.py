@@ -18,9 +18,8 @@ import numpy as np
 
 from rig._jit import njit
 from rig.solvers.primitives import (NO_CONVERGENCE, NONFINITE, OK, all_finite, canon2, canon_n,
-                                    lu_factor, lu_solve, store)
+                                    chain_args, lu_factor, lu_solve, store)
 from rig.solvers.base import SubstepSolver
-from rig.solvers.rhs import chain_args
 
 
 # -- Gauss-Legendre coefficients ----------------------------------------------------------------

@@ -41,14 +41,19 @@ OK, NONFINITE, STEP_TOO_SMALL, NO_CONVERGENCE = 0, 1, 2, 3
 
 
 class ChainArgs(NamedTuple):
-    """The chain as the pendulum kernels take it, one argument (:func:`rig.solvers.rhs.
-    chain_args`): ``hc`` the mass matrix's constant H (n, n) [kg m^2], ``s`` the static moments S
-    (n,) [kg m], ``cm`` the damping C (n, n) [N m s], ``g`` [m/s^2]."""
+    """The chain as the pendulum kernels take it, one argument (:func:`chain_args`): ``hc`` the
+    mass matrix's constant H (n, n) [kg m^2], ``s`` the static moments S (n,) [kg m], ``cm`` the
+    damping C (n, n) [N m s], ``g`` [m/s^2]."""
 
     hc: np.ndarray
     s: np.ndarray
     cm: np.ndarray
     g: float
+
+
+def chain_args(chain) -> ChainArgs:
+    """:class:`ChainArgs` of a :class:`rig.chain.Chain`."""
+    return ChainArgs(chain.H, chain.S, chain.C, chain.g_mps2)
 
 
 class HeldArgs(NamedTuple):

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rig.errors import ConfigError
-from rig.solvers.primitives import (ALG_DENSE, ALG_RECURSIVE, ALG_TWO, RECURSIVE_FROM_N, ChainArgs,
-                                    canon2, canon_n, rhs_alg, sincos_pair)
+from rig.solvers.primitives import (ALG_DENSE, ALG_RECURSIVE, ALG_TWO, RECURSIVE_FROM_N, canon2,
+                                    canon_n, rhs_alg, sincos_pair)
 from rig.solvers.remainder import nsplit2, nsplit_n
 
 if TYPE_CHECKING:
@@ -26,11 +26,6 @@ def bodies_array(chain: Chain) -> np.ndarray:
     """The (6, n) body table the recursive right-hand side reads (:meth:`rig.chain.Chain.
     body_table`: mass, length, com, inertia, damping, relative flag)."""
     return chain.body_table()
-
-
-def chain_args(chain: Chain) -> ChainArgs:
-    """The chain as the pendulum kernels take it (H, S, C, g)."""
-    return ChainArgs(chain.H, chain.S, chain.C, chain.g_mps2)
 
 
 def rhs_algorithm(chain: Chain, algorithm: str = "auto") -> int:

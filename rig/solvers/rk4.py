@@ -15,10 +15,10 @@ import math
 import numpy as np
 
 from rig._jit import njit
-from rig.solvers.primitives import (ALG_TWO, NONFINITE, OK, SINCOS_POLY_MAX, rhs2, rhs_n, rhs_rec,
-                                    sincos_poly, store)
+from rig.solvers.primitives import (ALG_TWO, NONFINITE, OK, SINCOS_POLY_MAX, chain_args, rhs2,
+                                    rhs_n, rhs_rec, sincos_poly, store)
 from rig.solvers.base import SubstepSolver
-from rig.solvers.rhs import bodies_array, chain_args, rhs_algorithm
+from rig.solvers.rhs import bodies_array, rhs_algorithm
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ import pytest
 from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.solvers import SOLVERS
 from rig.solvers.etd4m import etd4m_kernel
-from rig.solvers.rhs import chain_args
+from rig.solvers.primitives import chain_args
 from rig.solvers.etd4m import etd4m_coefficients
 from rig.simulate import BaseInput, simulate
 

@@ -18,8 +18,7 @@ from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 from rig.solvers import integrate, solver_named
 from rig.solvers.etd4m import etd4m_kernel2, etd4m_kernel2h
-from rig.solvers.primitives import SINCOS_POLY_MAX
-from rig.solvers.rhs import chain_args
+from rig.solvers.primitives import SINCOS_POLY_MAX, chain_args
 from rig.solvers.etd4m import (BLAS_ONE_THREAD_MULADDS, FIR_CHUNK_STEPS, etd4m_coefficients,
                                fir_chunk_steps)
 

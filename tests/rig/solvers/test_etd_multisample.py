@@ -9,7 +9,7 @@ from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers import SOLVERS, integrate, solver_named
 from rig.solvers.etd3m import etd3m_kernel
-from rig.solvers.rhs import chain_args
+from rig.solvers.primitives import chain_args
 from rig.solvers.etd3m import etd3m_coefficients
 from rig.linear import discretise
 from rig.solvers.exact import lift_linear

@@ -10,8 +10,7 @@ import pytest
 from rig.errors import DivergenceError
 from rig.solvers import SOLVERS, integrate, solver_named
 from rig.solvers.etd3 import etd3_kernel
-from rig.solvers.rhs import chain_args
-from rig.solvers.primitives import SINCOS_POLY_MAX, sincos_poly
+from rig.solvers.primitives import SINCOS_POLY_MAX, chain_args, sincos_poly
 from rig.solvers.etd3 import etd3_coefficients
 from rig.solvers.rhs import nonlinear_remainder, rhs
 from rig.scene import load_scene
