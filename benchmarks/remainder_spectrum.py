@@ -19,9 +19,9 @@ import scipy.signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rig import unrolled  # noqa: E402
 from rig.bench import BenchSimulation  # noqa: E402
 from rig.solvers.coupled import remainder  # noqa: E402
+from rig.solvers.etdab import etdab_kernel  # noqa: E402
 from rig.devices.source import generate  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 
@@ -41,7 +41,7 @@ def main(argv=None):
     v = np.ascontiguousarray(v, dtype=float)
     sim = BenchSimulation(scene, 2009, method="etdab", every=1)  # the remainder at every step
     phi_t, gam, w, lagv, w_rows, a_cols = sim.model.etdab
-    kern = unrolled.etdab_kernel(phi_t, gam, w, 4, prm.n)
+    kern = etdab_kernel(phi_t, gam, w, 4, prm.n)
     runs = {}
     for name, weights in (("nonlinear", w), ("linear", np.zeros_like(w))):  # no remainder
         z, hist = np.array(sim.state.z, dtype=float), np.zeros((4, prm.rows.size))

@@ -9,7 +9,7 @@ so four nodes 5 ms apart resolve it), the polynomial extrapolated over the steps
 native state is those four remainder values (``(4, rows)``; with ``every`` > 1 one more row: the
 steps since the newest node), so blocks continue bit for bit; the first steps after a start
 build it up. Kernel: :func:`etd_ab_kernel` (equations: :mod:`rig.solvers.coupled`), run
-unrolled for the matrices' exact-zero pattern (:func:`rig.unrolled.etdab_kernel`: the same values).
+unrolled for the matrices' exact-zero pattern (:func:`etdab_kernel`: the same values).
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from rig.errors import ConfigError
 from rig.solvers.base import whole_number
 from rig.solvers.bench_base import BenchSolver
 from rig.solvers.coupled import kernel_scratch, remainder2_fast, remainder_n
+from rig.unrolled import load
 
 ETDAB_ORDER = 4  # past remainder values per step (the order of the method)
 
@@ -71,8 +72,6 @@ class Etdab(BenchSolver):
     def advance_bench(self, model, z, native, v):
         """The native state: the remainder at the last ``ETDAB_ORDER`` nodes (newest first,
         one row each); with ``every`` > 1 one more row, the steps since the newest node."""
-        from rig import unrolled
-
         self.check_model(model)
         z_out = np.empty((v.size, z.size))
         accel = np.empty(v.size)
@@ -85,7 +84,7 @@ class Etdab(BenchSolver):
             hist = np.ascontiguousarray(native[:ETDAB_ORDER])
             if self.every > 1:
                 phase[0] = int(native[ETDAB_ORDER, 0])
-        kernel = unrolled.etdab_kernel(*model.etdab[:3], hist.shape[0], model.coupled.n)
+        kernel = etdab_kernel(*model.etdab[:3], hist.shape[0], model.coupled.n)
         kernel(model.coupled.args(), model.etdab, self.substeps, native is not None, hist,
                phase, v, z, z_out, accel)
         if self.every > 1:
@@ -176,7 +175,7 @@ def etd_ab_kernel(prm, mats, nsub, have, hist, phase, v, z, z_out, ax_out):
     the instant len(v). The rows are summed in a fixed order, so block splits reproduce one-shot
     runs bit for bit. Compiled with FMA contraction (``fastmath={"contract"}``, no reordering):
     the acquisition runs the same arithmetic unrolled for the matrices' zero pattern
-    (:func:`rig.unrolled.etdab_kernel`, the same values), this loop is its reference and the
+    (:func:`etdab_kernel`, the same values), this loop is its reference and the
     path of benches too large to unroll."""
     n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
     phi_t, gam, w, lagv, w_rows, a_cols = mats
@@ -238,3 +237,153 @@ def etd_ab_kernel(prm, mats, nsub, have, hist, phase, v, z, z_out, ax_out):
             if ph == every:
                 ph = 0
     phase[0] = ph
+
+
+# ================================================================================================
+# the step unrolled for the matrices' exact-zero pattern (what the acquisition runs)
+# ================================================================================================
+#
+# etdab_source writes etd_ab_kernel's step as straight-line code on scalars for the zero pattern
+# of its matrices (rig.unrolled: why, and how generated code is cached): the same operations in
+# the same order (each sum from its first term in the loop kernel's order, the zero products
+# left out, which leaves every finite sum's value unchanged) under the same compiler options, so
+# the two give equal values; the unrolled one measured 1.8x faster per step (docs/bench,
+# BENCHMARKS.md speed round 4).
+
+#: numba options of the generated etdab kernel: :func:`etd_ab_kernel`'s own
+ETDAB_OPTIONS = dict(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+_by_pattern: dict[tuple, object] = {}
+
+
+def etdab_source(phi_t: np.ndarray, gam: np.ndarray, w: np.ndarray, hist_rows: int,
+                 two: bool, name: str = "etd_ab_unrolled") -> str:
+    """Python source of a function with :func:`etd_ab_kernel`'s signature and
+    arithmetic, unrolled for ``phi_t`` (nz, nz), ``gam`` (nz,), ``w`` (every, order, nf, nz)
+    and a history of ``hist_rows`` (lag + order) nodes: their values are read at run time, their
+    exact zeros are left out of the code (a kernel for this pattern serves any values with the
+    same zeros). ``every`` = 1 keeps the weights in locals; ``every`` > 1 (a remainder every
+    ``every`` steps) reads the step's phase of them from ``w``. ``two``: the chain has two bodies
+    (the dense remainder, inlined), else the O(n) recursion."""
+    phi_t, gam, w = (np.asarray(x, dtype=float) for x in (phi_t, gam, w))
+    nz = phi_t.shape[0]
+    every, order, nf, _ = w.shape
+    nh = int(hist_rows)
+    lag = nh - order
+    if phi_t.shape != (nz, nz) or gam.shape != (nz,) or w.shape[3] != nz or lag < 0:
+        raise ValueError(f"shapes do not match: phi_t {phi_t.shape}, gam {gam.shape}, "
+                         f"w {w.shape}, hist_rows {nh}")
+    used = np.any(w != 0.0, axis=0)  # (order, nf, nz): a product in some phase
+    L = []
+    put = L.append
+    put(f"def {name}(prm, mats, nsub, have, hist, phase, v, z, z_out, ax_out):")
+    put(f'    """Generated by rig.solvers.etdab.etdab_source: nz = {nz}, nf = {nf}, '
+        f'order = {order}, lag = {lag}, every = {every}."""')
+    put("    n, two, nz, nf, work, alpha = kernel_scratch(prm, z)")
+    put("    phi_t, gam, w, lagv, w_rows, a_cols = mats")
+    put("    a_rows = prm.a_rows")
+    put("    f = np.empty(nf)")
+    for r in range(nz):
+        for col in range(nz):
+            if phi_t[col, r] != 0.0:
+                put(f"    p{r}_{col} = phi_t[{col}, {r}]")
+        put(f"    g{r} = gam[{r}]")
+        put(f"    z{r} = z[{r}]")
+    if every == 1:
+        for j in range(order):
+            for i in range(nf):
+                for r in range(nz):
+                    if used[j, i, r]:
+                        put(f"    w{j}_{i}_{r} = w[0, {j}, {i}, {r}]")
+    for j in range(nh):
+        for i in range(nf):
+            put(f"    h{j}_{i} = hist[{j}, {i}]")
+    put("    first = not have")
+    put("    ph = phase[0]")
+    put("    ax = 0.0")
+    put("    for kk in range(v.shape[0]):")
+    put("        vk = v[kk]")
+    put("        for sub in range(nsub):")
+    put("            if ph == 0:")
+    if two:
+        put("                ax = remainder2_fast(prm, a_cols, z, f)")
+    else:
+        put("                ax = remainder_n(prm, z, work, alpha, f)")
+    for i in range(nf):
+        put(f"                f{i} = f[{i}]")
+    put("                if first:")
+    put("                    first = False")
+    for j in range(nh):
+        for i in range(nf):
+            put(f"                    h{j}_{i} = f{i}")
+    put("                else:")
+    for j in range(nh - 1, 0, -1):
+        for i in range(nf):
+            put(f"                    h{j}_{i} = h{j - 1}_{i}")
+    for i in range(nf):
+        put(f"                    h0_{i} = f{i}")
+    if every > 1:  # between nodes: x0'' from the linear row and f's first row interpolated
+        put("            elif sub == 0:")
+        put("                ax = 0.0")
+        put("                for col in range(a_cols):")
+        put("                    ax += a_rows[0, col] * z[col]")
+        for j in range(order):
+            put(f"                ax += lagv[ph, {j}] * h{lag + j}_0")
+    put("            if sub == 0:")
+    put("                ax_out[kk] = ax")
+    for r in range(nz):
+        put(f"                z_out[kk, {r}] = z{r}")
+    # the loop kernel: zn[r] = gam[r] v, then + phi_t[col, r] z[col] for col = 0 .. nz - 1; zw[r]
+    # from 0.0, + w[ph, j, i, r] hist[lag + j, i] for j = order - 1 .. 0, i = 0 .. nf - 1;
+    # z = zn + zw
+    for r in range(nz):
+        e = f"g{r} * vk"
+        for col in range(nz):
+            if phi_t[col, r] != 0.0:
+                e = f"{e} + p{r}_{col} * z{col}"
+        put(f"            n{r} = {e}")
+    for r in range(nz):
+        e = "0.0"
+        for j in range(order - 1, -1, -1):
+            for i in range(nf):
+                if used[j, i, r]:
+                    wt = f"w{j}_{i}_{r}" if every == 1 else f"w[ph, {j}, {i}, {r}]"
+                    e = f"{e} + {wt} * h{lag + j}_{i}"
+        put(f"            s{r} = {e}")
+    for r in range(nz):
+        put(f"            z{r} = n{r} + s{r}")
+        put(f"            z[{r}] = z{r}")
+    put("            ph += 1")
+    put("            if ph == w.shape[0]:")
+    put("                ph = 0")
+    put("    phase[0] = ph")
+    for j in range(nh):
+        for i in range(nf):
+            put(f"    hist[{j}, {i}] = h{j}_{i}")
+    head = ("import numpy as np\n\n"
+            "from rig.solvers.coupled import kernel_scratch, remainder2_fast, remainder_n\n\n\n")
+    return head + "\n".join(L) + "\n"
+
+
+#: :func:`etdab_kernel` unrolls benches of at most this many states (the paper's has 12, a
+#: three-body chain 14): the code grows as the square of the states and its compile time with it
+#: (~3 s at 12); larger benches, whose step is dominated by the chain's O(n) recursion anyway, use
+#: the loop kernel (the same values)
+UNROLL_MAX_STATES = 16
+
+
+def etdab_kernel(phi_t: np.ndarray, gam: np.ndarray, w: np.ndarray, hist_rows: int,
+                 n_bodies: int):
+    """The compiled etdab kernel for these matrices: unrolled for their sizes and exact-zero
+    pattern (generated and compiled once per pattern; memoised in the process by the pattern, so
+    a call per block costs a few microseconds), or :func:`etd_ab_kernel` beyond
+    :data:`UNROLL_MAX_STATES` states. Either gives the same values."""
+    if phi_t.shape[0] > UNROLL_MAX_STATES:
+        return etd_ab_kernel
+    key = (phi_t.shape, w.shape, int(hist_rows), n_bodies == 2,
+           np.packbits(np.asarray(phi_t) != 0.0).tobytes(),
+           np.packbits(np.any(np.asarray(w) != 0.0, axis=0)).tobytes())
+    got = _by_pattern.get(key)
+    if got is None:
+        src = etdab_source(phi_t, gam, w, hist_rows, n_bodies == 2)
+        got = _by_pattern[key] = load(src, "etd_ab_unrolled", ETDAB_OPTIONS)
+    return got
