@@ -270,7 +270,7 @@ def dop853_kernel(chain, bod, alg, inp, h_in, n_int, out_every, y, y_out, rtol, 
     n_acc = 0
     n_rej = 0
     nfev = 0
-    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    zero = n_int - n_int  # run-time 0, 1: _NOTE_LITERALS, rig.solvers.primitives
     one = zero + 1
     store(y, y_out, zero)
     row = one

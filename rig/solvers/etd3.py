@@ -187,7 +187,7 @@ def etd3_kernel(chain, co, inp, h_in, nsub, n_int, out_every, y, y_out, hist, ha
     c0 = ETD3_NODES[0]
     c1 = ETD3_NODES[1]
     nev = 0
-    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    zero = n_int - n_int  # run-time 0, 1: _NOTE_LITERALS, rig.solvers.primitives
     one = zero + 1
     two = one + 1
     if not have:
@@ -288,7 +288,7 @@ def etd3_kernel2(chain, co, inp, h_in, nsub, n_int, out_every, y, y_out, hist, h
     x01 = xp[0, 1]
     x10 = xp[1, 0]
     x11 = xp[1, 1]
-    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    zero = n_int - n_int  # run-time 0, 1: _NOTE_LITERALS, rig.solvers.primitives
     one = zero + 1
     store(y, y_out, zero)
     row = one

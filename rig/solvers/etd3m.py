@@ -340,7 +340,7 @@ def etd3m_kernel(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, h
     zt = np.empty(n2)
     w = np.empty((n, n + 5))
     nev = 0
-    zero = n_steps - n_steps  # see _NOTE_LITERALS
+    zero = n_steps - n_steps  # see _NOTE_LITERALS (rig.solvers.primitives)
     one = zero + 1
     if not have:
         for c in range(n2):
@@ -454,7 +454,7 @@ def etd3m_kernel2(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, 
                                         hist[1, 4], hist[1, 5])
     bw0 = bw[0]
     bw1 = bw[1]
-    zero = n_steps - n_steps  # see _NOTE_LITERALS
+    zero = n_steps - n_steps  # see _NOTE_LITERALS (rig.solvers.primitives)
     one = zero + 1
     store(y, y_out, zero)
     row = one

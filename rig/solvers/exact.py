@@ -153,7 +153,7 @@ def linear_kernel(phi, g0, g1, ax, la, nsub, n_int, out_every, y, y_out):
     n2 = y.shape[0]
     yt = np.empty(n2)
     frac = 1.0 / nsub
-    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    zero = n_int - n_int  # run-time 0, 1: _NOTE_LITERALS, rig.solvers.primitives
     one = zero + 1
     store(y, y_out, zero)
     row = one
@@ -237,7 +237,7 @@ def lifted_kernel(p, taps, ax, m, n_rows, y, y_out):
     nt = taps.shape[0]
     yt = np.empty(n2)
     w = np.empty(n2)
-    zero = n_rows - n_rows  # see _NOTE_LITERALS
+    zero = n_rows - n_rows  # see _NOTE_LITERALS (rig.solvers.primitives)
     store(y, y_out, zero)
     for k in range(n_rows):
         i0 = k * m

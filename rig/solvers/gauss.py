@@ -282,7 +282,7 @@ def gauss_kernel(chain, inp, h_in, nsub, n_int, out_every, y, y_out, ga, gb, gc)
     inv = 1.0 / h_in
     nfev = 0
     n_newton = 0
-    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    zero = n_int - n_int  # run-time 0, 1: _NOTE_LITERALS, rig.solvers.primitives
     one = zero + 1
     store(y, y_out, zero)
     row = one

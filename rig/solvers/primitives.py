@@ -67,10 +67,12 @@ class HeldArgs(NamedTuple):
     sa: int
     la: int
 
-# _NOTE_LITERALS: numba compiles a separate copy of a jitted function for every integer *literal*
-# it is called with (f(x, 0) and f(x, 1) are two compilations, each inlined where called); the
-# kernels therefore pass run-time integers (e.g. ``zero = n - n``) to their helpers, which keeps the
-# first (cold-cache) compilation several seconds shorter.
+
+# _NOTE_LITERALS (the methods' kernels refer to this note): numba compiles a separate copy of a
+# jitted function for every integer *literal* it is called with (f(x, 0) and f(x, 1) are two
+# compilations, each inlined where called); the kernels therefore pass run-time integers (e.g.
+# ``zero = n - n``) to their helpers, which keeps the first (cold-cache) compilation several
+# seconds shorter.
 
 
 # ================================================================================================

@@ -79,7 +79,7 @@ def rk4_kernel(chain, bod, alg, inp, h_in, nsub, n_int, out_every, y, y_out):
     work = np.empty((n, max(n + 2, 6)))
     h = h_in / nsub
     inv = 1.0 / h_in
-    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    zero = n_int - n_int  # run-time 0, 1: _NOTE_LITERALS, rig.solvers.primitives
     one = zero + 1
     store(y, y_out, zero)
     row = one
@@ -157,7 +157,7 @@ def rk4_kernel2(chain, inp, h_in, nsub, n_int, out_every, y, y_out):
     hh = 0.5 * h
     h6 = h / 6.0
     inv = 1.0 / h_in
-    zero = n_int - n_int  # a run-time 0 and 1: see _NOTE_LITERALS
+    zero = n_int - n_int  # run-time 0, 1: _NOTE_LITERALS, rig.solvers.primitives
     one = zero + 1
     store(y, y_out, zero)
     row = one
