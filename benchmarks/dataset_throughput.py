@@ -12,12 +12,16 @@ every configuration alike):
 - ``local-1``, ``local-2``: ``daq dataset`` with 1 and 2 local workers (acquisition *and*
   analysis of every run, manifest);
 - ``dask-2``: ``daq dataset --scheduler`` on a running 2-worker ``LocalCluster`` (its start is
-  not timed: it stands for an existing cluster).
+  not timed: it stands for an existing cluster);
+- ``raw-2``: ``daq dataset`` with 2 local workers and ``[keep] analysis = false`` (the signals,
+  truth and model only).
+
+``--configs local-2,raw-2`` times only those (no cluster is started without ``dask-2``).
 
 Every configuration makes ``--runs`` runs (different seeds) from a cold start of its command and
 writes everything the runs keep (ground truth included, like ``daq acquire``). It prints, per
 model and configuration, the median runs per minute over the repeats with the spread (min - max)
-and the ratio of medians to the loop, and writes the raw times as JSON.
+and the ratio of medians to the first configuration, and writes the raw times as JSON.
 """
 
 from __future__ import annotations
@@ -37,9 +41,10 @@ PY = sys.executable
 LEVELS = {"linear": 0.1, "nonlinear": 0.3}
 
 
-def sweep_text(level: float, runs: int) -> str:
+def sweep_text(level: float, runs: int, raw: bool = False) -> str:
     return (f'name = "throughput"\nseed = 11\nscene = "ishizaki2009"\n'
-            f'set = ["source.level_vrms={level}"]\n[random]\ncount = {runs}\n')
+            f'set = ["source.level_vrms={level}"]\n[random]\ncount = {runs}\n'
+            + ("[keep]\nanalysis = false\n" if raw else ""))
 
 
 def time_loop(level: float, runs: int, work: Path) -> float:
@@ -64,13 +69,20 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=6)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench" / "dataset_throughput.json")
+    ap.add_argument("--configs", default="loop,local-1,local-2,dask-2,raw-2")
     a = ap.parse_args()
-    from distributed import LocalCluster
+    import contextlib
 
-    configs = ["loop", "local-1", "local-2", "dask-2"]
+    configs = a.configs.split(",")
     times = {m: {c: [] for c in configs} for m in LEVELS}
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address="127.0.0.1:0") as cluster:
+    if "dask-2" in configs:
+        from distributed import LocalCluster
+
+        cluster_cm = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address="127.0.0.1:0")
+    else:
+        cluster_cm = contextlib.nullcontext()
+    with cluster_cm as cluster:
         for r in range(a.repeats):
             for model, level in LEVELS.items():
                 order = configs[r % len(configs):] + configs[:r % len(configs)]
@@ -78,7 +90,7 @@ def main() -> int:
                     work = Path(tempfile.mkdtemp(prefix="dataset-bench-"))
                     try:
                         path = work / "sweep.toml"
-                        path.write_text(sweep_text(level, a.runs))
+                        path.write_text(sweep_text(level, a.runs, raw=c.startswith("raw")))
                         if c == "loop":
                             dt = time_loop(level, a.runs, work)
                         elif c == "dask-2":
@@ -91,13 +103,14 @@ def main() -> int:
                     times[model][c].append(dt)
                     print(f"repeat {r + 1} {model:9s} {c:8s} {dt:7.1f} s "
                           f"({a.runs / dt * 60:.1f} runs/min)", flush=True)
+    print(f"\nratios are to {configs[0]}")
     print(f"\npaper experiments (30 x 100 s) per minute, {a.runs} runs per command, median "
           f"(min - max) of {a.repeats} interleaved repeats")
     print(f"| model | {' | '.join(configs)} |")
     print("|---|" + "---|" * len(configs))
     for model in LEVELS:
         rates = {c: [a.runs / t * 60 for t in times[model][c]] for c in configs}
-        base = statistics.median(rates["loop"])
+        base = statistics.median(rates[configs[0]])
         cells = [f"{statistics.median(v):.1f} ({min(v):.1f} - {max(v):.1f}), "
                  f"x{statistics.median(v) / base:.2f}" for v in rates.values()]
         print(f"| {model} ({LEVELS[model]} V) | {' | '.join(cells)} |")

@@ -74,6 +74,14 @@ class CoherenceBudget:
     n_averages: float
 
 
+def lever_quadratic_coefficients(lever) -> dict[str, float]:
+    """The optical lever's second-order terms (module docstring, mechanism 1) as coefficients:
+    the calibrated channels read ``x = dx - c_x theta^2`` and ``y = theta - c_y dx theta``,
+    ``c_x = D cos(phi)`` [m/rad^2], ``c_y = cos(2 phi) / (D cos(phi))`` [1/m]."""
+    phi, dist = lever.phi_rad, lever.distance_m
+    return {"x": dist * math.cos(phi), "y": math.cos(2 * phi) / (dist * math.cos(phi))}
+
+
 def quadratic_spectra(f_hz, fs: float, n_fft: int, g_tt, g_dd, g_dt) -> tuple:
     """One-sided PSDs of ``theta^2`` [rad^4/Hz] and ``dx theta`` [m^2 rad^2/Hz] (means removed)
     of zero-mean jointly Gaussian ``dx``, ``theta`` with one-sided spectra ``g_tt``, ``g_dd`` and
@@ -106,8 +114,7 @@ def coherence_budget(header, settings, bench, *, n_fft: int, n_averages: float) 
     noise = {"a": (acc.sensitivity_vpmps2 * acc.noise_mps2_rthz / vpu["a"]) ** 2,
              "x": (lever.gain_vpm * lever.noise_m_rthz / vpu["x"]) ** 2,
              "y": (lever.gain_vpm * lever.noise_m_rthz / vpu["y"]) ** 2}
-    phi, dist = lever.phi_rad, lever.distance_m
-    coef = {"x": dist * math.cos(phi), "y": math.cos(2 * phi) / (dist * math.cos(phi))}
+    coef = lever_quadratic_coefficients(lever)
 
     f = np.arange(n_fft // 2 + 1) * (fs / n_fft)
     s_v = source.design_psd(f)

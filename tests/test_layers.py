@@ -7,7 +7,7 @@ included: a lazy import is still a dependency). The rules:
 - no cycle among the project's modules (``benchmarks/`` included);
 - ``rig`` imports nothing from ``daq``, ``processing`` or ``benchmarks``;
 - ``daq`` imports nothing from ``processing`` or ``benchmarks``, except its CLI (the composition
-  root: ``daq.cli`` and ``daq.cli_*`` modules, or a ``daq.cli`` package);
+  root: the ``daq.cli`` package);
 - ``processing`` imports from ``daq`` only the run-file data contract (:data:`DAQ_CONTRACT`)
   and nothing from ``benchmarks``; the few known exceptions are listed, each with its reason, in
   :data:`EXCEPTIONS` (a new one fails);
@@ -118,7 +118,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 def _is_cli(module: str) -> bool:
-    return module == "daq.cli" or module.startswith(("daq.cli.", "daq.cli_"))
+    return module == "daq.cli" or module.startswith("daq.cli.")
 
 
 def upward_imports(graph: dict[str, set[str]]) -> list[str]:

@@ -136,6 +136,9 @@ def _survey(out_dir: Path, complete: list[tuple[int, str]]):
             for k in ("h_t_real", "h_t_imag", "theta_2_real", "theta_2_imag"):
                 if k in m:
                     add(f"model_{k}", f"entry/model/{k}", m[k], ("run", "model_frequency"))
+            if "analysis" not in e:  # a raw-only sweep (keep.analysis = false)
+                seen += 1
+                continue
             g = e["analysis"]
             axis("frequency", g["frequency"][()])
             for k in g:
@@ -200,7 +203,7 @@ def write_manifest(out_dir: str | Path, sweep, specs, results: dict) -> Path:
                    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals)
                    else np.array([json.dumps(v) if not isinstance(v, str) else v
                                   for v in vals], dtype=object))
-            _coord(f, k, arr, run, f"varied parameter {k} (scene key)", _unit_of(k))
+            _coord(f, k, arr, run, f"varied parameter {k} (scene key)", unit_of(k))
         scales = {"run": run}
         for name, vals in axes.items():
             s = f.create_dataset(name, data=vals, track_times=False)
@@ -259,7 +262,7 @@ def _coord(f, name, data, run, long_name, units):
         ds.attrs["units"] = units
 
 
-def _unit_of(key: str) -> str:
+def unit_of(key: str) -> str:
     """The SI unit a scene key's suffix names (``q1``: 1)."""
     name = key.split(".")[-1]
     for suffix, unit in (("_vrms", "V"), ("_hz", "Hz"), ("_kg", "kg"), ("_m", "m"),

@@ -4,6 +4,7 @@
 
     entry/dataset/          NXcollection @sweep_seed @run_index @run_seed @spec_hash
                             @parameters_json (the varied parameters) @overrides_json
+                            (@analysis = 0 in a raw-only sweep, which has no entry/analysis)
     entry/analysis/         NXcollection @settings_json @notes_json @n_averages @n_effective
                             @resolution_hz @window @nperseg
       frequency (frequency,) [Hz] dimension scale: the analyzer's lines 0 .. rate/2
@@ -79,7 +80,8 @@ def _cvar(g, name, data, scale, units, long_name):
 def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None:
     """Add the kept analysis outputs and the run's place in the sweep to the run file ``path``
     (module docstring). ``spec``: sweep_seed, run_index, run_seed, spec_hash, parameters,
-    overrides."""
+    overrides. ``analysis`` is None for a raw-only sweep (``keep.analysis = false``): the file
+    then gets ``entry/dataset`` (with ``@analysis = 0``) and no ``entry/analysis``."""
     a = analysis
     with h5py.File(path, "r+") as f:
         e = f["entry"]
@@ -93,6 +95,11 @@ def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None
         ds.attrs["spec_hash"] = spec["spec_hash"]
         ds.attrs["parameters_json"] = json.dumps(spec["parameters"], sort_keys=True)
         ds.attrs["overrides_json"] = json.dumps(list(spec["overrides"]))
+        if a is None:
+            ds.attrs["analysis"] = np.int8(0)
+            f.flush()
+            os.fsync(f.id.get_vfd_handle())
+            return
 
         g = e.create_group("analysis")
         g.attrs["NX_class"] = "NXcollection"
@@ -192,7 +199,8 @@ def check_run_file(path: str | Path, *, sha256: str | None = None,
         try:
             with h5py.File(path, "r") as f:
                 e = f["entry"]
-                if "analysis" not in e or "dataset" not in e:
+                raw_only = "dataset" in e and int(e["dataset"].attrs.get("analysis", 1)) == 0
+                if "dataset" not in e or ("analysis" not in e and not raw_only):
                     problems.append("no analysis outputs (entry/analysis, entry/dataset)")
                 else:
                     h = str(e["dataset"].attrs["spec_hash"])

@@ -28,6 +28,8 @@ A sweep file names a base scene, the settings every run shares and the parameter
     frf = true                           # H_t, Theta_2 with coherence and relative error
     modal = true                         # the modal fits' f, Q and their standard deviations
     expected = true                      # the exact model and E[H1] at the analyzer's lines
+    analysis = true                      # false: no analysis at all (signals, truth and model
+                                         # only, at the acquisition's own throughput)
 
 Parameters are scene keys (``section.key``, see :mod:`rig.scene`), written as quoted dotted keys
 or as nested tables (``[grid.pendulum] q1 = [...]``). Without ``[grid]`` and ``[random]`` the
@@ -332,12 +334,12 @@ def parse_sweep(data: dict, *, base_dir: str | Path = ".", source: str = "sweep"
                                   "model response are the run file itself and are always kept "
                                   "(expected true)")
             continue
-        if k not in KEEP_DEFAULTS:
+        if k not in KEEP_DEFAULTS and k != "analysis":
             raise ConfigError(f"unknown key keep.{k} = {_short(v)}; valid keys: raw, model, "
-                              f"{', '.join(KEEP_DEFAULTS)}")
+                              f"analysis, {', '.join(KEEP_DEFAULTS)}")
         if not isinstance(v, bool):
             raise ConfigError(f"keep.{k} = {v!r} is invalid: expected true or false")
-    keep = {**KEEP_DEFAULTS, **{k: v for k, v in keep.items() if k in KEEP_DEFAULTS}}
+    keep = _keep(keep)
     sweep = Sweep(seed=seed, scene=scene, overrides=tuple(overrides), grid=grid, combine=combine,
                   random=random, count=count, analysis=dict(analysis), keep=keep,
                   name=data.get("name", Path(source).stem if source != "sweep" else "sweep"),
@@ -348,6 +350,21 @@ def parse_sweep(data: dict, *, base_dir: str | Path = ".", source: str = "sweep"
 
 
 _SPEC_KEYS = set(GRID_KINDS) | set(RANDOM_KINDS) | {"num", "bounds"}
+
+
+def _keep(keep: dict) -> dict:
+    """The validated ``[keep]`` table with its defaults. ``analysis = false`` (raw-only runs)
+    turns every analysis output off (naming one of them true with it is an error) and is then
+    part of the table; when the analysis runs, ``analysis`` is left out of it, so that the plans
+    (and spec hashes) of sweeps written before the key existed are unchanged."""
+    out = {**KEEP_DEFAULTS, **{k: v for k, v in keep.items() if k in KEEP_DEFAULTS}}
+    if keep.get("analysis", True):
+        return out
+    wanted = [k for k in KEEP_DEFAULTS if k != "truth" and keep.get(k) is True]
+    if wanted:
+        raise ConfigError(f"keep.{wanted[0]} = true needs the analysis, but keep.analysis = "
+                          f"false: remove keep.{wanted[0]} or set keep.analysis = true")
+    return {**out, **{k: False for k in KEEP_DEFAULTS if k != "truth"}, "analysis": False}
 
 
 def _flatten(section: str, raw: dict, prefix: str = "") -> dict:

@@ -108,7 +108,8 @@ def run_task(job: dict) -> dict:
 
 
 def _run(job: dict, tmp: Path) -> str:
-    """Acquire and analyse into ``tmp``; returns the model that ran."""
+    """Acquire and analyse (unless the sweep keeps no analysis) into ``tmp``; returns the
+    model that ran."""
     from daq.acquisition import acquire
     from daq.hdf5 import Hdf5Sink, read_run
     from processing.analyzer import AnalyzerSettings, analyze
@@ -117,9 +118,11 @@ def _run(job: dict, tmp: Path) -> str:
 
     scene = scene_from_settings(job["settings"], origin=job["scene_source"])
     summary = acquire(scene, seed=job["seed"], sinks=[Hdf5Sink(tmp)])
-    settings = AnalyzerSettings(**{k: tuple(v) if isinstance(v, list) else v
-                                   for k, v in job["analysis"].items()})
-    analysis = analyze(read_run(tmp), settings, source=job["file"])
+    analysis = None
+    if job["keep"].get("analysis", True):
+        settings = AnalyzerSettings(**{k: tuple(v) if isinstance(v, list) else v
+                                       for k, v in job["analysis"].items()})
+        analysis = analyze(read_run(tmp), settings, source=job["file"])
     write_outputs(tmp, analysis, job["keep"], spec={
         "sweep_seed": job["sweep_seed"], "run_index": job["index"], "run_seed": job["seed"],
         "spec_hash": job["spec_hash"], "parameters": job["params"],

@@ -195,7 +195,7 @@ def _source_psd(source: Source, f: np.ndarray) -> np.ndarray:
         if source.type == "burst-random":
             p = p * source.burst_samples / source.period_samples
         return p
-    if source.type == "periodic-chirp":
+    if source.type in ("periodic-chirp", "multisine"):
         inband = (f >= source.fmin_hz) & (f <= source.fmax_hz)
         return np.where(inband, source.level_vrms**2 / (source.fmax_hz - source.fmin_hz), 0.0)
     return None

@@ -65,6 +65,13 @@ def _spawn(seed) -> tuple[np.random.SeedSequence, list[np.random.SeedSequence]]:
     return ss, ss.spawn(len(STREAMS))
 
 
+def source_seed(seed) -> np.random.SeedSequence:
+    """The seed of the source's stream in a run of seed ``seed`` (what :func:`start` gives the
+    source): a reader of a run file can rebuild what the source drew, e.g. a multisine's
+    phases."""
+    return _spawn(seed)[1][STREAMS.index("source")]
+
+
 def start(model: BenchModel, seed=0) -> BenchState:
     """The state at t = 0: stage at rest, pendulum at the scene's initial state, fresh streams
     spawned from ``seed`` (an int or a SeedSequence)."""

@@ -33,6 +33,10 @@ Signal types (``source.type``), level ``L = source.level_vrms``:
     > 0, else ``fmax_hz / 1000`` (below it the spectrum is flat down to DC instead of diverging).
 ``sine``
     ``sqrt(2) L sin(2 pi frequency_hz t_k)``, phase 0 at t = 0.
+``multisine``
+    a random-phase multisine of period ``period_s`` on the harmonics in ``[fmin_hz, fmax_hz]``
+    (``multisine_grid``: full, odd or random-odd), rms ``L``, new phases every
+    ``multisine_periods`` periods (:mod:`rig.devices.multisine`).
 
 How the noise is made (random, burst-random, pink)
 --------------------------------------------------
@@ -77,11 +81,12 @@ from functools import lru_cache
 import numpy as np
 
 from rig._check import number as _number
+from rig.devices import multisine as _ms
 from rig.errors import ConfigError
 from rig._jit import njit
 from rig.params import param
 
-SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine")
+SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine", "multisine")
 NOISE_TYPES = ("random", "burst-random", "pink")
 FILTER_SPAN_S = 128.0  # minimum duration of the noise-shaping FIR [s]
 KAISER_BETA = 8.6
@@ -150,6 +155,11 @@ class Source:
     reconstruction_hz: float = param(100.0, "corner of the source output's smoothing filter "
                                      "(Butterworth) [Hz]; 0: off, the raw DAC staircase")
     reconstruction_order: int = param(4, "order of that filter, 1..8")
+    multisine_grid: str = param("full", "harmonics a multisine excites: full, odd, random-odd",
+                                choices=_ms.GRIDS)
+    multisine_periods: int = param(2, "periods of a multisine realisation before new phases, "
+                                   ">= 1")
+    crest_iterations: int = param(0, "rounds of crest-factor reduction of a multisine, >= 0")
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -186,6 +196,17 @@ class Source:
         if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 8:
             raise ConfigError(f"source.reconstruction_order = {order!r} is invalid: expected an "
                               "integer 1..8")
+        for name, lo in (("multisine_periods", 1), ("crest_iterations", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise ConfigError(f"source.{name} = {v!r} is invalid: expected an integer "
+                                  f">= {lo}")
+        if self.multisine_grid not in _ms.GRIDS:
+            raise ConfigError(f"source.multisine_grid = {self.multisine_grid!r} is invalid: "
+                              f"expected one of {', '.join(_ms.GRIDS)}")
+        if self.type == "multisine":  # a grid with no line in the band is refused here
+            _ms.excited_lines(self.multisine_grid, self.period_samples, fs, self.fmin_hz,
+                              self.fmax_hz, 0)
         if self.type == "burst-random" and self.burst_samples < 1:
             raise ConfigError(f"source.burst_fraction = {self.burst_fraction!r} is invalid: "
                               f"the burst would be shorter than one sample of the period "
@@ -296,6 +317,11 @@ class Source:
             d.update(burst_fraction=self.burst_fraction)
         if self.type == "sine":
             d.update(frequency_hz=self.frequency_hz)
+        if self.type == "multisine":
+            d.update(fmin_hz=self.fmin_hz, fmax_hz=self.fmax_hz, period_s=self.period_s,
+                     multisine_grid=self.multisine_grid,
+                     multisine_periods=self.multisine_periods,
+                     crest_iterations=self.crest_iterations)
         return d
 
 
@@ -358,7 +384,8 @@ class SourceState:
     ----------
     index : samples emitted so far (the next sample is at ``t = index / fs``).
     rng_state : the generator's ``bit_generator.state`` (a dict; copied, never shared).
-    history : (n_taps - 1,) last white samples fed to the FIR (noise types), else ``None``.
+    history : (n_taps - 1,) last white samples fed to the FIR (noise types); (1,) the phases'
+        key (multisine); else ``None``.
     buffer : the last filtered frames (read-only; noise types), of which ``buffer[offset:]`` is
         not emitted yet.
     offset : first sample of ``buffer`` not yet emitted.
@@ -406,6 +433,8 @@ def start_source(source: Source, seed) -> SourceState:
     history = None
     if source.type in NOISE_TYPES:
         history = standard_normals(rng, source.n_taps - 1)  # primes the FIR: stationary from t = 0
+    elif source.type == "multisine":  # the key of its phases and grid (rig.devices.multisine)
+        history = np.array([rng.integers(0, 2 ** 63 - 1)], dtype=np.int64)
     return SourceState(index=0, rng_state=_copy_state(rng), history=_readonly(history),
                        buffer=_readonly(np.empty(0)), offset=0)
 
@@ -502,6 +531,11 @@ def generate(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, So
         v = lvl * v
         if source.type == "burst-random":
             v = np.where(k % source.period_samples < source.burst_samples, v, 0.0)
+    elif source.type == "multisine":
+        v = _ms.samples(source.multisine_grid, source.period_samples, source.fs_hz,
+                        source.fmin_hz, source.fmax_hz, lvl, int(state.history[0]),
+                        source.multisine_periods, source.crest_iterations, k)
+        new = state
     elif source.type == "sine":
         cycles = np.mod(k * (source.frequency_hz / source.fs_hz), 1.0)
         v = math.sqrt(2.0) * lvl * np.sin(2 * np.pi * cycles)

@@ -61,7 +61,7 @@ def test_acquire_needs_exactly_one_scene(runner, tmp_path, args, message):
 
 
 def test_acquire_progress_shows_average_n_of_N_and_time_left():
-    from daq.cli_acquire import _ProgressBar
+    from daq.cli.acquire import _ProgressBar
 
     bar = _ProgressBar("acquiring", records=30, record_s=100.0, settle_s=300.0)
     assert bar.status(0.0) == "settling, average 0 of 30"

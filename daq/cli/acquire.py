@@ -9,8 +9,8 @@ from pathlib import Path
 
 import click
 
-from daq.cli_common import fmt, force_option, model_lines, run_check, set_option, size_text
-from daq.cli_live import live_options, live_sinks
+from daq.cli.common import fmt, force_option, model_lines, run_check, set_option, size_text
+from daq.cli.live import live_options, live_sinks
 
 
 # -- acquisition -----------------------------------------------------------------------------
@@ -158,14 +158,14 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
     for w in warnings:
         click.echo(f"WARNING: {w}", err=True)
     if warnings and not allow_over_budget:
-        from daq.cli_errors import EXIT_NOT_AS_ASKED
+        from daq.cli.errors import EXIT_NOT_AS_ASKED
 
         raise click.exceptions.Exit(EXIT_NOT_AS_ASKED)
 
 
 def _not_as_asked(s) -> list[str]:
     """Why a finished run is not what was asked: over its error budget, or saturated."""
-    from daq.cli_errors import SATURATION_LIMIT
+    from daq.cli.errors import SATURATION_LIMIT
 
     out = []
     info = s.model_info

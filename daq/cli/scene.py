@@ -8,8 +8,8 @@ from pathlib import Path
 
 import click
 
-from daq.cli_common import fmt, force_option, set_option
-from daq.cli_live import viewer_stream
+from daq.cli.common import fmt, force_option, set_option
+from daq.cli.live import viewer_stream
 from rig._io import atomic_output, check_writable
 
 

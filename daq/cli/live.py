@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli_common import force_option
+from daq.cli.common import force_option
 from rig._io import check_writable
 
 

@@ -1,0 +1,5 @@
+"""``python -m daq.cli``: the console script."""
+
+from daq.cli import run
+
+run()
