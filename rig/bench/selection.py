@@ -48,7 +48,7 @@ import numpy as np
 from rig.chain import Chain
 from rig._jit import njit
 from rig.errors import ConfigError, DivergenceError
-from rig.solvers.coupled import coupled_params, kernel_scratch, remainder_fast_at
+from rig.solvers.coupled import arg_groups, coupled_params, kernel_scratch, remainder_fast_at
 from rig.linear import discretise
 from rig.scene import Scene
 from rig.scene_memo import per_scene
@@ -307,7 +307,8 @@ def first_order_kernel(prm, phi, g0, g1, gf0, gf1, v, z, d, k_rec, n_batches, su
     equations rounded differently, a few ulp), as etdab's; the state products run row beside
     row (each row's sum over the columns in order, as a loop per row would form it)."""
     n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
-    th0, a_rows = prm.th0, prm.a_rows
+    dense, bodies, stage = arg_groups(prm)
+    th0, q_idx, wc, a_rows = prm.th0, prm.q_idx, prm.wc, prm.a_rows
     f = np.empty(nf)
     fn = np.empty(nf)
     zt = np.empty(nz)
@@ -318,7 +319,8 @@ def first_order_kernel(prm, phi, g0, g1, gf0, gf1, v, z, d, k_rec, n_batches, su
     a_cols = a_rows.shape[1]
     n_s = v.shape[0]
     n_rec = n_s - k_rec
-    ax = remainder_fast_at(two, prm, a_cols, z, work, alpha, f)
+    ax = remainder_fast_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, a_cols, z,
+                           work, alpha, f)
     for kk in range(n_s):
         for j in range(n):
             if abs(z[th0 + j]) > peaks[0, j]:
@@ -346,7 +348,8 @@ def first_order_kernel(prm, phi, g0, g1, gf0, gf1, v, z, d, k_rec, n_batches, su
                 zt[r] += phi_t[col, r] * zc
         for r in range(nz):
             z[r] = zt[r]
-        ax = remainder_fast_at(two, prm, a_cols, z, work, alpha, fn)
+        ax = remainder_fast_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, a_cols, z,
+                               work, alpha, fn)
         for r in range(nz):
             dt[r] = 0.0
         for col in range(nz):

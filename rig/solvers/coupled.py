@@ -152,15 +152,14 @@ def coupled_params(chain: Chain, stage: Stage, a: np.ndarray, *, q_idx: int = -1
 # ================================================================================================
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _accel(prm, z, work, alpha):
+def _accel(bodies, g, stage, th0, z, work, alpha):
     """Stage acceleration x0'' (returned) and alpha = theta'' of the coupled nonlinear bench at
     state z. ``work`` (n, 7) scratch. Backward pass: articulated inertia (c11, c12, c22) and the
     bias forces split into the part at x0'' = 0 (cb1, cb2; beta) and the part per unit x0''
-    (ca1, ca2; beta_a: the inertial force -m x0'' of every body in the base frame). ``prm``:
-    :class:`CoupledArgs`."""
-    mass, length, com, inertia, gamma = prm.mass, prm.length, prm.com, prm.inertia, prm.gamma
-    relative, g, kf, k, c = prm.relative, prm.g, prm.kf, prm.k, prm.c
-    m_stage, reaction, th0 = prm.m_stage, prm.reaction, prm.th0
+    (ca1, ca2; beta_a: the inertial force -m x0'' of every body in the base frame). ``bodies``,
+    ``stage``: :func:`arg_groups`."""
+    mass, length, com, inertia, gamma, relative = bodies
+    kf, k, c, m_stage, reaction = stage
     n = mass.shape[0]
     om0 = th0 + n
     c11 = 0.0
@@ -240,7 +239,7 @@ def _accel(prm, z, work, alpha):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _dense2_equations(prm, z, s1, c1, s2, c2):
+def _dense2_equations(g, hc, s, cm, mtot, stage, th0, z, s1, c1, s2, c2):
     """The dense n = 2 equations of :func:`_accel2` at state ``z``, given the angles' sines and
     cosines ``s1, c1, s2, c2``: ``(b0, r0, u1, u2, h11, h12, h22, r1, r2)`` of::
 
@@ -251,8 +250,7 @@ def _dense2_equations(prm, z, s1, c1, s2, c2):
     with ``b0 = M + m, r0 = F_ext + S1 s1 w1^2 + S2 s2 w2^2`` (reaction) or ``b0 = M, r0 = F_ext``.
     The one set-up of :func:`_accel2` and :func:`remainder2_fast`, which solve it each their
     own way."""
-    g, hc, s, cm, mtot = prm.g, prm.hc, prm.s, prm.cm, prm.mtot
-    kf, k, c, m_stage, reaction, th0 = prm.kf, prm.k, prm.c, prm.m_stage, prm.reaction, prm.th0
+    kf, k, c, m_stage, reaction = stage
     w1 = z[th0 + 2]
     w2 = z[th0 + 3]
     c12 = c1 * c2 + s1 * s2
@@ -274,7 +272,7 @@ def _dense2_equations(prm, z, s1, c1, s2, c2):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _accel2(prm, z, alpha):
+def _accel2(g, hc, s, cm, mtot, stage, th0, z, alpha):
     """The same as :func:`_accel` for n = 2, from the dense equations (one division)::
 
         [[M + m, S1 c1, S2 c2], [S1 c1, H11, H12 c12], [S2 c2, H12 c12, H22]] (x0'', alpha)
@@ -283,10 +281,10 @@ def _accel2(prm, z, alpha):
 
     (c_j = cos th_j, s12 = sin(th1 - th2); without the reaction the first row is M x0'' =
     F_ext), solved for alpha on the Schur complement of the stage entry."""
-    th0 = prm.th0
     b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(
-        prm, z, math.sin(z[th0]), math.cos(z[th0]), math.sin(z[th0 + 1]), math.cos(z[th0 + 1]))
-    if prm.reaction:
+        g, hc, s, cm, mtot, stage, th0, z, math.sin(z[th0]), math.cos(z[th0]),
+        math.sin(z[th0 + 1]), math.cos(z[th0 + 1]))
+    if stage[4]:  # reaction
         h11 = h11 - u1 * u1 / b0
         h22 = h22 - u2 * u2 / b0
         h12 = h12 - u1 * u2 / b0
@@ -327,21 +325,34 @@ def _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _remainder2(prm, z, alpha, f):
+def _remainder2(g, hc, s, cm, mtot, stage, th0, q_idx, wc, a_rows, z, alpha, f):
     """The remainder f for n = 2 (dense accelerations); returns the nonlinear x0''."""
-    ax = _accel2(prm, z, alpha)
-    _rows_minus_linear(ax, alpha, z, prm.q_idx, prm.wc, prm.a_rows, f)
+    ax = _accel2(g, hc, s, cm, mtot, stage, th0, z, alpha)
+    _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f)
     return ax
 
 
 @njit(cache=True, error_model="numpy")
-def remainder_n(prm, z, work, alpha, f):
+def remainder_n(bodies, g, stage, th0, q_idx, wc, a_rows, z, work, alpha, f):
     """The remainder f for any n (O(n) recursion); returns the nonlinear x0''. Not inlined:
     kernels branch between it and :func:`_remainder2`, and inlining both into one loop makes
     the n = 2 path several times slower."""
-    ax = _accel(prm, z, work, alpha)
-    _rows_minus_linear(ax, alpha, z, prm.q_idx, prm.wc, prm.a_rows, f)
+    ax = _accel(bodies, g, stage, th0, z, work, alpha)
+    _rows_minus_linear(ax, alpha, z, q_idx, wc, a_rows, f)
     return ax
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def arg_groups(prm):
+    """``(dense, bodies, stage)``: the n = 2 equations' ``(g, hc, s, cm, mtot)``, the recursion's
+    per-body arrays ``(mass, length, com, inertia, gamma, relative)`` and the stage's numbers
+    ``(kf, k, c, m_stage, reaction)``, which a kernel takes out of its :class:`CoupledArgs` once. The helpers the
+    kernels call in their loops take these and the few arrays they read, not the whole
+    :class:`CoupledArgs`: numba reference-counts every array passed into a call, at each call
+    (the whole tuple made etdab's step ~1.5 times slower)."""
+    return ((prm.g, prm.hc, prm.s, prm.cm, prm.mtot),
+            (prm.mass, prm.length, prm.com, prm.inertia, prm.gamma, prm.relative),
+            (prm.kf, prm.k, prm.c, prm.m_stage, prm.reaction))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -353,22 +364,25 @@ def kernel_scratch(prm, z):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def remainder_at(two, prm, z, work, alpha, f):
+def remainder_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, z, work, alpha, f):
     """The remainder f and the nonlinear x0'': :func:`_remainder2` where ``two`` (n = 2, inlined),
-    else :func:`remainder_n` (a call); ``prm``: :class:`CoupledArgs`."""
+    else :func:`remainder_n` (a call); ``dense``, ``bodies``, ``stage``: :func:`arg_groups`."""
+    g, hc, s, cm, mtot = dense
     if two:
-        return _remainder2(prm, z, alpha, f)
-    return remainder_n(prm, z, work, alpha, f)
+        return _remainder2(g, hc, s, cm, mtot, stage, th0, q_idx, wc, a_rows, z, alpha, f)
+    return remainder_n(bodies, g, stage, th0, q_idx, wc, a_rows, z, work, alpha, f)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def remainder_fast_at(two, prm, a_cols, z, work, alpha, f):
+def remainder_fast_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, a_cols, z, work, alpha,
+                      f):
     """:func:`remainder_at` with :func:`remainder2_fast` where ``two`` (polynomial sines, one
     division; ``a_rows`` read in its first ``a_cols`` columns), else :func:`remainder_n` (a
     call)."""
+    g, hc, s, cm, mtot = dense
     if two:
-        return remainder2_fast(prm, a_cols, z, f)
-    return remainder_n(prm, z, work, alpha, f)
+        return remainder2_fast(g, hc, s, cm, mtot, stage, th0, q_idx, wc, a_rows, a_cols, z, f)
+    return remainder_n(bodies, g, stage, th0, q_idx, wc, a_rows, z, work, alpha, f)
 
 
 def accelerations(params: CoupledParams, z, *, recursive: bool = False
@@ -378,10 +392,11 @@ def accelerations(params: CoupledParams, z, *, recursive: bool = False
     p = params
     z = np.ascontiguousarray(z, dtype=float)
     alpha = np.empty(p.n)
+    _, bodies, stage = arg_groups(p.args())
     if p.n == 2 and not recursive:
-        ax = _accel2(p.args(), z, alpha)
+        ax = _accel2(p.g, p.hc, p.s, p.cm, p.mtot, stage, p.th0, z, alpha)
     else:
-        ax = _accel(p.args(), z, np.empty((p.n, 7)), alpha)
+        ax = _accel(bodies, p.g, stage, p.th0, z, np.empty((p.n, 7)), alpha)
     return float(ax), alpha
 
 
@@ -390,16 +405,18 @@ def remainder(params: CoupledParams, z) -> np.ndarray:
     p = params
     z = np.ascontiguousarray(z, dtype=float)
     f = np.empty(p.rows.size)
-    remainder_at(p.n == 2, p.args(), z, np.empty((p.n, 7)), np.empty(p.n), f)
+    dense, bodies, stage = arg_groups(p.args())
+    remainder_at(p.n == 2, dense, bodies, stage, p.th0, p.q_idx, p.wc, p.a_rows, z,
+                 np.empty((p.n, 7)), np.empty(p.n), f)
     return f
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def remainder2_fast(prm, a_cols, z, f):
+def remainder2_fast(g, hc, s, cm, mtot, stage, th0, q_idx, wc, a_rows, a_cols, z, f):
     """:func:`_remainder2` (n = 2) with polynomial sines where both angles are <= 0.8 rad and
     one division: the same equations, rounded differently (a few ulp); ``a_rows`` is read in
-    its first ``a_cols`` columns (the others are zero). Returns x0''."""
-    th0, q_idx, wc, a_rows = prm.th0, prm.q_idx, prm.wc, prm.a_rows
+    its first ``a_cols`` columns (the others are zero). ``stage``: :func:`arg_groups`. Returns
+    x0''."""
     t1 = z[th0]
     t2 = z[th0 + 1]
     if max(abs(t1), abs(t2)) <= SINCOS_POLY_MAX:
@@ -407,8 +424,9 @@ def remainder2_fast(prm, a_cols, z, f):
         s2, c2 = sincos_poly(t2)
     else:
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(prm, z, s1, c1, s2, c2)
-    if prm.reaction:
+    b0, r0, u1, u2, h11, h12, h22, r1, r2 = _dense2_equations(g, hc, s, cm, mtot, stage, th0, z,
+                                                              s1, c1, s2, c2)
+    if stage[4]:  # reaction
         # the Schur complement of the stage entry, det * b0 * b0 kept as one division
         h11b = h11 * b0 - u1 * u1
         h22b = h22 * b0 - u2 * u2
@@ -471,6 +489,7 @@ def energy(chain: Chain, stage: Stage, theta, omega, x0, v0, current=None) -> np
     return e
 
 
-__all__ = ["CoupledParams", "coupled_params", "accelerations", "remainder", "kernel_scratch",
+__all__ = ["CoupledArgs", "CoupledParams", "coupled_params", "accelerations", "remainder",
+           "arg_groups", "kernel_scratch",
            "remainder_at", "remainder_fast_at", "remainder2_fast", "remainder_n",
            "horizontal_momentum", "energy"]

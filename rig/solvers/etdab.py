@@ -24,7 +24,7 @@ from rig.linear import monomial_integrals
 from rig.errors import ConfigError
 from rig.solvers.base import whole_number
 from rig.solvers.bench_base import BenchSolver
-from rig.solvers.coupled import kernel_scratch, remainder2_fast, remainder_n
+from rig.solvers.coupled import arg_groups, kernel_scratch, remainder2_fast, remainder_n
 from rig.unrolled import load
 
 ETDAB_ORDER = 4  # past remainder values per step (the order of the method)
@@ -179,7 +179,9 @@ def etd_ab_kernel(prm, mats, nsub, have, hist, phase, v, z, z_out, ax_out):
     path of benches too large to unroll."""
     n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
     phi_t, gam, w, lagv, w_rows, a_cols = mats
-    a_rows = prm.a_rows
+    dense, bodies, stage = arg_groups(prm)
+    g, hc, s, cm, mtot = dense
+    th0, q_idx, wc, a_rows = prm.th0, prm.q_idx, prm.wc, prm.a_rows
     every = w.shape[0]
     order = w.shape[1]
     nh = hist.shape[0]
@@ -195,9 +197,10 @@ def etd_ab_kernel(prm, mats, nsub, have, hist, phase, v, z, z_out, ax_out):
         for sub in range(nsub):
             if ph == 0:
                 if two:
-                    ax = remainder2_fast(prm, a_cols, z, f)
+                    ax = remainder2_fast(g, hc, s, cm, mtot, stage, th0, q_idx, wc, a_rows,
+                                         a_cols, z, f)
                 else:
-                    ax = remainder_n(prm, z, work, alpha, f)
+                    ax = remainder_n(bodies, g, stage, th0, q_idx, wc, a_rows, z, work, alpha, f)
                 if first:
                     first = False
                     for j in range(nh):
@@ -280,7 +283,9 @@ def etdab_source(phi_t: np.ndarray, gam: np.ndarray, w: np.ndarray, hist_rows: i
         f'order = {order}, lag = {lag}, every = {every}."""')
     put("    n, two, nz, nf, work, alpha = kernel_scratch(prm, z)")
     put("    phi_t, gam, w, lagv, w_rows, a_cols = mats")
-    put("    a_rows = prm.a_rows")
+    put("    dense, bodies, stage = arg_groups(prm)")
+    put("    g, hc, s, cm, mtot = dense")
+    put("    th0, q_idx, wc, a_rows = prm.th0, prm.q_idx, prm.wc, prm.a_rows")
     put("    f = np.empty(nf)")
     for r in range(nz):
         for col in range(nz):
@@ -305,9 +310,11 @@ def etdab_source(phi_t: np.ndarray, gam: np.ndarray, w: np.ndarray, hist_rows: i
     put("        for sub in range(nsub):")
     put("            if ph == 0:")
     if two:
-        put("                ax = remainder2_fast(prm, a_cols, z, f)")
+        put("                ax = remainder2_fast(g, hc, s, cm, mtot, stage, th0, q_idx, wc,")
+        put("                                     a_rows, a_cols, z, f)")
     else:
-        put("                ax = remainder_n(prm, z, work, alpha, f)")
+        put("                ax = remainder_n(bodies, g, stage, th0, q_idx, wc, a_rows, z,")
+        put("                                 work, alpha, f)")
     for i in range(nf):
         put(f"                f{i} = f[{i}]")
     put("                if first:")
@@ -360,7 +367,8 @@ def etdab_source(phi_t: np.ndarray, gam: np.ndarray, w: np.ndarray, hist_rows: i
         for i in range(nf):
             put(f"    hist[{j}, {i}] = h{j}_{i}")
     head = ("import numpy as np\n\n"
-            "from rig.solvers.coupled import kernel_scratch, remainder2_fast, remainder_n\n\n\n")
+            "from rig.solvers.coupled import arg_groups, kernel_scratch, remainder2_fast, "
+            "remainder_n\n\n\n")
     return head + "\n".join(L) + "\n"
 
 

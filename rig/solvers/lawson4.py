@@ -18,7 +18,7 @@ import numpy as np
 from rig._jit import njit
 from rig.linear import van_loan
 from rig.solvers.bench_base import BenchSolver
-from rig.solvers.coupled import kernel_scratch, remainder_at
+from rig.solvers.coupled import arg_groups, kernel_scratch, remainder_at
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,8 @@ def lawson4_kernel(prm, e_h, e_2, g_h, g_2, h, nsub, v, z, z_out, ax_out):
     instant len(v). Every row is summed in a fixed order, so block splits reproduce one-shot runs
     bit for bit. ``prm``: :class:`rig.solvers.coupled.CoupledArgs`."""
     n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
-    rows = prm.rows
+    dense, bodies, stage = arg_groups(prm)
+    th0, q_idx, wc, a_rows, rows = prm.th0, prm.q_idx, prm.wc, prm.a_rows, prm.rows
     f1 = np.empty(nf)
     f2 = np.empty(nf)
     f3 = np.empty(nf)
@@ -79,7 +80,8 @@ def lawson4_kernel(prm, e_h, e_2, g_h, g_2, h, nsub, v, z, z_out, ax_out):
         for col in range(nz):
             z_out[kk, col] = z[col]
         for sub in range(nsub):
-            ax = remainder_at(two, prm, z, work, alpha, f1)
+            ax = remainder_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, z, work,
+                              alpha, f1)
             if sub == 0:
                 ax_out[kk] = ax
             for r in range(nz):
@@ -96,20 +98,23 @@ def lawson4_kernel(prm, e_h, e_2, g_h, g_2, h, nsub, v, z, z_out, ax_out):
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f1[i]
                 zt[r] = p2[r] + 0.5 * h * acc
-            ax = remainder_at(two, prm, zt, work, alpha, f2)
+            ax = remainder_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, zt, work,
+                              alpha, f2)
             # stage 3
             for r in range(nz):
                 zt[r] = p2[r]
             for i in range(nf):
                 zt[rows[i]] += 0.5 * h * f2[i]
-            ax = remainder_at(two, prm, zt, work, alpha, f3)
+            ax = remainder_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, zt, work,
+                              alpha, f3)
             # stage 4
             for r in range(nz):
                 acc = 0.0
                 for i in range(nf):
                     acc += e_2[r, rows[i]] * f3[i]
                 zt[r] = ph[r] + h * acc
-            ax = remainder_at(two, prm, zt, work, alpha, f4)
+            ax = remainder_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, zt, work,
+                              alpha, f4)
             # the step
             for r in range(nz):
                 acc = 0.0
