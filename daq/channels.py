@@ -70,11 +70,6 @@ class Channel:
         """1 / volts_per_unit [unit per V]."""
         return 1.0 / self.volts_per_unit
 
-    @property
-    def full_scale(self) -> float:
-        """The ADC range in engineering units (+- this, sign of the calibration ignored) [unit]."""
-        return self.range_v / abs(self.volts_per_unit)
-
     def describe(self) -> dict:
         """Everything about the channel as plain data (the HDF5 attributes of its dataset)."""
         adc = self.adc

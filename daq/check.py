@@ -34,6 +34,7 @@ from daq.channels import Channel
 from daq.hdf5 import READABLE_FORMAT_VERSIONS
 from daq.records import STATUSES
 from daq.repair import UnreadableFile, _first_line, open_hdf5
+from rig._io import not_a_file
 from rig.errors import ConfigError
 
 __all__ = ["FileCheck", "MissingFile", "check_file", "check_ok_or_raise"]
@@ -115,9 +116,9 @@ def check_file(path: str | Path) -> FileCheck:
     """Check ``path`` (see the module docstring). Never raises for a bad file; raises
     :class:`MissingFile` if ``path`` does not exist or is not a file."""
     path = Path(path)
-    if not path.is_file():
-        raise MissingFile(f"{str(path)!r} does not exist" if not path.exists()
-                          else f"{str(path)!r} is not a file")
+    why = not_a_file(path)
+    if why is not None:
+        raise MissingFile(f"{str(path)!r} {why}; expected a run, spectra or trajectory file")
     c = _Checker(path)
     try:
         c.run()

@@ -95,7 +95,7 @@ from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Reco
                          TruthField)
 from daq.repair import open_hdf5, write_flags
 from daq.sinks import Sink
-from rig._io import check_writable, umask_mode
+from rig._io import check_writable, not_a_file, umask_mode
 from rig.errors import ConfigError
 
 try:
@@ -539,8 +539,9 @@ def open_run(path: str | Path):
     is opened as a SWMR reader. A truncated or unreadable file is a ConfigError at once
     (:func:`daq.repair.open_hdf5`: never a retry in SWMR mode, which can wait for minutes)."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"run file {str(path)!r} does not exist")
+    why = not_a_file(path)
+    if why is not None:
+        raise ConfigError(f"run file {str(path)!r} {why}")
     f, _ = open_hdf5(path)
     try:
         if f.attrs.get("file_format") != FORMAT:

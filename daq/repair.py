@@ -11,6 +11,7 @@ import os
 import struct
 from pathlib import Path
 
+from rig._io import not_a_file
 from rig.errors import ConfigError
 
 try:
@@ -27,7 +28,10 @@ _SIGNATURE = b"\x89HDF\r\n\x1a\n"
 def superblock(path: str | Path) -> dict | None:
     """The HDF5 superblock's version, file-consistency flags and end-of-file address, read
     directly from the file (no HDF5 call); None if the file does not start with the HDF5
-    signature (user blocks are not searched: the project writes none)."""
+    signature (user blocks are not searched: the project writes none) or is no regular file (a
+    FIFO would block the read)."""
+    if not_a_file(path) is not None:
+        return None
     with open(path, "rb") as fh:
         head = fh.read(96)
     if len(head) < 9 or head[:8] != _SIGNATURE:
@@ -202,8 +206,9 @@ def clear_write_flags(path: str | Path) -> bool:
     a mark was cleared, False if there was none.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"run file {str(path)!r} does not exist")
+    why = not_a_file(path)
+    if why is not None:
+        raise ConfigError(f"run file {str(path)!r} {why}")
     flags = write_flags(path)
     if flags is None:
         raise ConfigError(f"{str(path)!r} has no version 2/3 HDF5 superblock at offset 0; "

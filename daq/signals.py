@@ -7,6 +7,10 @@ raise :class:`Stopped` instead, a :class:`KeyboardInterrupt`, so a run ends exac
 (status "interrupted", every finished record kept, the file closed). The acquisition defers these
 signals, like SIGINT, while a record is handed to the sinks (``daq.acquisition``), so a record is
 written whole or not at all.
+
+The CLI uses the same block around every long job (``daq acquire``, ``daq dataset``, ``daq
+export`` ...) and :func:`exit_status` for its status: 128 + N for signal N (130 Ctrl-C, 143
+SIGTERM, 129 SIGHUP).
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ import contextlib
 import signal
 import threading
 
-__all__ = ["STOP_SIGNALS", "Stopped", "stop_signals_interrupt"]
+__all__ = ["STOP_SIGNALS", "Stopped", "exit_status", "signal_name", "stop_signals_interrupt"]
 
 #: The signals that end a run like SIGINT, besides SIGINT itself.
 STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None),
@@ -53,3 +57,15 @@ def stop_signals_interrupt():
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+
+
+def signal_name(exc: BaseException) -> str:
+    """The signal that ended the job: ``SIGTERM``/``SIGHUP`` for :class:`Stopped` (or an
+    exception carrying a ``signum``), ``SIGINT`` for any other KeyboardInterrupt."""
+    signum = getattr(exc, "signum", None)
+    return signal.Signals(signum).name if signum else "SIGINT"
+
+
+def exit_status(exc: BaseException) -> int:
+    """128 + N for a job ended by signal N (:func:`signal_name`): 130, 143, 129."""
+    return 128 + int(signal.Signals[signal_name(exc)])

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 UNITS_PER_DECADE = 40.0
+#: Scene units left of a panel for its value labels ("-180 deg"), centred in them.
+LABEL_MARGIN = 36.0
 
 
 @dataclass(frozen=True)
@@ -31,6 +33,7 @@ class Panel:
     unit : label suffix ("dB", "deg", "").
     top, height : position of the panel in scene units.
     title : drawn above the panel.
+    units_per_decade : scene units of a decade of frequency (sets the panel's width).
     """
 
     fmin_hz: float
@@ -42,13 +45,14 @@ class Panel:
     top: float
     height: float
     title: str
+    units_per_decade: float = UNITS_PER_DECADE
 
     @property
     def width(self) -> float:
-        return UNITS_PER_DECADE * math.log10(self.fmax_hz / self.fmin_hz)
+        return self.units_per_decade * math.log10(self.fmax_hz / self.fmin_hz)
 
     def x(self, f_hz) -> np.ndarray:
-        return UNITS_PER_DECADE * np.log10(np.asarray(f_hz, float) / self.fmin_hz)
+        return self.units_per_decade * np.log10(np.asarray(f_hz, float) / self.fmin_hz)
 
     def y(self, v) -> np.ndarray:
         v = np.clip(np.asarray(v, float), self.lo, self.hi)
@@ -93,10 +97,10 @@ class Panel:
         (if ``decades``)."""
         pos, text = [], []
         for t in self.ticks:
-            pos.append((-8.0, float(self.y(t)) - 1.5))
+            pos.append((-LABEL_MARGIN / 2 - 2.0, float(self.y(t)) - 3.0))  # a label hangs below
             text.append(f"{t:g}{(' ' + self.unit) if self.unit else ''}")
         for f in _decades(self.fmin_hz, self.fmax_hz) if decades else ():
-            pos.append((float(self.x(f)), self.top + self.height + 4.5))
+            pos.append((float(self.x(f)), self.top + self.height + 4.0))
             text.append(f"{f:g} Hz")
         return np.array(pos), text
 

@@ -310,16 +310,6 @@ class Comparison:
         return np.degrees(self.sigma_rel)
 
     @property
-    def gain_residual_db(self) -> np.ndarray:
-        """``20 log10 |measured / model|`` [dB]."""
-        return _DB * np.log(np.abs(self.measured.h / self.model))
-
-    @property
-    def phase_residual_deg(self) -> np.ndarray:
-        """``angle(measured / model)`` [deg] in (-180, 180]."""
-        return np.degrees(np.angle(self.measured.h / self.model))
-
-    @property
     def z_total(self) -> tuple[np.ndarray, np.ndarray]:
         """Normalised (gain, phase) residual against the model (see :class:`BandStats`)."""
         return _projected(self.measured.h, self.model, self.sigma_abs)
@@ -364,10 +354,6 @@ class Comparison:
     def random_deg(self) -> np.ndarray:
         """``angle(measured / E[H1])`` [deg] (NaN without E[H1])."""
         return self._ratio(self.measured.h, self.expected, "deg")
-
-    @property
-    def away_mask(self) -> np.ndarray:
-        return self.masks["away"]
 
     def band(self, name: str) -> BandStats:
         """The :class:`BandStats` called ``name`` (KeyError if absent)."""

@@ -75,7 +75,11 @@ def _writer_alive(path: Path) -> bool:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX: assume it is
         return True
-    with open(path, "rb") as fh:
+    try:
+        fh = open(path, "rb")
+    except OSError:  # gone meanwhile
+        return False
+    with fh:
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -113,32 +117,54 @@ def _estimate(recording, settings) -> FollowUpdate:
 
 
 def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
-               open_timeout_s: float = 60.0) -> Iterator[FollowUpdate]:
+               open_timeout_s: float = 60.0, orphan_s: float = 1.0) -> Iterator[FollowUpdate]:
     """Yield the averaged estimate each time more records of the run file ``path`` have landed
     (module docstring), until the run ends. ``settings``: a
-    :class:`processing.analyzer.AnalyzerSettings` (default: the paper's). Waits up to
-    ``open_timeout_s`` for the writer to make the file readable; raises
-    :class:`rig.errors.ConfigError` if it does not, and for settings the run cannot take (e.g.
-    a time record longer than a record)."""
+    :class:`processing.analyzer.AnalyzerSettings` (default: the paper's).
+
+    Waits up to ``open_timeout_s`` for the file to appear (the acquisition may start after the
+    follower) and for its writer to make it readable. A file that exists, is not readable and
+    that no writer holds is refused at once if it is older than ``orphan_s`` (else after
+    ``orphan_s``: a writer takes its lock just after creating the file) with the checker's reason (e.g. truncated). Raises
+    :class:`rig.errors.ConfigError` in these cases, and for settings the run cannot take (e.g. a
+    time record longer than a record)."""
     from daq.hdf5 import _status, open_run, read_run
     from processing.analyzer import AnalyzerSettings
+    from rig._io import not_a_file
     from rig.errors import ConfigError
 
     settings = settings if settings is not None else AnalyzerSettings()
     path = Path(path)
-    t0, seen = time.monotonic(), 0
+    t0, seen, orphan_since = time.monotonic(), 0, None
     landed: list[tuple[float, int]] = []  # (monotonic time, records in the file) at each landing
     while True:
         try:
             with open_run(path) as f:
                 status, n = _status(f)
         except (ConfigError, OSError, KeyError) as exc:  # not yet (or not now) readable
-            if time.monotonic() - t0 > open_timeout_s:
+            now = time.monotonic()
+            why = not_a_file(path)
+            if why is not None and path.exists():  # a FIFO, a directory: never a run file
+                raise ConfigError(f"run file {str(path)!r} {why}") from None
+            if not path.exists():
+                orphan_since = None
+                if now - t0 > open_timeout_s:
+                    raise ConfigError(f"{str(path)!r} did not appear within {open_timeout_s:g} "
+                                      "s: start the acquisition that writes it (daq acquire "
+                                      "--out), or wait longer") from None
+            elif not _writer_alive(path):
+                orphan_since = now if orphan_since is None else orphan_since
+                if now - orphan_since >= orphan_s or _age_s(path) >= orphan_s:
+                    raise ConfigError(_unreadable(path, exc) + "; no writer holds it, so it "
+                                      "will not become readable") from None
+            else:
+                orphan_since = None
+            if now - t0 > open_timeout_s:
                 raise ConfigError(f"{str(path)!r} did not become a readable run file within "
                                   f"{open_timeout_s:g} s: {exc}") from None
             time.sleep(poll_s)
             continue
-        t0 = time.monotonic()
+        t0, orphan_since = time.monotonic(), None
         if n > seen:
             rec = read_run(path, records=range(n))
             seen = n
@@ -154,3 +180,19 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
                 return
             continue
         time.sleep(poll_s)
+
+
+def _age_s(path: Path) -> float:
+    """Seconds since ``path`` was last modified (0 if it is gone)."""
+    try:
+        return time.time() - path.stat().st_mtime
+    except OSError:
+        return 0.0
+
+
+def _unreadable(path: Path, exc: BaseException) -> str:
+    """Why ``path`` is not a readable run file, as ``daq check`` says it."""
+    from daq.check import check_file
+
+    fc = check_file(path)
+    return fc.line() if not fc.ok else f"{str(path)!r} is not a readable run file: {exc}"

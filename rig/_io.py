@@ -1,7 +1,13 @@
 """Safe output files: nothing existing is overwritten without ``force``; a file appears complete or
 not at all (written under a temporary name in the same directory, then renamed), with the mode
 the user's umask gives a new file. Also the version every written file records
-(:func:`software_version`). Private infrastructure of the packages above."""
+(:func:`software_version`). Private infrastructure of the packages above.
+
+A temporary name (:func:`temp_beside`) carries its writer's host and process id,
+``.<name>.<host>.<pid>.<random><suffix>``: the writer removes it on any failure or signal it
+survives (SIGTERM and SIGHUP raise in the CLI, ``daq.signals``), and the next write to the same
+path removes the ones whose writer is dead (SIGKILL, power loss) whatever their random part
+(:func:`remove_stale_temps`); a live writer's file is never touched."""
 
 from __future__ import annotations
 
@@ -9,6 +15,7 @@ import contextlib
 import functools
 import importlib.metadata
 import os
+import socket
 import tempfile
 from pathlib import Path
 
@@ -38,18 +45,96 @@ def umask_mode(mode: int = 0o666) -> int:
     return mode & ~mask
 
 
+def not_a_file(path: Path) -> str | None:
+    """Why ``path`` is not a regular file one can read ("does not exist", "is a FIFO", "is a
+    directory" ...), or None if it is one. Opening a FIFO for reading waits for a writer:
+    commands ask this first."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return "does not exist"
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror})"
+    if stat.S_ISREG(mode):
+        return None
+    for test, what in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device")):
+        if test(mode):
+            return f"is {what}, not a regular file"
+    return "is not a regular file"
+
+
+def _host() -> str:
+    return socket.gethostname().replace(".", "-")
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` (of this host) may still write: it exists and is not a zombie (a
+    killed process stays one until its parent reaps it, which a container's init may do late;
+    it writes nothing more)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:  # gone meanwhile, or no /proc (not Linux: it exists, so it may write)
+        return not Path("/proc").is_dir()
+    return stat[stat.rindex(")") + 2:].split()[0] != "Z"  # "pid (comm) state ..."
+
+
+def temp_beside(path: Path, suffix: str = "") -> Path:
+    """A new empty file beside ``path`` named ``.<name>.<host>.<pid>.<random><suffix>`` (module
+    docstring), with the mode the user's umask gives; ``suffix`` defaults to ``path``'s own
+    (readers that go by the extension)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_host()}.{os.getpid()}.",
+                               suffix=suffix or path.suffix,
+                               dir=path.parent if str(path.parent) else ".")
+    os.close(fd)
+    os.chmod(tmp, umask_mode())  # what a new file gets (mkstemp's is 0600)
+    return Path(tmp)
+
+
+def remove_stale_temps(path: Path) -> list[Path]:
+    """Remove the temporary files of ``path`` (:func:`temp_beside`) whose writer, a process of
+    this host, is dead; returns them."""
+    path = Path(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    prefix = f".{path.name}.{_host()}."
+    gone = []
+    try:
+        candidates = [p for p in parent.iterdir() if p.name.startswith(prefix)]
+    except OSError:
+        return gone
+    for p in candidates:
+        pid = p.name[len(prefix):].split(".", 1)[0]
+        if pid.isdigit() and not process_alive(int(pid)):
+            try:
+                p.unlink()
+                gone.append(p)
+            except OSError:
+                pass
+    return gone
+
+
 @contextlib.contextmanager
 def atomic_output(path: Path, *, force: bool, suffix: str = ""):
-    """Yield a temporary path beside ``path``; on success rename it to ``path``, on error remove it.
+    """Yield a temporary path beside ``path`` (:func:`temp_beside`); on success rename it to
+    ``path``, on error or interruption remove it. A dead writer's temporary files of ``path``
+    are removed first (:func:`remove_stale_temps`).
 
     The existing file (if any, and only with ``force``) is replaced only once the new one is
     complete.
     """
     path = check_writable(path, force=force)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix,
-                               dir=path.parent if str(path.parent) else ".")
-    os.close(fd)
-    tmp_path = Path(tmp)
+    remove_stale_temps(path)
+    tmp_path = temp_beside(path, suffix)
     try:
         yield tmp_path
         if path.exists() and not force:  # appeared meanwhile

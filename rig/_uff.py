@@ -106,5 +106,11 @@ def write_uff(datasets: list[dict], path: str | Path, *, force: bool = False) ->
         raise ConfigError(f"output {str(path)!r} is invalid: expected a .uff or .unv file")
     check_writable(path, force=force)
     with atomic_output(path, force=force) as tmp:
-        pyuff.UFF(str(tmp)).write_sets(datasets, mode="overwrite")
+        try:
+            pyuff.UFF(str(tmp)).write_sets(datasets, mode="overwrite")
+        except Exception as exc:  # pyuff turns any error, Ctrl-C included, into an Exception
+            cause = exc.__context__
+            if isinstance(cause, KeyboardInterrupt):
+                raise cause from None
+            raise
     return path

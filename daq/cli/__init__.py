@@ -2,7 +2,8 @@
 composes rig, daq and processing. This package's ``__init__`` is the group; each command (or
 command group) is a module of its own: :mod:`daq.cli.scene` (scene, model, simulate),
 :mod:`daq.cli.acquire` (acquire, inspect), :mod:`daq.cli.live` (the live view, view),
-:mod:`daq.cli.analyze`, :mod:`daq.cli.dataset`, :mod:`daq.cli.export`, :mod:`daq.cli.check`;
+:mod:`daq.cli.analyze`, :mod:`daq.cli.dataset`, :mod:`daq.cli.export`, :mod:`daq.cli.check`,
+:mod:`daq.cli.design` (with :mod:`daq.cli.design_verify`);
 shared options in :mod:`daq.cli.common`.
 
 Errors become one line and exit status 1 in one place, the group's class
@@ -20,6 +21,7 @@ from daq.cli import acquire as _acquire_cmds
 from daq.cli import analyze as _analyze_cmd
 from daq.cli import check as _check_cmd
 from daq.cli import dataset as _dataset_cmd
+from daq.cli import design as _design_cmd
 from daq.cli import export as _export_cmd
 from daq.cli import live as _live_cmds
 from daq.cli import scene as _scene_cmds
@@ -35,14 +37,22 @@ def main(ctx, debug):
     """pendulum-daq: an emulated vibration-measurement rig (pendulum, bench, DAQ, analyzer).
 
     Exit status: 0 done; 1 an error (one line); 2 a usage error; 3 a run not as asked (over
-    its error budget or saturated; acquire --allow-over-budget); 128+N ended by signal N.
+    its error budget or saturated; acquire --allow-over-budget); 4 a sweep with failed or
+    missing runs (dataset); 128+N ended by signal N.
     """
     ctx.meta["daq.debug"] = debug
+    if not debug:
+        import warnings
+
+        from daq.cli.common import warning_line
+
+        warnings.showwarning = warning_line
 
 
 for _command in (_scene_cmds.scene, _scene_cmds.model, _scene_cmds.simulate, _live_cmds.view,
                  _acquire_cmds.acquire, _acquire_cmds.inspect, _analyze_cmd.analyze,
-                 _dataset_cmd.dataset, _export_cmd.export, _check_cmd.check_cmd):
+                 _dataset_cmd.dataset, _export_cmd.export, _check_cmd.check_cmd,
+                 _design_cmd.design):
     main.add_command(_command)
 
 

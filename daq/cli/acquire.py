@@ -9,8 +9,10 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import fmt, force_option, model_lines, run_check, set_option, size_text
-from daq.cli.live import live_options, live_sinks
+from daq.cli.common import (fmt, force_option, model_lines, note_cold_kernels, run_check,
+                            set_option, size_text)
+from daq.cli.live import live_options, live_sinks, rrd_preflight
+from rig._io import check_writable
 
 
 # -- acquisition -----------------------------------------------------------------------------
@@ -119,12 +121,16 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
         from daq.pacing import Pacer
 
         pacer = Pacer(1.0 if speed is None else speed)
+    if rrd is not None:
+        check_writable(rrd, force=force)
+        rrd_preflight(rrd, sc, out)
     sinks = live_sinks(live, connect, rrd, force, magnify, pacer)
     if pacer is not None and not sinks:
         from daq.pacing import PacingSink
 
         sinks = [PacingSink(pacer)]
     a = sc.acquisition
+    note_cold_kernels()
     bar = None if quiet else _ProgressBar(f"acquiring {sc.name}", records=a.records,
                                           record_s=a.record_s, settle_s=a.settle_s)
     try:
@@ -136,7 +142,10 @@ def acquire(scene_arg, scene_name, records, duration, rate, seed, out, overrides
             bar.close()
         s = exc.summary
         by = s.message.split()[0] if s.message.startswith("SIG") else "SIGINT"
-        where = f"{s.path} holds them (status interrupted)" if s.path else "no file was kept"
+        kept = [f"{s.path} holds them (status interrupted)"] if s.path else []
+        kept += [f"{k.path} holds the live view of them (rerun recording)" for k in sinks
+                 if getattr(k, "path", None) is not None and Path(k.path).exists()]
+        where = "; ".join(kept) or "no file was kept"
         click.echo(f"interrupted ({by}) after {s.records} of {s.records_planned} records; "
                    f"{where}", err=True)
         raise click.exceptions.Exit(128 + signal.Signals[by]) from None

@@ -15,7 +15,7 @@ from rig._io import check_writable
 # -- analysis --------------------------------------------------------------------------------
 
 @click.command()
-@click.argument("run", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--window", type=click.Choice(WINDOWS), default="hann", show_default=True,
               help="FFT window (hann: the 35670A's for random noise; uniform: a plain FFT of "
                    "each record).")
@@ -58,14 +58,18 @@ from rig._io import check_writable
               "all: the three, as PLOT-bode.png, PLOT-nyquist.png, PLOT-coherence.png.")
 @click.option("--follow", is_flag=True,
               help="Follow a run that is still being acquired (SWMR): print the averaged "
-                   "estimate each time records land, then analyse the whole run once it ends.")
+                   "estimate each time records land, then analyse the whole run once it ends. "
+                   "RUN may not exist yet: it is waited for (--wait).")
+@click.option("--wait", "wait_s", type=click.FloatRange(min=0), default=60.0, show_default=True,
+              metavar="SECONDS", help="With --follow: how long to wait for RUN to appear and "
+              "become readable.")
 @click.option("--allow-incomplete", is_flag=True,
               help="Analyse a damaged run file (records failing their checksum, or fewer rows "
                    "than it counts) with only the records that verify, instead of refusing it.")
 @force_option
 def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, plot_path,
             report_path, spectra_path, uff_path, estimator, fmin_hz, fmax_hz, phase, view,
-            force, allow_incomplete, follow):
+            force, allow_incomplete, follow, wait_s):
     """Analyse the run file RUN like the paper's 35670A: averaged auto and cross spectra,
     H_t = W_ax/W_aa and Theta_2 = W_ay/W_aa with coherence and error bands, against the exact
     whole-chain model stored in the file, with the expected leakage bias, modal fits and the
@@ -81,6 +85,9 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     from processing.uff import write_frf_uff
     from processing.views import view_paths, write_views
 
+    if not follow and not run.exists():
+        raise click.BadParameter(f"{str(run)!r} does not exist (--follow waits for a run that "
+                                 "is about to be written)", param_hint="'RUN'")
     settings = AnalyzerSettings(window=window, averaging=averaging, nperseg=nperseg, lines=lines,
                                 span_hz=span_hz, overlap=overlap, estimator=estimator,
                                 fmin_hz=fmin_hz, fmax_hz=fmax_hz)
@@ -98,7 +105,9 @@ def analyze(run, window, averaging, lines, span_hz, nperseg, overlap, csv_path, 
     if follow:
         from processing.follow import follow_run
 
-        for update in follow_run(run, settings):
+        if not run.exists():
+            click.echo(f"waiting up to {wait_s:g} s for {run} to appear (--wait)", err=True)
+        for update in follow_run(run, settings, open_timeout_s=wait_s):
             click.echo(update.line())
     records = verified_records(run, allow_incomplete)
     analysis = run_analysis(read_run(run, records=records), settings, source=str(run))

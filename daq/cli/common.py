@@ -85,3 +85,62 @@ def verified_records(run: Path, allow_incomplete: bool):
     click.echo(f"warning: {fc.line()}; analysing the {len(fc.valid_records)} records that "
                f"verify", err=True)
     return fc.valid_records
+
+
+def warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` of the CLI: ``warning: <message>`` on one line of stderr (no
+    source file, line or warning class)."""
+    click.echo(f"warning: {str(message).strip()}", err=True)
+
+
+def display_missing() -> bool:
+    """True on Linux without a display (DISPLAY and WAYLAND_DISPLAY unset): no viewer window
+    can open there."""
+    import os
+    import sys
+
+    return (sys.platform.startswith("linux") and not os.environ.get("DISPLAY")
+            and not os.environ.get("WAYLAND_DISPLAY"))
+
+
+NO_DISPLAY = ("there is no display here (DISPLAY and WAYLAND_DISPLAY are unset) to open a viewer "
+              "window: save the stream with --rrd FILE.rrd (open it later with 'rerun "
+              "FILE.rrd'), stream to a viewer elsewhere with --connect URL")
+
+
+def check_viewer_url(url: str) -> None:
+    """Refuse, before any work, a ``--connect`` URL where no rerun viewer answers (bounded:
+    :data:`processing.viewer_url.ANSWER_TIMEOUT_S`)."""
+    from processing.viewer_url import host_port, viewer_silence
+
+    try:
+        host_port(url)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--connect") from None
+    why = viewer_silence(url)
+    if why is not None:
+        raise click.ClickException(f"--connect {url}: no rerun viewer there ({why}); start one "
+                                   "(rerun --port PORT) or leave out --connect")
+
+
+def note_cold_kernels() -> None:
+    """Say on stderr, before a run, that the simulation kernels will be compiled now (numba's
+    on-disk cache for these kernel sources is empty: a fresh install or changed kernels); the
+    compilation happens once, later runs load it."""
+    import os
+    import sys
+
+    import daq.acquisition  # noqa: F401 - registers the kernels, whose sources name the cache
+    from rig._jit import cache_dir
+
+    if "numba" in sys.modules:
+        return
+    path = Path(os.environ.get("NUMBA_CACHE_DIR") or cache_dir())
+    if not (path.is_dir() and any(path.rglob("*.nbi"))):
+        click.echo(f"compiling the simulation kernels, once (about {COMPILE_TEXT}; later runs "
+                   f"load them from {path})", err=True)
+
+
+#: How long the first compilation takes (BENCHMARKS.md "First run": ~1 min on a loaded 2-core
+#: host, a fresh NUMBA_CACHE_DIR, one acquisition).
+COMPILE_TEXT = "a minute"

@@ -31,24 +31,11 @@ class _SweepProgressLine:
             click.echo("", err=True)
 
 
-@contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """SIGTERM (``kill PID``) stops a sweep like Ctrl-C: finished runs stay, the manifest is
-    written."""
-    import signal
-
-    def handler(signum, frame):
-        raise KeyboardInterrupt
-
-    try:
-        old = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
+def _failures(results: dict) -> None:
+    """One line per failed run."""
+    for r in sorted(results.values(), key=lambda r: r["index"]):
+        if r["status"] == "failed":
+            click.echo(f"  run {r['index']} failed: {r['error']}")
 
 
 class _SweepOrSubcommand(click.Group):
@@ -78,50 +65,71 @@ def dataset():
                    "pendulum-daq[dask]) instead of local processes.")
 @click.option("--dry-run", is_flag=True, help="Print the runs, time and disk; run nothing.")
 @click.option("--force", is_flag=True,
-              help="Apply a changed sweep file to an existing dataset (changed runs are redone).")
+              help="Apply a changed sweep file to an existing dataset (changed runs are redone; run "
+                   "files the new sweep does not list are removed).")
 def run_cmd(sweep_file, out_dir, workers, scheduler, dry_run, force):
     """Run the parameter sweep SWEEP.toml: one HDF5 file per run (the run and its analysis), a
     manifest that xarray opens as one dataset (DIR/manifest.h5) and a table (DIR/manifest.csv).
 
     Rerunning the same command skips finished runs and redoes the rest; Ctrl-C stops cleanly.
     """
-    from processing.dataset import (SweepInterrupted, dask_executor, default_workers,
-                                    describe_plan, load_sweep, plan_runs, run_sweep)
+    from daq.cli.common import note_cold_kernels
+    from daq.cli.errors import EXIT_PARTIAL
+    from daq.signals import exit_status, signal_name, stop_signals_interrupt
+    from processing.dataset import (SweepInterrupted, SweepStopped, dask_executor,
+                                    describe_plan, load_sweep, plan_runs, run_sweep, worker_limit)
 
-    sweep = load_sweep(sweep_file)
-    planned = plan_runs(sweep)
     if scheduler is not None and workers is not None:
         raise click.UsageError("give --workers (local processes) or --scheduler (a Dask "
                                "cluster), not both")
+    sweep = load_sweep(sweep_file)
+    planned = plan_runs(sweep, progress=lambda k, n: click.echo(
+        f"checking the runs' parameter sets: {k} of {n}", err=True))
     with contextlib.ExitStack() as stack:
         if scheduler is not None:
             executor, slots = stack.enter_context(dask_executor(scheduler))
         else:
-            executor, slots = None, workers or default_workers()
+            slots, why = worker_limit(workers)
+            if why:
+                click.echo(f"warning: {why}: running {slots} worker{'s' if slots != 1 else ''}",
+                           err=True)
+            executor = None
         click.echo(describe_plan(sweep, planned, workers=slots))
         if dry_run:
             return
+        note_cold_kernels()
         bar = _SweepProgressLine()
-        stack.enter_context(_sigterm_as_interrupt())
+        stack.enter_context(stop_signals_interrupt())  # SIGTERM, SIGHUP stop it like Ctrl-C
         try:
             result = run_sweep(sweep, out_dir, executor=executor, workers=slots, force=force,
                                progress=bar, planned=planned)
         except SweepInterrupted as exc:
             bar.close()
             r = exc.result
-            click.echo(f"interrupted: {r.complete} of {r.total} runs complete, {r.failed} "
-                       f"failed, {r.missing} missing (listed in {r.table}); run the same "
-                       "command again to finish", err=True)
-            raise click.exceptions.Exit(130) from None
+            click.echo(f"interrupted ({signal_name(exc)}): {r.complete} of {r.total} runs "
+                       f"complete, {r.failed} failed, {r.missing} missing (listed in {r.table}); "
+                       "run the same command again to finish", err=True)
+            raise click.exceptions.Exit(exit_status(exc)) from None
+        except SweepStopped as exc:
+            bar.close()
+            _failures(exc.results)
+            raise click.ClickException(str(exc)) from None
         bar.close()
     click.echo(f"{result.complete} of {result.total} runs complete ({result.skipped} already "
                f"there), {result.failed} failed, {result.missing} missing in "
                f"{result.wall_s:.1f} s")
-    for r in sorted(result.results.values(), key=lambda r: r["index"]):
-        if r["status"] == "failed":
-            click.echo(f"  run {r['index']} failed: {r['error']}")
+    _failures(result.results)
+    if result.removed:
+        click.echo(f"removed {len(result.removed)} run files of the earlier plan that this sweep "
+                   f"does not list ({', '.join(result.removed[:3])}"
+                   f"{', ...' if len(result.removed) > 3 else ''})")
     click.echo(f"wrote {result.manifest} (xarray.open_dataset(..., engine=\"h5netcdf\")) and "
                f"{result.table}")
+    if result.failed or result.missing:
+        click.echo(f"partial sweep: {result.failed + result.missing} of {result.total} runs "
+                   f"failed or missing (listed in {result.table}); exit status {EXIT_PARTIAL}",
+                   err=True)
+        raise click.exceptions.Exit(EXIT_PARTIAL)
 
 
 @dataset.command("export")

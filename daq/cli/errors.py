@@ -15,6 +15,8 @@ Exit statuses of ``daq`` (also in the README):
   what was asked: its estimated error exceeds its error budget, or a channel clipped or
   saturated in more than :data:`SATURATION_LIMIT` of its samples (a WARNING says which);
   ``--allow-over-budget`` makes that exit 0;
+- 4 (:data:`EXIT_PARTIAL`): ``daq dataset`` ran, but some runs failed or are missing (a line
+  says how many; the manifest lists them);
 - 128 + N: ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), every finished record kept."""
 
 from __future__ import annotations
@@ -23,9 +25,11 @@ import re
 
 import click
 
-__all__ = ["EXIT_NOT_AS_ASKED", "SATURATION_LIMIT", "ErrorsAsMessages", "user_message"]
+__all__ = ["EXIT_NOT_AS_ASKED", "EXIT_PARTIAL", "SATURATION_LIMIT", "ErrorsAsMessages", "user_message"]
 
 EXIT_NOT_AS_ASKED = 3
+#: ``daq dataset`` finished, but some runs failed or are missing (the manifest lists them).
+EXIT_PARTIAL = 4
 #: Fraction of a channel's samples clipped by the ADC or beyond its sensor's range above which a
 #: run is not what was asked.
 SATURATION_LIMIT = 1e-3
@@ -62,14 +66,29 @@ def user_message(exc: BaseException) -> str:
 
 class ErrorsAsMessages(click.Group):
     """A click group whose commands' exceptions reach the user as one line (module docstring);
-    with ``ctx.meta["daq.debug"]`` set (``--debug``) they propagate with their traceback."""
+    with ``ctx.meta["daq.debug"]`` set (``--debug``) they propagate with their traceback.
+    SIGTERM and SIGHUP stop a command like Ctrl-C (:func:`daq.signals.stop_signals_interrupt`:
+    its temporary files are removed) and an interruption the command does not report itself
+    is one line and exit status 128 + N."""
 
     def invoke(self, ctx):
+        from daq.signals import stop_signals_interrupt
+
         try:
-            return super().invoke(ctx)
+            with stop_signals_interrupt():  # SIGTERM, SIGHUP: like Ctrl-C, finally blocks run
+                return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit,
-                click.exceptions.Abort, KeyboardInterrupt, SystemExit):
+                click.exceptions.Abort, SystemExit):
             raise
+        except KeyboardInterrupt as exc:  # a command that does not say more itself
+            if ctx.meta.get("daq.debug"):
+                raise
+            from daq.signals import exit_status, signal_name
+
+            name = ctx.invoked_subcommand or ctx.info_name
+            click.echo(f"interrupted ({signal_name(exc)}): daq {name} stopped; files it had "
+                       "finished are kept, none is left half-written", err=True)
+            raise click.exceptions.Exit(exit_status(exc)) from None
         except Exception as exc:
             if ctx.meta.get("daq.debug"):
                 raise

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import force_option
+from daq.cli.common import NO_DISPLAY, check_viewer_url, display_missing, force_option
 from rig._io import check_writable
 
 
@@ -34,12 +34,41 @@ def viewer_stream(live, connect, rrd, force):
     """A :class:`processing.live_view.ViewerStream`, or None without a live option."""
     if not (live or connect or rrd):
         return None
+    if live and display_missing():
+        raise click.ClickException(f"--live: {NO_DISPLAY}")
     from processing.live_view import ViewerOptions, ViewerStream
 
     try:
         return ViewerStream(ViewerOptions(spawn=live, connect=connect, rrd=rrd, force=force))
     except ValueError as exc:
         raise click.BadParameter(str(exc)) from None
+
+
+def rrd_preflight(rrd: Path, scene, out: Path | None) -> None:
+    """Refuse, before the run, an ``--rrd`` that could exceed the free space of its directory
+    (with the run file's own need when both go to one file system), as ``--out`` is refused."""
+    import os
+    import shutil
+
+    from daq.cli.common import size_text
+    from daq.resources import estimate_needs
+    from processing.rrd_size import rrd_bytes_estimate
+
+    a = scene.acquisition
+    need = rrd_bytes_estimate(records=a.records, record_s=a.record_s, rate_hz=a.rate_hz)
+    parent = rrd.resolve().parent
+    also = 0
+    if out is not None and os.stat(out.resolve().parent).st_dev == os.stat(parent).st_dev:
+        also = estimate_needs(records=a.records, samples=round(a.record_s * a.rate_hz),
+                              channels=3, bodies=scene.chain.n, truth=a.truth).file_bytes
+    free = shutil.disk_usage(parent).free
+    if need + also > free:
+        beside = f" beside the run file's {size_text(also)}" if also else ""
+        raise click.ClickException(
+            f"--rrd {rrd}: the recording could need up to {size_text(need)}{beside} "
+            f"({a.records} records of {a.record_s:g} s at {a.rate_hz:g} Hz) but {str(parent)!r} "
+            f"has {size_text(free)} free: free some space, write elsewhere or take fewer or "
+            "shorter records")
 
 
 def live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
@@ -49,13 +78,10 @@ def live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
         return []
     if rrd is not None:
         check_writable(rrd, force=force)
+    if live and display_missing():
+        raise click.ClickException(f"--live: {NO_DISPLAY}")
     if connect:
-        from processing.viewer_url import host_port
-
-        try:
-            host_port(connect)
-        except ValueError as exc:
-            raise click.BadParameter(str(exc)) from None
+        check_viewer_url(connect)
     from daq.sinks import Sink
 
     class DeferredLiveView(Sink):
@@ -124,11 +150,19 @@ def view(run, rrd, connect, screenshot_path, size, magnify, force):
     if screenshot_path is not None:
         check_writable(screenshot_path, force=force)
     spawn = not (rrd or connect or screenshot_path)
+    if spawn and display_missing():
+        raise click.ClickException(f"{NO_DISPLAY}, or render a picture with --screenshot "
+                                   "FILE.png")
+    if connect:
+        check_viewer_url(connect)
     with tempfile.TemporaryDirectory() as tmp:
         target = rrd if rrd is not None or screenshot_path is None else Path(tmp) / "view.rrd"
         stream = ViewerStream(ViewerOptions(spawn=spawn, connect=connect, rrd=target,
                                             force=force))
         v = replay(run, stream, magnification=magnify or MAGNIFICATION)
+        if (spawn or connect) and (stream.url is None or stream.viewer_lost):
+            raise click.ClickException(f"the replay of {run} did not reach a viewer (the "
+                                       "warning above says why); --rrd FILE.rrd saves it")
         click.echo(f"replayed {v.footer.records_complete} of {v.header.plan.records} records "
                    f"of {run} ({v.footer.status})")
         if rrd is not None:

@@ -16,18 +16,18 @@ so it lives in ``processing``, the layer that may use both (rig <- daq <- proces
 """
 
 from processing.dataset.export import ExportSettings, export_dataset
-from processing.dataset.engines import dask_executor, default_workers, local_pool
+from processing.dataset.engines import dask_executor, default_workers, local_pool, worker_limit
 from processing.dataset.manifest import write_manifest, write_table
 from processing.dataset.runfile import RunFileCheck, check_run_file
 from processing.dataset.runner import (PlannedRun, SweepInterrupted, SweepProgress, SweepResult,
-                                       describe_plan, plan_runs, run_sweep)
+                                       SweepStopped, describe_plan, plan_runs, run_sweep)
 from processing.dataset.sweep import RunSpec, Sweep, load_sweep, parse_sweep, run_seed
 
 __all__ = ["Sweep", "RunSpec", "load_sweep", "parse_sweep", "run_seed", "PlannedRun",
            "SweepProgress", "SweepResult", "SweepInterrupted", "plan_runs", "describe_plan",
            "run_sweep", "local_pool", "dask_executor", "default_workers", "write_manifest",
            "write_table", "RunFileCheck", "check_run_file", "ExportSettings", "export_dataset",
-           "write_zarr_index", "open_zarr_index"]
+           "write_zarr_index", "open_zarr_index", "worker_limit", "SweepStopped"]
 
 
 def __getattr__(name):  # the Zarr index needs the optional extra: imported when first used

@@ -18,10 +18,18 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 
 from rig.errors import ConfigError
 
-__all__ = ["local_pool", "dask_executor", "default_workers", "DASK_MISSING"]
+__all__ = ["local_pool", "dask_executor", "default_workers", "worker_limit", "WORKER_BYTES",
+           "DASK_MISSING"]
 
+#: Seconds a Dask scheduler has to answer (connect and handshake) before it is given up.
+CONNECT_TIMEOUT_S = 10.0
 DASK_MISSING = ("--scheduler needs Dask distributed, the optional extra of pendulum-daq: "
                 "pip install 'pendulum-daq[dask]' (or 'dask[distributed]')")
+
+
+#: Memory a local worker takes once its imports and kernels are loaded [bytes] (an upper
+#: figure: numba, h5py, scipy and a run's arrays).
+WORKER_BYTES = 300_000_000
 
 
 def default_workers() -> int:
@@ -32,33 +40,107 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def available_memory_bytes() -> int | None:
+    """Memory available to new processes (Linux MemAvailable) [bytes]; None if unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def worker_limit(asked: int | None) -> tuple[int, str]:
+    """The local workers to run: ``asked`` (default: the cores) capped at the cores and at the
+    available memory (:data:`WORKER_BYTES` each), and why it was capped ("" if not)."""
+    cores = default_workers()
+    mem = available_memory_bytes()
+    by_mem = None if mem is None else max(1, mem // WORKER_BYTES)
+    n = cores if asked is None else asked
+    why = ""
+    if n > cores:
+        why = (f"--workers {asked} is more than the {cores} cores: more processes than cores "
+               "share them and run slower")
+        n = cores
+    if by_mem is not None and n > by_mem:
+        why = (f"{'--workers ' + str(asked) if asked else str(n) + ' workers'} need about "
+               f"{n * WORKER_BYTES / 1e9:.1f} GB ({WORKER_BYTES / 1e6:.0f} MB each) but "
+               f"{mem / 1e9:.1f} GB is available")
+        n = by_mem
+    return n, why
+
+
 def local_pool(workers: int) -> Executor:
     """A spawn-context process pool of ``workers`` long-lived workers (:func:`worker_init`)."""
     from processing.dataset.task import worker_init
 
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers = {workers!r} is invalid: expected an integer >= 1")
+    _start_resource_tracker()
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                initializer=worker_init)
 
 
+def _connect(distributed, address: str, timeout_s: float):
+    """A ``distributed.Client`` of ``address``, made on a helper thread: the caller waits at
+    most ``timeout_s`` (+ 1 s) for it, interruptibly (the Client's own timeout does not bound
+    a peer that accepts the connection and never answers)."""
+    import threading
+
+    box: dict = {}
+
+    def make():
+        try:
+            box["client"] = distributed.Client(address, timeout=f"{timeout_s:g}s")
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            box["error"] = exc
+
+    t = threading.Thread(target=make, name="dask-connect", daemon=True)
+    t.start()
+    t.join(timeout_s + 1.0)  # a signal handler's exception (daq.signals) still interrupts
+    if "client" in box:
+        return box["client"]
+    err = box.get("error")
+    why = "no answer" if err is None else (str(err).strip().splitlines() or ["refused"])[0]
+    raise ConfigError(f"--scheduler {address!r}: no Dask scheduler answered there within "
+                      f"{timeout_s:g} s ({why}); expected the address of a running scheduler, "
+                      "e.g. tcp://host:8786")
+
+
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (a helper process the pool needs) ignoring
+    SIGHUP, as it ignores SIGINT and SIGTERM: a closed terminal hangs up the whole process group,
+    and a tracker killed by it prints a traceback while the sweep stops cleanly."""
+    import signal
+    import threading
+    from multiprocessing import resource_tracker
+
+    hup = getattr(signal, "SIGHUP", None)
+    if hup is None or threading.current_thread() is not threading.main_thread():
+        resource_tracker.ensure_running()
+        return
+    old = signal.signal(hup, signal.SIG_IGN)  # inherited through exec, unlike a handler
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.signal(hup, old)
+
+
 @contextlib.contextmanager
-def dask_executor(scheduler):
+def dask_executor(scheduler, *, timeout_s: float = CONNECT_TIMEOUT_S):
     """Yield ``(executor, slots)`` for a Dask cluster: ``scheduler`` is an address
     (``tcp://host:8786``) or a ``distributed.Client``; ``slots`` is its total worker threads.
-    A client made here is closed on exit (the cluster keeps running)."""
+    A client made here is closed on exit (the cluster keeps running). An address that does not
+    answer within ``timeout_s`` is a ConfigError."""
     try:
         import distributed
     except ImportError:
         raise ConfigError(DASK_MISSING) from None
     own = not isinstance(scheduler, distributed.Client)
     if own:
-        try:
-            client = distributed.Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ConfigError(f"--scheduler {scheduler!r}: cannot connect to a Dask scheduler "
-                              f"there ({type(exc).__name__}: {exc}); expected the address of a "
-                              "running scheduler, e.g. tcp://host:8786") from None
+        client = _connect(distributed, str(scheduler), timeout_s)
     else:
         client = scheduler
     try:

@@ -60,14 +60,18 @@ def write_table(path: Path, specs, results: dict, parameter_keys) -> Path:
     """The CSV of every run (module docstring), written under a temporary name and renamed."""
     cols = ["run", "status", "error", "seed", "file", "sha256", "model", *parameter_keys]
     tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
-        w.writeheader()
-        for row in _rows(specs, results):
-            w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=cols)
+            w.writeheader()
+            for row in _rows(specs, results):
+                w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:  # a full disk, a signal: no temporary file stays
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -170,84 +174,88 @@ def write_manifest(out_dir: str | Path, sweep, specs, results: dict) -> Path:
     if tmp.exists():
         tmp.unlink()
     keys = list(sweep.parameter_keys)
-    with h5py.File(tmp, "w", libver=("v110", "v110")) as f:
-        counts = {s: sum(r["status"] == s for r in rows) for s in ("complete", "failed",
-                                                                      "missing")}
-        for k, v in {"file_format": FORMAT, "file_format_version": FORMAT_VERSION,
-                     "title": f"sweep {sweep.name}: {n} runs ({counts['complete']} complete, "
-                              f"{counts['failed']} failed, {counts['missing']} missing)",
-                     "sweep_name": sweep.name, "sweep_description": sweep.description,
-                     "sweep_seed": np.int64(sweep.seed), "sweep_json": json.dumps(
-                         sweep.describe(), sort_keys=True),
-                     "runs": np.int64(n), "complete": np.int64(counts["complete"]),
-                     "failed": np.int64(counts["failed"]), "missing": np.int64(counts["missing"]),
-                     "not_stacked": json.dumps(not_stacked),
-                     "note": "rows of runs that are not complete read as the fill value (NaN, or "
-                             "0 for ADC codes): select status == 'complete'"}.items():
-            f.attrs[k] = v
-        run = f.create_dataset("run", data=np.arange(n, dtype=np.int64), track_times=False)
-        run.make_scale("run")
-        run.attrs["long_name"] = "run index"
-        run.attrs["units"] = "1"
-        coords = ["seed", "status", "error", "file", "sha256", "model", *keys]
-        for k in ("seed",):
-            _coord(f, k, np.array([r[k] for r in rows], dtype=np.int64), run,
-                   "run seed: SeedSequence(sweep_seed, spawn_key=(run,))", "1")
-        for k, what in (("status", "complete | failed | missing"), ("error", "why it failed"),
-                        ("file", "run file, relative to the manifest's runs/"),
-                        ("sha256", "sha256 of the run file"), ("model", "model that ran")):
-            _coord(f, k, np.array([str(r[k]) for r in rows], dtype=object), run, what, "")
-        for k in keys:
-            vals = [r.get(k) for r in rows]
-            arr = (np.array(vals, dtype=float)
-                   if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals)
-                   else np.array([json.dumps(v) if not isinstance(v, str) else v
-                                  for v in vals], dtype=object))
-            _coord(f, k, arr, run, f"varied parameter {k} (scene key)", unit_of(k))
-        scales = {"run": run}
-        for name, vals in axes.items():
-            s = f.create_dataset(name, data=vals, track_times=False)
-            s.make_scale(name)
-            scales[name] = s
-        if complete:
-            with h5py.File(out_dir / "runs" / complete[0][1], "r") as first:
-                for name in ("record", "time", "frequency", "model_frequency", "body"):
-                    if name in scales:
-                        src = {"record": "entry/data/record", "time": "entry/data/time",
-                               "frequency": "entry/analysis/frequency",
-                               "model_frequency": "entry/model/frequency",
-                               "body": "entry/truth/body"}[name]
-                        if src in first:
-                            for k, v in _attrs(first[src]).items():
-                                scales[name].attrs[k] = v
-        coord_attr = " ".join(coords)
-        by_index = dict(complete)
-        for name, v in stacked.items():
-            shape = (n,) + tuple(v["shape"])
-            layout = h5py.VirtualLayout(shape=shape, dtype=v["dtype"])
-            for index, fname in by_index.items():
-                layout[index] = h5py.VirtualSource(f"runs/{fname}", v["path"], shape=v["shape"])
-            fill = np.nan if np.issubdtype(v["dtype"], np.floating) else 0
-            ds = f.create_virtual_dataset(name, layout, fillvalue=fill)
-            for i, dim in enumerate(v["dims"]):
-                ds.dims[i].attach_scale(scales[dim])
-            for k, val in (v["attrs"] or {}).items():
-                ds.attrs[k] = val
-            if v["attrs"] is None:
-                ds.attrs["note"] = "the runs' attributes differ (e.g. ADC scaling): see each run"
-            ds.attrs["coordinates"] = coord_attr
-        for name in sorted(modal):
-            vals = np.array([modal[name].get(i, np.nan) for i in range(n)], dtype=float)
-            ds = f.create_dataset(name, data=vals, track_times=False)
-            ds.dims[0].attach_scale(run)
-            ds.attrs["units"] = modal_units.get(name, "")
-            ds.attrs["long_name"] = f"modal fit: {name} (NaN: not made)"
-            ds.attrs["coordinates"] = coord_attr
-        links = f.create_group("runs")
-        links.attrs["note"] = "external links to each complete run file's /entry"
-        for index, fname in complete:
-            links[Path(fname).stem] = h5py.ExternalLink(f"runs/{fname}", "/entry")
-    os.replace(tmp, path)
+    try:
+        with h5py.File(tmp, "w", libver=("v110", "v110")) as f:
+            counts = {s: sum(r["status"] == s for r in rows) for s in ("complete", "failed",
+                                                                          "missing")}
+            for k, v in {"file_format": FORMAT, "file_format_version": FORMAT_VERSION,
+                         "title": f"sweep {sweep.name}: {n} runs ({counts['complete']} complete, "
+                                  f"{counts['failed']} failed, {counts['missing']} missing)",
+                         "sweep_name": sweep.name, "sweep_description": sweep.description,
+                         "sweep_seed": np.int64(sweep.seed), "sweep_json": json.dumps(
+                             sweep.describe(), sort_keys=True),
+                         "runs": np.int64(n), "complete": np.int64(counts["complete"]),
+                         "failed": np.int64(counts["failed"]), "missing": np.int64(counts["missing"]),
+                         "not_stacked": json.dumps(not_stacked),
+                         "note": "rows of runs that are not complete read as the fill value (NaN, or "
+                                 "0 for ADC codes): select status == 'complete'"}.items():
+                f.attrs[k] = v
+            run = f.create_dataset("run", data=np.arange(n, dtype=np.int64), track_times=False)
+            run.make_scale("run")
+            run.attrs["long_name"] = "run index"
+            run.attrs["units"] = "1"
+            coords = ["seed", "status", "error", "file", "sha256", "model", *keys]
+            for k in ("seed",):
+                _coord(f, k, np.array([r[k] for r in rows], dtype=np.int64), run,
+                       "run seed: SeedSequence(sweep_seed, spawn_key=(run,))", "1")
+            for k, what in (("status", "complete | failed | missing"), ("error", "why it failed"),
+                            ("file", "run file, relative to the manifest's runs/"),
+                            ("sha256", "sha256 of the run file"), ("model", "model that ran")):
+                _coord(f, k, np.array([str(r[k]) for r in rows], dtype=object), run, what, "")
+            for k in keys:
+                vals = [r.get(k) for r in rows]
+                arr = (np.array(vals, dtype=float)
+                       if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals)
+                       else np.array([json.dumps(v) if not isinstance(v, str) else v
+                                      for v in vals], dtype=object))
+                _coord(f, k, arr, run, f"varied parameter {k} (scene key)", unit_of(k))
+            scales = {"run": run}
+            for name, vals in axes.items():
+                s = f.create_dataset(name, data=vals, track_times=False)
+                s.make_scale(name)
+                scales[name] = s
+            if complete:
+                with h5py.File(out_dir / "runs" / complete[0][1], "r") as first:
+                    for name in ("record", "time", "frequency", "model_frequency", "body"):
+                        if name in scales:
+                            src = {"record": "entry/data/record", "time": "entry/data/time",
+                                   "frequency": "entry/analysis/frequency",
+                                   "model_frequency": "entry/model/frequency",
+                                   "body": "entry/truth/body"}[name]
+                            if src in first:
+                                for k, v in _attrs(first[src]).items():
+                                    scales[name].attrs[k] = v
+            coord_attr = " ".join(coords)
+            by_index = dict(complete)
+            for name, v in stacked.items():
+                shape = (n,) + tuple(v["shape"])
+                layout = h5py.VirtualLayout(shape=shape, dtype=v["dtype"])
+                for index, fname in by_index.items():
+                    layout[index] = h5py.VirtualSource(f"runs/{fname}", v["path"], shape=v["shape"])
+                fill = np.nan if np.issubdtype(v["dtype"], np.floating) else 0
+                ds = f.create_virtual_dataset(name, layout, fillvalue=fill)
+                for i, dim in enumerate(v["dims"]):
+                    ds.dims[i].attach_scale(scales[dim])
+                for k, val in (v["attrs"] or {}).items():
+                    ds.attrs[k] = val
+                if v["attrs"] is None:
+                    ds.attrs["note"] = "the runs' attributes differ (e.g. ADC scaling): see each run"
+                ds.attrs["coordinates"] = coord_attr
+            for name in sorted(modal):
+                vals = np.array([modal[name].get(i, np.nan) for i in range(n)], dtype=float)
+                ds = f.create_dataset(name, data=vals, track_times=False)
+                ds.dims[0].attach_scale(run)
+                ds.attrs["units"] = modal_units.get(name, "")
+                ds.attrs["long_name"] = f"modal fit: {name} (NaN: not made)"
+                ds.attrs["coordinates"] = coord_attr
+            links = f.create_group("runs")
+            links.attrs["note"] = "external links to each complete run file's /entry"
+            for index, fname in complete:
+                links[Path(fname).stem] = h5py.ExternalLink(f"runs/{fname}", "/entry")
+        os.replace(tmp, path)
+    except BaseException:  # a full disk, a signal: no temporary file stays
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 

@@ -10,7 +10,8 @@ The directory ``DIR`` of a sweep holds::
 complete (:func:`processing.dataset.runfile.check_run_file`: status, records, the plan's hash and
 the sha256 the journal recorded), redoes the others and never overwrites a finished file. A
 changed sweep file is refused unless ``force``, and the error says what changed; with ``force``
-the runs whose specification changed are redone and their files replaced. Only the parent writes
+the runs whose specification changed are redone and their files replaced, and the run files the
+new plan does not list are removed. Only the parent writes
 the journal and the manifest; each task writes its own run file.
 
 Failures are data: a parameter set the scene rejects is recorded as failed without running, a
@@ -37,18 +38,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from rig._io import process_alive
 from rig.errors import ConfigError
 
 from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table
 from processing.dataset.runfile import check_run_file
-from processing.dataset.sweep import RunSpec, Sweep
+from processing.dataset.sweep import MAX_RUNS, RunSpec, Sweep  # noqa: F401 (docs)
 
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
-__all__ = ["PlannedRun", "SweepProgress", "SweepResult", "SweepInterrupted", "plan_runs",
+__all__ = ["PlannedRun", "SweepProgress", "SweepResult", "SweepInterrupted", "SweepStopped",
+           "plan_runs",
            "describe_plan", "run_sweep", "JOURNAL", "PLAN"]
 
 JOURNAL, PLAN, RUNS = "journal.jsonl", "sweep.json", "runs"
@@ -90,7 +93,8 @@ class SweepProgress:
 @dataclass(frozen=True)
 class SweepResult:
     """What :func:`run_sweep` left in ``out_dir``: counts, the manifest files and every run's
-    result ({index: dict of :func:`processing.dataset.task.run_task`})."""
+    result ({index: dict of :func:`processing.dataset.task.run_task`}); ``removed``: the names
+    of run files of an earlier plan that the new one does not list (removed with ``force``)."""
 
     out_dir: Path
     total: int
@@ -103,29 +107,41 @@ class SweepResult:
     results: dict
     wall_s: float
     interrupted: bool = False
+    removed: tuple = ()
 
 
 class SweepInterrupted(KeyboardInterrupt):
-    """The sweep was interrupted; ``result`` is the :class:`SweepResult` (manifest written)."""
+    """The sweep was interrupted; ``result`` is the :class:`SweepResult` (manifest written),
+    ``signum`` the signal that stopped it (that of :class:`daq.signals.Stopped`; 2, SIGINT, for
+    a plain KeyboardInterrupt)."""
 
-    def __init__(self, result: SweepResult):
+    def __init__(self, result: SweepResult, signum: int = 2):
         super().__init__(f"sweep interrupted: {result.complete} of {result.total} runs complete")
         self.result = result
+        self.signum = signum
 
 
 # -- planning --------------------------------------------------------------------------------
 
-def plan_runs(sweep: Sweep) -> tuple[PlannedRun, ...]:
+def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = None
+              ) -> tuple[PlannedRun, ...]:
     """Resolve every run's scene (an invalid parameter set is recorded, not raised) and check the
-    analysis settings against its records."""
+    analysis settings against its records. ``progress(done, total)`` is called about once a
+    second while that takes (a few ms per run; at most :data:`MAX_RUNS` runs)."""
     from processing.spectra import SettingsError
-    from rig.scene import load_scene
+    from rig.scene import load_scene, read_scene_data
 
     settings = sweep.analyzer_settings()
+    base, origin = read_scene_data(sweep.scene)  # parsed once, copied per run
     out = []
-    for spec in sweep.runs():
+    specs = sweep.runs()
+    shown = time.monotonic()
+    for k, spec in enumerate(specs):
+        if progress is not None and time.monotonic() - shown >= 1.0:
+            progress(k, len(specs))
+            shown = time.monotonic()
         try:
-            sc = load_scene(sweep.scene, spec.overrides)
+            sc = load_scene({"settings": base, "origin": origin}, spec.overrides)
             acq = sc.acquisition
             samples = round(acq.record_s * acq.rate_hz)
             settings.spectral(acq.rate_hz, samples)
@@ -158,9 +174,11 @@ def describe_plan(sweep: Sweep, planned, *, workers: int, head: int = 10) -> str
         lines.append("  " + "  ".join(c.rjust(w) for c, w in zip(r, widths)) + "  " + r[-1])
     if len(planned) > head:
         lines.append(f"  ... {len(planned) - head} more")
-    cpu = sum(_S_PER_RUN + _S_PER_SIM_S * p.simulated_s for p in ok)
+    each = [_S_PER_RUN + _S_PER_SIM_S * p.simulated_s for p in ok]
     disk = sum(p.bytes_estimate for p in ok)
-    lines.append(f"estimated time: {_duration(cpu / max(1, workers))} on {workers} worker"
+    # the runs spread over the workers, never shorter than the longest run
+    wall = max(max(each, default=0.0), sum(each) / max(1, workers))
+    lines.append(f"estimated time: {_duration(wall)} on {workers} worker"
                  f"{'s' if workers != 1 else ''} for the linear model (runs whose drive needs "
                  "the nonlinear model take longer: BENCHMARKS.md)")
     lines.append(f"estimated disk: {disk / 1e6:.1f} MB (at most: codes before compression)")
@@ -172,6 +190,8 @@ def _fmt(v) -> str:
 
 
 def _duration(s: float) -> str:
+    if s < 1:
+        return "< 1 s"
     if s < 90:
         return f"{s:.0f} s"
     if s < 5400:
@@ -218,7 +238,8 @@ def _prepare(out_dir: Path, sweep: Sweep, planned, force: bool) -> list[str]:
                 raise ConfigError(f"{str(out_dir)!r} holds another version of this sweep; "
                                   f"changed: {'; '.join(changes)}. Pass --force to apply the "
                                   "changes (runs whose specification changed are redone and "
-                                  "their files replaced) or choose another --out")
+                                  "their files replaced, run files it does not list removed) "
+                                  "or choose another --out")
         elif any(p.name != ".lock" for p in out_dir.iterdir()):
             raise ConfigError(f"--out {str(out_dir)!r} exists and is not a sweep directory (no "
                               f"{PLAN}); expected a new or empty directory, or a sweep's")
@@ -231,11 +252,15 @@ def _prepare(out_dir: Path, sweep: Sweep, planned, force: bool) -> list[str]:
 
 def _write_atomic(path: Path, text: str) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:  # a full disk, a signal: no temporary file stays
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 @contextlib.contextmanager
@@ -267,6 +292,19 @@ def _read_journal(out_dir: Path) -> dict:
     return out
 
 
+def _remove_unlisted(runs_dir: Path, planned) -> list[str]:
+    """Remove the run files (and set-aside damaged ones) of an earlier plan whose runs the new
+    plan does not have (a sweep changed with ``force`` to fewer runs); returns their names."""
+    names = {p.spec.name for p in planned}
+    gone = []
+    for f in sorted(runs_dir.glob("run_*.h5*")):
+        base = f.name.split(".invalid-")[0]
+        if base not in names and (f.name.endswith(".h5") or ".invalid-" in f.name):
+            f.unlink()
+            gone.append(f.name)
+    return gone
+
+
 def _clean_partials(runs_dir: Path) -> None:
     """Remove temporary files of this host's dead writers (``.run_*.<host>.<pid>.*.partial.h5``)."""
     host = socket.gethostname().replace(".", "-")
@@ -276,28 +314,36 @@ def _clean_partials(runs_dir: Path) -> None:
             h, pid = parts[-5], int(parts[-4])
         except (IndexError, ValueError):
             continue
-        if h == host and not _writer_alive(pid):
+        if h == host and not process_alive(pid):
             p.unlink(missing_ok=True)
 
 
-def _writer_alive(pid: int) -> bool:
-    """Whether process ``pid`` may still write: it exists and is not a zombie (a killed worker
-    stays one until its new parent reaps it, which a container's init may do late; it writes
-    nothing more)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:  # gone meanwhile, or no /proc (not Linux: it exists, so it may write)
-        return not Path("/proc").is_dir()
-    return stat[stat.rindex(")") + 2:].split()[0] != "Z"  # "pid (comm) state ..."
-
-
 # -- running ---------------------------------------------------------------------------------
+
+class SweepStopped(ConfigError):
+    """The sweep stopped because its journal or manifest could not be written (a full disk);
+    ``results`` holds every run's result so far ({index: dict})."""
+
+    def __init__(self, message: str, results: dict):
+        super().__init__(message)
+        self.results = results
+
+
+def _stopped(exc: OSError, out_dir: Path, total: int, results: dict, manifest) -> SweepStopped:
+    """The error of a sweep stopped because its journal or manifest could not be written."""
+    import errno
+
+    full = (getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT)
+            or "No space left on device" in str(exc))
+    what = ("the disk is full" if full else
+            f"{getattr(exc, 'filename', None) or out_dir}: {exc.strerror or exc}")
+    done = sum(r["status"] == "complete" for r in results.values())
+    index = "the manifest lists them" if manifest is not None else "no manifest was written"
+    return SweepStopped(f"the sweep stopped after {done} of {total} runs complete because {what}"
+                        f" ({index}); the finished run files are kept: free some space in "
+                        f"{str(out_dir)!r} and run the same command again to finish",
+                        dict(results))
+
 
 def _job(sweep: Sweep, p: PlannedRun, runs_dir: Path, replace: bool) -> dict:
     s = p.spec
@@ -352,9 +398,10 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
         own = False
 
     with _locked(out_dir):
-        _prepare(out_dir, sweep, planned, force)
+        changes = _prepare(out_dir, sweep, planned, force)
         runs_dir = out_dir / RUNS
         _clean_partials(runs_dir)
+        removed = _remove_unlisted(runs_dir, planned) if changes else ()
         journal_path = out_dir / JOURNAL
         journal = _read_journal(out_dir)
         results: dict[int, dict] = {}
@@ -410,7 +457,7 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
                                        eta_s=left / rate * 60 if rate > 0 else None))
 
         inflight: dict = {}
-        interrupted = False
+        interrupted, signum, stopped_by = False, 2, None
         ex = factory() if todo else None
         window = workers  # in flight = running: a dead worker charges only the runs it could hold
         attempts = collections.Counter()
@@ -452,8 +499,13 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
                                              "of memory)"}, job["spec_hash"])
                         else:
                             todo.appendleft(job)
-        except KeyboardInterrupt:
-            interrupted = True
+        except OSError as exc:  # the journal cannot be written (a full disk): stop here
+            stopped_by = exc
+            todo.clear()
+            for fut in list(inflight):
+                fut.cancel()
+        except KeyboardInterrupt as exc:
+            interrupted, signum = True, getattr(exc, "signum", 2)
             for fut in list(inflight):
                 fut.cancel()
             if ex is not None:
@@ -467,18 +519,26 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
                             record(res, job["spec_hash"])
         finally:
             if ex is not None and own and not interrupted:
-                ex.shutdown(wait=True)
-            manifest = write_manifest(out_dir, sweep, [p.spec for p in planned], results)
-            table = write_table(out_dir / TABLE, [p.spec for p in planned], results,
-                                sweep.parameter_keys)
+                ex.shutdown(wait=True)  # runs in flight end (and remove their temporary files)
+            _clean_partials(runs_dir)  # and those of workers that died
+            try:
+                manifest = write_manifest(out_dir, sweep, [p.spec for p in planned], results)
+                table = write_table(out_dir / TABLE, [p.spec for p in planned], results,
+                                    sweep.parameter_keys)
+            except OSError as exc:
+                if stopped_by is None and not interrupted:
+                    stopped_by = exc
+                manifest = table = None
+        if stopped_by is not None:
+            raise _stopped(stopped_by, out_dir, len(planned), results, manifest)
         counts = collections.Counter(r["status"] for r in results.values())
         result = SweepResult(out_dir=out_dir, total=total, complete=counts["complete"],
                              failed=counts["failed"],
                              missing=total - counts["complete"] - counts["failed"],
                              skipped=skipped, manifest=manifest, table=table,
                              results=dict(results), wall_s=time.perf_counter() - t0,
-                             interrupted=interrupted)
+                             interrupted=interrupted, removed=tuple(removed))
     if interrupted:
-        raise SweepInterrupted(result)
+        raise SweepInterrupted(result, signum)
     return result
 

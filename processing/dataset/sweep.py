@@ -63,7 +63,7 @@ from rig._check import integer, number
 from rig.errors import ConfigError
 
 __all__ = ["Sweep", "Parameter", "RunSpec", "load_sweep", "parse_sweep", "run_seed",
-           "KEEP_DEFAULTS", "GRID_KINDS", "RANDOM_KINDS"]
+           "KEEP_DEFAULTS", "GRID_KINDS", "RANDOM_KINDS", "MAX_RUNS"]
 
 GRID_KINDS = ("values", "linspace", "logspace")
 RANDOM_KINDS = ("uniform", "loguniform", "normal")
@@ -71,7 +71,10 @@ RANDOM_KINDS = ("uniform", "loguniform", "normal")
 #: are the run format itself and are always kept).
 KEEP_DEFAULTS = {"truth": True, "spectra": True, "frf": True, "modal": True, "expected": True}
 _TOP = ("seed", "scene", "set", "name", "description", "grid", "random", "analysis", "keep")
-_MAX_RUNS = 1_000_000
+#: The largest sweep accepted: planning checks every run's scene (a few ms each) and keeps its
+#: settings, so 100,000 runs take minutes and about half a GB to plan (BENCHMARKS.md "First
+#: run"); split a larger sweep into several.
+MAX_RUNS = 100_000
 
 
 @dataclass(frozen=True)
@@ -312,6 +315,9 @@ def parse_sweep(data: dict, *, base_dir: str | Path = ".", source: str = "sweep"
     count = rand_raw.pop("count", 1)
     count = integer("random.count", count, minimum=1,
                     valid="an integer >= 1 (runs per grid point)")
+    if count > MAX_RUNS:
+        raise ConfigError(f"random.count = {count} is invalid: a sweep has at most {MAX_RUNS} "
+                          "runs (split it into several sweeps)")
     random = tuple(_random_parameter(k, v, base) for k, v in _flatten("random", rand_raw).items())
     keys = [p.key for p in grid] + [p.key for p in random]
     dup = sorted({k for k in keys if keys.count(k) > 1})
@@ -344,8 +350,9 @@ def parse_sweep(data: dict, *, base_dir: str | Path = ".", source: str = "sweep"
                   random=random, count=count, analysis=dict(analysis), keep=keep,
                   name=data.get("name", Path(source).stem if source != "sweep" else "sweep"),
                   description=data.get("description", ""), source=source, text=text)
-    if sweep.n_runs > _MAX_RUNS:
-        raise ConfigError(f"the sweep has {sweep.n_runs} runs: expected at most {_MAX_RUNS}")
+    if sweep.n_runs > MAX_RUNS:
+        raise ConfigError(f"the sweep has {sweep.n_runs} runs: expected at most {MAX_RUNS} "
+                          "(split it into several sweeps)")
     return sweep
 
 
@@ -442,6 +449,9 @@ def _grid_parameter(key: str, v, base) -> Parameter:
                           f"is a {spec.type}; give a list of values")
     num = v.get("num")
     num = integer(f"{where}.num", num, minimum=1)
+    if num > MAX_RUNS:  # refused before the values are made
+        raise ConfigError(f"{where}.num = {num} is invalid: a sweep has at most {MAX_RUNS} runs "
+                          "(split it into several sweeps)")
     lo, hi = _pair(f"{where}.{kind}", v[kind], positive=kind == "logspace", ordered=False)
     vals = np.linspace(lo, hi, num) if kind == "linspace" else np.geomspace(lo, hi, num)
     return Parameter(key, kind, values=tuple(float(x) for x in vals), args=(lo, hi, num))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import secrets
+import sys
 import socket
 import time
 from pathlib import Path
@@ -36,14 +37,24 @@ def _on_sigint(signum, frame):
         raise KeyboardInterrupt
 
 
+def _quiet_unraisable(*args) -> None:
+    """A worker's errors in finalizers are not printed (h5py closing a file on a full disk
+    prints a traceback per object, through both hooks): the task returns its own failure as
+    one line, and a worker that dies is reported by the pool."""
+
+
 def worker_init() -> None:
     """Initializer of local pool workers: die with the parent (Linux ``PR_SET_PDEATHSIG``), so
-    that a killed sweep leaves no worker writing behind it; one BLAS thread; a Ctrl-C interrupts
-    the run in progress (its temporary file is removed) and is ignored by an idle worker (the
-    parent shuts the pool down)."""
+    that a killed sweep leaves no worker writing behind it; one BLAS thread; a Ctrl-C (or a
+    SIGTERM or SIGHUP to the process group) interrupts the run in progress (its temporary file
+    is removed) and is ignored by an idle worker (the parent shuts the pool down); errors in
+    finalizers are not printed (:func:`_quiet_unraisable`)."""
     import signal
 
-    signal.signal(signal.SIGINT, _on_sigint)
+    for s in (signal.SIGINT, getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)):
+        if s is not None:
+            signal.signal(s, _on_sigint)
+    sys.unraisablehook = sys.excepthook = _quiet_unraisable
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     try:

@@ -6,7 +6,8 @@ from __future__ import annotations
 import rerun as rr
 import rerun.blueprint as rrb
 
-from processing.live_view.drawing import SIGNALS, VOLTS, _bench_bounds
+from processing.live_view.drawing import (BODE_BOUNDS, COHERENCE_BOUNDS, SIGNALS, VOLTS,
+                                           _bench_bounds, display_unit)
 from processing.live_view.stream import TIMELINE
 
 SIGNAL_WINDOW_S = 20.0
@@ -26,7 +27,7 @@ def _series(entity: str, names, header) -> list:
     for i, c in enumerate(names):
         ch = header.channel(c)
         title = (f"{c} [V] (ADC +-{ch.range_v:g} V)" if entity == VOLTS
-                 else f"{c}: {ch.quantity} [{ch.unit}]")
+                 else f"{c} [{display_unit(ch.unit)[1]}]: {ch.quantity}")
         shown = rr.SeriesLines.from_fields(visible_series=[j == i for j in range(len(names))])
         views.append(rrb.TimeSeriesView(origin=entity, name=title, overrides={entity: shown},
                                         plot_legend=rrb.PlotLegend(visible=False),
@@ -45,30 +46,31 @@ def acquisition_blueprint(view) -> rrb.Blueprint:
         hh = view.drawing.psd_half_mm * 1.25
         left.append(rrb.Spatial2DView(origin="/psd", name=f"PSD spot (last {TRAIL_S:g} s)",
                                       visual_bounds=rrb.VisualBounds2D(
-                                          x_range=(-hh, hh), y_range=(-hh, 1.35 * hh)),
+                                          x_range=(-hh, hh), y_range=(-hh, 1.7 * hh)),
                                       time_ranges=_following(TRAIL_S)))
     left.append(rrb.TextDocumentView(origin="/status", name="status"))
     middle = rrb.Tabs(rrb.Vertical(*_series(SIGNALS, view.names, h),
                                    name="signals (engineering units)"),
                       rrb.Vertical(*_series(VOLTS, view.names, h), name="ADC volts"),
                       active_tab=0)
-    cols = [rrb.Vertical(*left, row_shares=[3, 2, 2][:len(left)]), middle]
-    shares = [1.0, 1.0]
+    cols = [rrb.Vertical(*left, row_shares=[3, 2, 3][:len(left)]), middle]
+    shares = [1.0, 1.2]
     if view.panels is not None:
-        w = view.panels["coherence"][0].width
-        bounds = rrb.VisualBounds2D(x_range=(-16, w + 50), y_range=(-4, 124))
+        def bounds(b):
+            return rrb.VisualBounds2D(x_range=b[0], y_range=b[1])
+
         key_units = {"H_t": "m/(m/s^2)", "Theta_2": "rad/(m/s^2)"}
-        names = {k: f"analyzer: {k} = {'x' if k == 'H_t' else 'y'}/a averaged after each record:"
-                    f" gain [dB re 1 {u}], phase [deg]" for k, u in key_units.items()}
+        names = {k: f"{k} = {'x' if k == 'H_t' else 'y'}/a: gain [dB re 1 {u}], phase [deg]"
+                 for k, u in key_units.items()}
         cols.append(rrb.Vertical(
-            rrb.Spatial2DView(origin="/analyzer/H_t", name=names["H_t"], visual_bounds=bounds),
+            rrb.Spatial2DView(origin="/analyzer/H_t", name=names["H_t"],
+                              visual_bounds=bounds(BODE_BOUNDS)),
             rrb.Spatial2DView(origin="/analyzer/Theta_2", name=names["Theta_2"],
-                              visual_bounds=bounds),
+                              visual_bounds=bounds(BODE_BOUNDS)),
             rrb.Spatial2DView(origin="/analyzer/coherence",
                               name="coherence gamma^2 of x (H_t) and y (Theta_2)",
-                              visual_bounds=rrb.VisualBounds2D(x_range=(-16, w + 50),
-                                                               y_range=(-4, 40))),
-            row_shares=[3, 3, 1.3]))
+                              visual_bounds=bounds(COHERENCE_BOUNDS)),
+            row_shares=[3, 3, 1.4]))
         shares.append(1.5)
     return rrb.Blueprint(rrb.Horizontal(*cols, column_shares=shares),
                          rrb.TimePanel(timeline=TIMELINE, play_state="following",

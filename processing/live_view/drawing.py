@@ -16,6 +16,15 @@ from processing.live_view.stream import ViewerStream
 SIGNALS, VOLTS = "/signals", "/volts"
 CHANNEL_COLORS = {"a": (230, 159, 0), "x": (86, 180, 233), "y": (0, 158, 115)}
 MEASURED, MODEL, EXPECTED = (255, 200, 60), (90, 160, 255), (200, 120, 255)
+#: Units shown with a prefix in the signal plots, whose axis labels show few decimals (a mirror
+#: translation of 1e-4 m or a rotation of 1e-5 rad would be labelled "0" only): unit -> (factor,
+#: shown unit). The .rrd holds the engineering values times the factor.
+DISPLAY_UNITS = {"m": (1e6, "\u00b5m"), "rad": (1e6, "\u00b5rad")}
+
+
+def display_unit(unit: str) -> tuple[float, str]:
+    """(factor, unit) in which a channel of ``unit`` is plotted (:data:`DISPLAY_UNITS`)."""
+    return DISPLAY_UNITS.get(unit, (1.0, unit))
 
 _FRAME_COLOR = (150, 150, 150)
 _BODY_COLORS = [(255, 170, 40), (255, 90, 40), (230, 60, 120), (160, 90, 230)]
@@ -100,20 +109,38 @@ def _log_chain_style(s: ViewerStream, n: int, *, body: float = 1.2, pivot: float
                                             radii=[pivot] * n + [com] * n))
 
 
+#: The analyzer's drawn panels: plot width [scene units] (the frequency axis, whatever its
+#: decades) and the scene's bounds around it, for a view about 2.2 times as wide as high (the
+#: right column at 16:9): value labels on the left, the legend in a row above, decades below.
+ANALYZER_WIDTH = 262.0
+BODE_BOUNDS = ((-bc.LABEL_MARGIN - 2.0, ANALYZER_WIDTH + 12.0), (-18.0, 122.0))
+COHERENCE_BOUNDS = ((-bc.LABEL_MARGIN - 2.0, ANALYZER_WIDTH + 12.0), (-16.0, 44.0))
+LEGEND_Y = -15.0
+
+
 def _analyzer_panels(freqs, model_db, expected_db):
     """The panels of H_t / Theta_2 (gain, phase) and coherence on a common frequency range."""
     fmin, fmax = float(freqs[0]), float(freqs[-1])
+    upd = ANALYZER_WIDTH / np.log10(fmax / fmin)
     out = {}
     for key in ("H_t", "Theta_2"):
         lo, hi = bc.db_range(model_db[key], expected_db.get(key, []), step=20.0)
         lo = max(lo, hi - 120.0)  # an anti-resonance's notch need not set the scale
-        gain = bc.Panel(fmin, fmax, lo, hi, bc.ticks(lo, hi, 20.0), "dB", 0.0, 62.0, "")
-        phase = bc.Panel(fmin, fmax, -180.0, 180.0, bc.ticks(-180, 180, 180), "deg", 74.0,
-                         36.0, "")
+        gain = bc.Panel(fmin, fmax, lo, hi, bc.ticks(lo, hi, 20.0), "dB", 0.0, 62.0, "", upd)
+        phase = bc.Panel(fmin, fmax, -180.0, 180.0, bc.ticks(-180, 180, 180), "deg", 72.0,
+                         36.0, "", upd)
         out[key] = (gain, phase)
     out["coherence"] = (bc.Panel(fmin, fmax, 0.0, 1.0, bc.ticks(0, 1, 0.5), "", 0.0, 30.0,
-                                 ""),)
+                                 "", upd),)
     return out
+
+
+def legend_row(entries) -> tuple[list, list, list]:
+    """Positions, colours and texts of a legend row above a panel: ``entries`` [(text,
+    colour)], spread evenly over :data:`ANALYZER_WIDTH` (each text hangs below its dot)."""
+    n = len(entries)
+    xs = [ANALYZER_WIDTH * (i + 0.5) / n for i in range(n)]
+    return ([(x, LEGEND_Y) for x in xs], [c for _, c in entries], [t for t, _ in entries])
 
 
 def _db(h) -> np.ndarray:

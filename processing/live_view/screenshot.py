@@ -8,7 +8,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from rig._io import check_writable
+from rig._io import check_writable, remove_stale_temps, temp_beside
 from processing.live_view.stream import LiveViewError, viewer_executable
 
 
@@ -20,7 +20,10 @@ def screenshot_command(rrd: Path, png: Path, size: str = "1600x900") -> tuple[li
     if exe is None:
         raise LiveViewError("no rerun viewer executable (pip install rerun-sdk)")
     env = dict(os.environ, WGPU_BACKEND="vulkan", RUST_LOG="error")
-    cmd = [exe, str(rrd), "--screenshot-to", str(png), "--window-size", size]
+    # a port of its own on this machine: on rerun's default port, every SDK streaming to a
+    # viewer there (another run's --connect) would draw into the screenshot
+    cmd = [exe, str(rrd), "--screenshot-to", str(png), "--window-size", size, "--bind",
+           "127.0.0.1", "--port", str(_free_port())]
     if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
         return cmd, env
     if not _has_vulkan():
@@ -30,6 +33,14 @@ def screenshot_command(rrd: Path, png: Path, size: str = "1600x900") -> tuple[li
     if xvfb is not None:
         return [xvfb, "-a", "-s", f"-screen 0 {size}x24", *cmd], env
     return [exe, "--headless", *cmd[1:]], env
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def _has_vulkan() -> bool:
@@ -45,19 +56,36 @@ def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
     :func:`screenshot_command`)."""
     png = Path(png)
     check_writable(png, force=force)
-    tmp = png.with_name(png.name + ".part.png")
-    cmd, env = screenshot_command(Path(rrd), tmp, size)
+    remove_stale_temps(png)
+    tmp = temp_beside(png, ".part.png")
     try:
-        p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        raise LiveViewError(f"the viewer did not render within {timeout_s:g} s") from None
-    if p.returncode != 0 or not tmp.exists():
-        tail = (p.stderr or p.stdout).strip().splitlines()[-3:]
+        cmd, env = screenshot_command(Path(rrd), tmp, size)
+        try:
+            p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            raise LiveViewError(f"the viewer did not render within {timeout_s:g} s") from None
+        if p.returncode != 0 or tmp.stat().st_size == 0:
+            tail = (p.stderr or p.stdout).strip().splitlines()[-3:]
+            raise LiveViewError(f"the viewer could not render a screenshot (exit "
+                                f"{p.returncode}): " + " | ".join(tail))
+        _to_size(tmp, size)
+        os.replace(tmp, png)
+    finally:
         tmp.unlink(missing_ok=True)
-        raise LiveViewError(f"the viewer could not render a screenshot (exit {p.returncode}): "
-                            + " | ".join(tail))
-    os.replace(tmp, png)
     return png
+
+
+def _to_size(png: Path, size: str) -> None:
+    """Scale the rendered PNG to exactly ``size`` (W x H pixels): the viewer renders its
+    logical points at two pixels each (a HiDPI screenshot), which is resampled (Lanczos)."""
+    from PIL import Image  # matplotlib's dependency
+
+    w, h = (int(v) for v in size.lower().split("x"))
+    with Image.open(png) as im:
+        if im.size == (w, h):
+            return
+        out = im.convert("RGB").resize((w, h), Image.Resampling.LANCZOS)
+    out.save(png, format="PNG")
 
 
 def recording_summary(rrd) -> dict:

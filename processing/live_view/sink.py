@@ -14,7 +14,7 @@ from processing.bench_geometry import (MAGNIFICATION, MM, BenchDrawing, StagePos
 from processing.errors import ProcessingError, SettingsError
 from processing.live_view.blueprint import acquisition_blueprint
 from processing.live_view.drawing import (CHANNEL_COLORS, EXPECTED, MARKS, MEASURED, MODEL,
-                                          PENDULUM, SIGNALS, VOLTS, _analyzer_panels,
+                                          PENDULUM, SIGNALS, VOLTS, _analyzer_panels, display_unit, legend_row,
                                           _bench_layout, _bode_strips, _chain_frames, _db,
                                           _log_bench_static, _log_chain_style,
                                           _log_panel_static)
@@ -78,7 +78,8 @@ class LiveView(Sink):
         chans = [header.channel(c) for c in self.names]
         colors = [CHANNEL_COLORS.get(c, (200, 200, 200)) for c in self.names]
         s.static(SIGNALS, rr.SeriesLines(
-            names=[f"{ch.name}: {ch.quantity} [{ch.unit}]" for ch in chans], colors=colors,
+            names=[f"{ch.name}: {ch.quantity} [{display_unit(ch.unit)[1]}]" for ch in chans],
+            colors=colors,
             widths=[1.0] * len(chans)))
         s.static(VOLTS, rr.SeriesLines(
             names=[f"{ch.name} [V] (ADC +-{ch.range_v:g} V)" for ch in chans], colors=colors,
@@ -89,8 +90,8 @@ class LiveView(Sink):
             h = self.drawing.psd_half_mm
             s.static("/psd/detector", rr.Boxes2D(half_sizes=[(h, h)], centers=[(0, 0)],
                                                  colors=(120, 200, 120), radii=0.05,
-                                                 labels=[f"PSD {2 * h:g} mm x {2 * h:g} mm, "
-                                                         "to scale"], show_labels=True))
+                                                 labels=[f"PSD {2 * h:g} x {2 * h:g} mm"],
+                                                 show_labels=True))
             s.static("/psd/axes", rr.LineStrips2D(
                 [np.array([[-h, 0], [h, 0]]), np.array([[0, -h], [0, h]])],
                 colors=(60, 90, 60), radii=0.02))
@@ -124,33 +125,33 @@ class LiveView(Sink):
             gain, phase = self.panels[key]
             base = f"/analyzer/{key}"
             _log_panel_static(s, base, (gain, phase))
+            # three curves that agree where the run does: drawn as nested bands, the measured
+            # widest (bottom), E[H1] inside it, the model a thin line on top
             s.static(f"{base}/model", rr.LineStrips2D(_bode_strips(gain, phase, f,
                                                                    self.model[key]),
-                                                      colors=MODEL, radii=0.15,
+                                                      colors=MODEL, radii=0.35,
                                                       draw_order=30.0))
-            legend = [("exact model (whole chain)", MODEL), ("measured, averaged", MEASURED)]
+            legend = [("model (exact)", MODEL), ("measured (average)", MEASURED)]
             if key in self.expected:
                 s.static(f"{base}/expected", rr.LineStrips2D(
                     _bode_strips(gain, phase, f, self.expected[key]), colors=EXPECTED,
-                    radii=0.2, draw_order=20.0))
-                legend.insert(1, ("E[H1]: expected estimate", EXPECTED))
-            s.static(f"{base}/legend", rr.Points2D(
-                [(gain.width + 24.0, 8.0 + 10.0 * i) for i in range(len(legend))],
-                radii=0.8, colors=[c for _, c in legend], labels=[t for t, _ in legend],
-                show_labels=True))
+                    radii=0.8, draw_order=20.0))
+                legend.insert(1, ("E[H1] (expected)", EXPECTED))
+            pos, colors, texts = legend_row(legend)
+            s.static(f"{base}/legend", rr.Points2D(pos, radii=1.6, colors=colors, labels=texts,
+                                                   show_labels=True))
         for key in ("H_t", "Theta_2"):
             s.static(f"/analyzer/{key}/measured", rr.LineStrips2D.from_fields(
-                colors=MEASURED, radii=0.45, draw_order=10.0))
+                colors=MEASURED, radii=1.4, draw_order=10.0))
         for c in ("x", "y"):
             s.static(f"/analyzer/coherence/{c}", rr.LineStrips2D.from_fields(
-                colors=CHANNEL_COLORS[c], radii=0.25))
+                colors=CHANNEL_COLORS[c], radii=0.6))
         (coh,) = self.panels["coherence"]
         _log_panel_static(s, "/analyzer/coherence", (coh,))
-        s.static("/analyzer/coherence/legend", rr.Points2D(
-            [(coh.width + 24.0, 6.0), (coh.width + 24.0, 16.0)],
-            radii=0.8,
-            colors=[CHANNEL_COLORS["x"], CHANNEL_COLORS["y"]],
-            labels=["x (H_t)", "y (Theta_2)"], show_labels=True))
+        pos, colors, texts = legend_row([("x (H_t)", CHANNEL_COLORS["x"]),
+                                         ("y (Theta_2)", CHANNEL_COLORS["y"])])
+        s.static("/analyzer/coherence/legend", rr.Points2D(pos, radii=1.6, colors=colors,
+                                                           labels=texts, show_labels=True))
 
     # -- blocks: signals and geometry ---------------------------------------------------
     def block(self, block: Block) -> None:
@@ -179,7 +180,7 @@ class LiveView(Sink):
         for c in self.names:
             ch = self.header.channel(c)
             volts[c] = ch.adc.volts(np.asarray(block.codes[c][i:j]))
-            values.append(volts[c] / ch.volts_per_unit)
+            values.append((volts[c] / ch.volts_per_unit) * display_unit(ch.unit)[0])
         s.queue(SIGNALS, "scalars", t, np.stack(values, axis=1))
         s.queue(VOLTS, "scalars", t, np.stack(list(volts.values()), axis=1))
         idx = frame_indices(g0, j - i, self.step)
@@ -270,25 +271,20 @@ class LiveView(Sink):
         h = self.header
         info = h.model_info
         clip, sat = self._clip, self._sat
+        budget = info.get("error_budget")
         lines = [
-            f"## Record {records} of {h.plan.records}  ({state}"
-            + (f": {message}" if message else "") + ")",
-            "",
-            f"**scene** {h.scene.name}, **seed** {h.seed}  ",
-            f"**sampling** {h.plan.rate_hz:g} Hz, records of {h.plan.record_s:g} s after "
-            f"{h.plan.settle_s:g} s of settling",
-            "",
-            "| channel | clipped samples | sensor saturated |",
-            "|---|---|---|",
-            *[f"| {c} | {int(clip[i])} | {int(sat[i])} |" for i, c in enumerate(self.names)],
-            "",
+            f"**Record {records} of {h.plan.records} ({state}"
+            + (f": {message}" if message else "") + ")**  ",
+            f"**scene** {h.scene.name}, **seed** {h.seed}; {h.plan.rate_hz:g} Hz, records of "
+            f"{h.plan.record_s:g} s after {h.plan.settle_s:g} s of settling  ",
+            "**clipped / saturated samples** " + ", ".join(
+                f"{c} {int(clip[i])} / {int(sat[i])}" for i, c in enumerate(self.names)) + "  ",
             f"**model** {info.get('model', '-')}, estimated error "
-            f"{_error_text(info.get('error_estimate', '-'))}  ",
-            f"**why** {info.get('reason', '-')}",
-            "",
-            f"bench: sizes to scale, angles x{self.drawing.magnification:g}, stage travel "
-            f"x{self.drawing.stage_magnification:g} (the true acceleration integrated twice "
-            "above 5 mHz); PSD to scale",
+            f"{_error_text(info.get('error_estimate', '-'))}"
+            + (f", budget {_plain(budget)}" if budget is not None else "") + "  ",
+            f"**why** {_why(info.get('reason', '-'))}  ",
+            f"*bench: sizes to scale, angles x{self.drawing.magnification:g}, stage travel "
+            f"x{self.drawing.stage_magnification:g}; PSD to scale*",
         ]
         if t_s is None:
             t_s = h.plan.settle_s if records == 0 else (
@@ -315,6 +311,13 @@ def _error_text(v) -> str:
     if isinstance(v, dict) and "relative_rms_theta" in v:
         return f"{v['relative_rms_theta']:.2g} (relative RMS of the angles)"
     return _plain(v)
+
+
+def _why(reason: str) -> str:
+    """A model choice's reason in short: its kind and its conclusion ("auto: the exact linear
+    model ... is the cheapest that meets it"); the whole reason is in ``daq inspect``."""
+    parts = str(reason).split(": ")
+    return f"{parts[0]}: {parts[-1]}" if len(parts) > 2 else str(reason)
 
 
 def _plain(v) -> str:

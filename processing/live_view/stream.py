@@ -20,8 +20,9 @@ import pyarrow as pa
 import rerun as rr
 from rerun.components import LineStrip2DBatch
 
-from rig._io import check_writable
-from processing.viewer_url import DEFAULT_PORT, host_port as _host_port
+from rig._io import check_writable, remove_stale_temps, temp_beside
+from processing.viewer_url import DEFAULT_PORT, viewer_silence
+from processing.viewer_url import host_port as _host_port
 
 
 class _PandasHidden:
@@ -123,7 +124,7 @@ class ViewerStream:
         self.rrd = None if options.rrd is None else Path(options.rrd)
         if self.rrd is not None:
             check_writable(self.rrd, force=options.force)
-            self._part = self.rrd.with_name(self.rrd.name + ".part")
+            self._part = None  # made when the file sink opens (rig._io.temp_beside)
         self.url = None
         if options.connect:
             _host_port(options.connect)  # validates before anything runs
@@ -144,12 +145,14 @@ class ViewerStream:
         if self.options.spawn:
             url = self._spawn()
         elif self.options.connect:
-            host, port = _host_port(self.options.connect)
-            if _listening(host, port):
+            why = viewer_silence(self.options.connect)
+            if why is None:
                 url = self.options.connect
             else:
-                self._warn(f"no rerun viewer at {self.options.connect} (connection refused)")
+                self._warn(f"no rerun viewer at {self.options.connect} ({why})")
         if self.rrd is not None:
+            remove_stale_temps(self.rrd)
+            self._part = temp_beside(self.rrd, ".part.rrd")
             self._file = self._stream()
             self._file.set_sinks(rr.FileSink(str(self._part)), default_blueprint=blueprint)
             self.recs.append(self._file)
@@ -257,7 +260,7 @@ class ViewerStream:
                 self._drop_viewer(exc)
         if self._file is not None:
             self._file.disconnect()
-            if self._part.exists():
+            if self._part is not None and self._part.exists():
                 os.replace(self._part, self.rrd)
 
     # columnar sends -----------------------------------------------------------------------

@@ -164,11 +164,6 @@ class OpticalLever:
                     math.sin(self.phi_rad), self.distance_m, u, v)
         return u.reshape(shape), v.reshape(shape)
 
-    def spot_linear_m(self, mirror_x_m, mirror_rot_rad) -> tuple[np.ndarray, np.ndarray]:
-        """Linearised spot position: (2 sin phi dx, 2 D cos phi theta) [m]."""
-        return (self.spot_per_translation * np.asarray(mirror_x_m, float),
-                self.spot_per_rotation_m * np.asarray(mirror_rot_rad, float))
-
     # -- measurement ------------------------------------------------------------------------
     def measure(self, mirror_x_m, mirror_rot_rad, fs_hz: float,
                 rng_x: np.random.Generator | None, rng_y: np.random.Generator | None, *,

@@ -105,23 +105,6 @@ class Stage:
             return self.moving_mass_kg
         return self.moving_mass_kg + float(sum(chain.mass_kg))
 
-    def suspension_hz(self, chain: Chain | None = None) -> float:
-        """Undamped suspension frequency sqrt(k / M_loaded) / 2 pi [Hz]."""
-        return math.sqrt(self.stiffness_npm / self.loaded_mass_kg(chain)) / (2 * math.pi)
-
-    def suspension_damping_ratio(self, chain: Chain | None = None) -> float:
-        """(c + Kf^2/R) / (2 sqrt(k M_loaded)) [-] (inf without springs)."""
-        k = self.stiffness_npm
-        if k == 0:
-            return math.inf
-        return (self.damping_nspm + self.back_emf_damping_nspm) / (
-            2 * math.sqrt(k * self.loaded_mass_kg(chain)))
-
-    def midband_accel_per_volt(self, chain: Chain | None = None) -> float:
-        """G Kf / (R M_loaded) [(m/s^2)/V]: the mass-controlled acceleration per source volt."""
-        return (self.amplifier_gain_vpv * self.force_constant_npa
-                / (self.coil_resistance_ohm * self.loaded_mass_kg(chain)))
-
     # -- linear dynamics --------------------------------------------------------------------
     def state_space(self, chain: Chain | None = None) -> "StageStateSpace":
         """The stage (and, with ``chain``, the linearised pendulum on it) as z' = A z + B V.

@@ -32,6 +32,10 @@ OVERRIDES = ["acquisition.records=3", "acquisition.record_s=5", "acquisition.rat
              "acquisition.settle_s=5"]
 
 
+#: What the signal plots multiply each unit by (processing.live_view.drawing.DISPLAY_UNITS)
+DISPLAY = {"m/s^2": 1.0, "m": 1e6, "rad": 1e6}
+
+
 def short_scene():
     return load_scene("ishizaki2009", OVERRIDES)
 
@@ -95,7 +99,8 @@ def test_rrd_holds_every_sample_of_the_run_file_in_engineering_units_and_volts(r
         t, v = channel(rrd, "/signals", rec.header, c)
         assert v.size == rec.records * plan.samples
         np.testing.assert_allclose(t, t_file, rtol=0, atol=0.5e-9)  # rounded to whole ns
-        np.testing.assert_array_equal(v, rec.values(c).ravel())
+        factor = DISPLAY[rec.header.channel(c).unit]  # shown in um and urad
+        np.testing.assert_array_equal(v, rec.values(c).ravel() * factor)
         _, volts = channel(rrd, "/volts", rec.header, c)
         np.testing.assert_array_equal(volts, rec.volts(c).ravel())
 
@@ -164,7 +169,7 @@ def test_status_says_record_k_of_n_counts_model_and_seed(run):
     last = " ".join(texts[-1]) if isinstance(texts[-1], list) else texts[-1]
     assert "Record 3 of 3" in last and "(complete)" in last
     assert f"**seed** {SEED}" in last and "**model** linear" in last and "**why** auto:" in last
-    assert "| a | 0 | 0 |" in last
+    assert "**clipped / saturated samples** a 0 / 0, x 0 / 0, y 0 / 0" in last
 
 
 def test_running_average_equals_the_analyzer_over_the_same_records(run):
@@ -231,7 +236,7 @@ def test_replay_of_an_interrupted_file_shows_only_its_finished_records(tmp_path)
     assert v.footer.records_complete == 2
     t, x = channel(replayed, "/signals", rec.header, "x")
     assert x.size == 2 * rec.header.plan.samples
-    np.testing.assert_array_equal(x, rec.values("x").ravel())
+    np.testing.assert_array_equal(x, rec.values("x").ravel() * DISPLAY["m"])
     t, _, _ = column(replayed, "/analyzer/H_t/measured", "LineStrips2D:strips")
     assert t.size == 2
     texts = RrdReader(str(replayed)).stream().filter(content="/status").collect()

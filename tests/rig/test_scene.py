@@ -115,7 +115,9 @@ def test_invalid_values_name_the_key_the_value_and_what_is_valid(chain_file, ove
 
 
 @pytest.mark.parametrize("override, match", [
-    ("pendulum.n=0", r"pendulum\.n = 0 is invalid: expected 1 <= n <= 10000"),
+    ("pendulum.n=0", r"pendulum\.n = 0 is invalid: expected 1 <= n <= 200"),
+    ("pendulum.n=1000", r"pendulum\.n = 1000 is invalid: expected 1 <= n <= 200 \(the chain's "
+                        r"modes are an O\(n\^3\) eigenproblem"),
     ("pendulum.n=2.5", r"pendulum\.n = 2\.5 is invalid: expected an integer"),
     ("pendulum.total_length_m=-1", r"total_length_m = -1\.0 is invalid: expected > 0"),
     ("pendulum.linear_density_kgpm=0", r"linear_density_kgpm = 0\.0 is invalid: expected > 0"),
