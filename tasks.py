@@ -3,12 +3,17 @@
 
     python3 tasks.py experiment   # the paper's experiment end to end (outputs in out/)
     python3 tasks.py test         # the test suite
+    python3 tasks.py setup        # only the environments (what ``test`` makes first)
+    python3 tasks.py setup-system # as root: the Debian packages some tests use (apt-get)
 
 Extra arguments go to the job's last command: ``python3 tasks.py test -k analysis``,
 ``python3 tasks.py experiment --window uniform`` (to ``daq analyze``).
 
-The environment is ``.venv`` beside this file, created (and the package installed into it with its
-test and dask extras) on first use and refreshed when ``pyproject.toml`` changes.
+The environment is ``.venv`` beside this file, created (and the package installed into it with
+every extra: EXTRAS) on first use and refreshed when ``pyproject.toml`` changes; ``test`` also
+makes ``.venv-compat`` (an older h5py, to read the project's files with). Nothing outside this
+directory is installed except by ``setup-system``, which CI runs (``.ci/run``); without its
+packages the tests that need them skip, saying which package is missing.
 """
 
 from __future__ import annotations
@@ -30,8 +35,13 @@ def run(*cmd, **kw) -> None:
     subprocess.run([str(c) for c in cmd], check=True, cwd=ROOT, **kw)
 
 
+#: the package's extras ``.venv`` gets: every optional feature, and what the tests use
+EXTRAS = ("test", "plot", "uff", "xarray", "dask", "ml", "zarr")
+
+
 def ensure_venv() -> None:
-    want = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+    pyproject = (ROOT / "pyproject.toml").read_bytes()
+    want = hashlib.sha256(pyproject + repr(EXTRAS).encode()).hexdigest()
     if STAMP.exists() and STAMP.read_text() == want and PY.exists():
         return
     if not PY.exists():
@@ -43,7 +53,7 @@ def ensure_venv() -> None:
             run(sys.executable, "-m", "venv", "--clear", "--without-pip", VENV)
     has_pip = subprocess.run([str(PY), "-m", "pip", "--version"], capture_output=True).returncode == 0
     pip = [PY, "-m", "pip"] if has_pip else [sys.executable, "-m", "pip", "--python", PY]
-    run(*pip, "install", "--disable-pip-version-check", "-q", "-e", ".[test,dask]")
+    run(*pip, "install", "--disable-pip-version-check", "-q", "-e", f".[{','.join(EXTRAS)}]")
     STAMP.write_text(want)
 
 
@@ -52,19 +62,9 @@ COMPAT_H5PY = "h5py==3.11.0"  # bundles HDF5 1.14: the older readers the file te
 
 
 def install_reader_tools() -> None:
-    """The readers the file-compatibility tests open the project's files with, besides those of
-    the test extra: HDF5 1.10's command-line tools (Debian ``hdf5-tools``: h5dump, h5clear; only
-    as root with apt-get) and an older h5py (HDF5 1.14) in its own environment ``.venv-compat``.
-    Best effort and done once: whatever cannot be installed, the tests that need it skip saying
-    why."""
-    import shutil
-
-    if shutil.which("h5dump") is None and shutil.which("apt-get") and os.geteuid() == 0:
-        quiet = dict(cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        install = ["apt-get", "install", "-y", "-q", "hdf5-tools"]
-        if subprocess.run(install, **quiet).returncode != 0:  # no package lists yet
-            subprocess.run(["apt-get", "update", "-q"], **quiet)
-            subprocess.run(install, **quiet)
+    """An older h5py (HDF5 1.14) in its own environment ``.venv-compat``, one of the readers the
+    file-compatibility tests open the project's files with besides those of the test extra. Best
+    effort and done once: if it cannot be installed, the tests that need it skip saying why."""
     stamp = COMPAT_VENV / ".installed"
     if stamp.exists() and stamp.read_text() == COMPAT_H5PY:
         return
@@ -86,31 +86,37 @@ def compile_bytecode() -> None:
                    cwd=ROOT, stdout=subprocess.DEVNULL)
 
 
-#: Debian packages the live view's screenshot test needs to render without a display or GPU
-#: (an X server in memory and Mesa's software Vulkan); without them the test skips saying why.
-SCREENSHOT_PACKAGES = ("xvfb", "xauth", "mesa-vulkan-drivers", "libvulkan1")
+#: Debian packages some tests use, installed only by ``setup-system`` (as root, with apt-get):
+#: HDF5 1.10's command-line tools (h5dump, h5clear) for the file-compatibility tests, and an X
+#: server in memory with Mesa's software Vulkan for the live view's screenshot test. Without them
+#: those tests skip saying why.
+SYSTEM_PACKAGES = ("hdf5-tools", "xvfb", "xauth", "mesa-vulkan-drivers", "libvulkan1")
 
 
-def ensure_screenshot_packages() -> None:
-    """Install SCREENSHOT_PACKAGES with apt-get when running as root on a Debian-like system and
-    any is missing; otherwise do nothing (the screenshot test then skips with the reason)."""
+def setup_system() -> int:
+    """Install SYSTEM_PACKAGES with apt-get; says what it does and refuses without root."""
     import shutil
 
-    if os.name != "posix" or os.geteuid() != 0 or shutil.which("apt-get") is None:
-        return
-    have = subprocess.run(["dpkg-query", "-W", "-f", "${Status}\n", *SCREENSHOT_PACKAGES],
-                          capture_output=True, text=True)
-    if have.returncode == 0 and have.stdout.count("install ok installed") == len(
-            SCREENSHOT_PACKAGES):
-        return
+    if os.name != "posix" or shutil.which("apt-get") is None:
+        print("setup-system needs a Debian-like system with apt-get; the tests that use "
+              f"{', '.join(SYSTEM_PACKAGES)} will skip", file=sys.stderr)
+        return 1
+    if os.geteuid() != 0:
+        print(f"setup-system installs the Debian packages {' '.join(SYSTEM_PACKAGES)} with "
+              "apt-get and must run as root (sudo python3 tasks.py setup-system)",
+              file=sys.stderr)
+        return 1
+    print(f"installing the Debian packages {' '.join(SYSTEM_PACKAGES)} (apt-get)", flush=True)
     env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
     try:
         run("apt-get", "update", "-q", env=env, stdout=subprocess.DEVNULL)
-        run("apt-get", "install", "-y", "-q", "--no-install-recommends", *SCREENSHOT_PACKAGES,
+        run("apt-get", "install", "-y", "-q", "--no-install-recommends", *SYSTEM_PACKAGES,
             env=env, stdout=subprocess.DEVNULL)
     except subprocess.CalledProcessError as exc:
-        print(f"note: could not install {' '.join(SCREENSHOT_PACKAGES)} ({exc}); the live "
-              "view's screenshot test will skip", file=sys.stderr)
+        print(f"could not install {' '.join(SYSTEM_PACKAGES)}: {exc}; the tests that use them "
+              "will skip", file=sys.stderr)
+        return 1
+    return 0
 
 
 DAQ = [PY, "-m", "daq.cli"]
@@ -135,15 +141,16 @@ def main(argv: list[str]) -> int:
         "test": [[PY, "-m", "pytest", "-q"]],
         "setup": [],
     }
-    if len(argv) < 1 or argv[0] not in jobs:
-        print(f"usage: python3 tasks.py {{{','.join(jobs)}}} [extra args]", file=sys.stderr)
+    if len(argv) < 1 or argv[0] not in (*jobs, "setup-system"):
+        print(f"usage: python3 tasks.py {{{','.join(jobs)},setup-system}} [extra args]",
+              file=sys.stderr)
         return 2
+    if argv[0] == "setup-system":
+        return setup_system()
     ensure_venv()
     if argv[0] in ("test", "setup"):
         install_reader_tools()
     compile_bytecode()
-    if argv[0] == "test":
-        ensure_screenshot_packages()
     cmds = jobs[argv[0]]
     if not cmds:
         return 0

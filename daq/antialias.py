@@ -13,35 +13,23 @@ An elliptic (Cauer) low-pass in second-order sections (:func:`scipy.signal.ellip
   ripple ``ripple_db`` (default 0.01 dB; the gain stays within [-ripple_db, 0] dB below f_p);
 - stopband edge ``f_s = rate_hz / 2`` (the Nyquist frequency of the decimated signal), attenuation
   ``attenuation_db`` (default ``20 log10(2^(bits+1))``, 102.35 dB for a 16-bit ADC) at and above
-  f_s, up to ``fs_hz / 2``;
+  f_s, up to ``fs_hz / 2``: a full-scale alias stays below the ADC's rounding threshold;
 - order from :func:`scipy.signal.ellipord` (12 for 1000 Hz -> 100 Hz).
 
 The design is memoised on disk (:func:`design_cache_dir`) and the filter runs in compiled code
-with ``scipy.signal.sosfilt``'s arithmetic (the same samples, bit for bit): importing
-scipy.signal costs about 1 s, half of what a whole ``daq acquire`` may take.
-
-Whatever lies at or above the Nyquist frequency folds back into 0..rate/2 attenuated by at least
-``attenuation_db``: with the default, a full-scale sine (amplitude ``2^(bits-1)`` LSB) aliases to
-at most LSB/4, below the ADC's rounding threshold, so it leaves no code. Between f_p and f_s the
-filter rolls off and the content there is still not aliased (it stays below Nyquist); an analysis
-should use 0..f_p.
-
-``kind="none"`` decimates without filtering (to show what aliasing does).
+with ``scipy.signal.sosfilt``'s arithmetic (the same samples, bit for bit), so that a run does not
+import scipy.signal. An analysis should use 0..f_p. ``kind="none"`` decimates without filtering
+(to show what aliasing does).
 
 Exact response
 --------------
 Sample ``j`` of the decimated output is the filtered signal at simulation index ``j q`` (time
-``j / rate_hz``; decimation adds no delay). For ``f < rate_hz / 2`` the output of a sine
-``exp(2 pi i f t)`` sampled at ``fs_hz`` is, in steady state, ``H(f) exp(2 pi i f t)`` with::
-
-    H(f) = prod_k (b0k + b1k z^-1 + b2k z^-2) / (1 + a1k z^-1 + a2k z^-2),
-    z = exp(2 pi i f / fs_hz)
-
-(:meth:`AntiAliasFilter.response`, exact for the simulated samples; the rows of ``sos`` are
-``[b0k, b1k, b2k, 1, a1k, a2k]``). A component at ``f >= rate_hz / 2`` appears at its alias
-``|f - m rate_hz|`` scaled by ``|H(f)|``. The filter is not linear-phase: its group delay is about
-``group_delay_s(0)`` (27.6 ms for the default design at 100 Hz) at low frequency and rises towards
-f_p; the same filter on every channel cancels in any ratio of channels (H_t = x/a, Theta_2 = y/a).
+``j / rate_hz``; no added delay). For ``f < rate_hz / 2`` a sine ``exp(2 pi i f t)`` comes out,
+in steady state, times ``H(f) = prod_k (b0k + b1k z^-1 + b2k z^-2) / (1 + a1k z^-1 + a2k z^-2)``,
+``z = exp(2 pi i f / fs_hz)`` (:meth:`AntiAliasFilter.response`, exact for the simulated samples;
+the rows of ``sos`` are ``[b0k, b1k, b2k, 1, a1k, a2k]``). The filter is not linear-phase
+(:meth:`AntiAliasFilter.group_delay_s`); the same filter on every channel cancels in any ratio of
+channels (H_t = x/a, Theta_2 = y/a). Aliasing and the delay in numbers: docs/antialias.md.
 
 State
 -----

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rig._io import atomic_output, check_writable
-from rig.errors import ConfigError
+from rig.errors import ConfigError, import_extra
 
 UNITS = ("eu", "volts", "codes")
 
@@ -44,7 +44,7 @@ def to_xarray(recording, units: str = "eu"):
     (record, time) [s]. Attributes: scene, seed, status, records complete/planned.
     Only finished records are held (an interrupted run gives the records it finished).
     """
-    import xarray as xr
+    xr = import_extra("xarray", "xarray", "labelled arrays (xarray)")
 
     h = recording.header
     plan = h.plan
@@ -91,6 +91,7 @@ def write_eu_file(recording, path: str | Path, *, units: str = "eu", force: bool
     if path.suffix not in (".nc", ".h5", ".hdf5"):
         raise ConfigError(f"output {str(path)!r} is invalid: expected a .nc, .h5 or .hdf5 file")
     check_writable(path, force=force)
+    import_extra("h5netcdf", "xarray", "writing netCDF files")
     ds = to_xarray(recording, units=units)
     encoding = {v: {"zlib": True, "complevel": 4} for v in ds.data_vars}
     with atomic_output(path, force=force) as tmp:

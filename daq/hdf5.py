@@ -4,59 +4,9 @@ Readable without this package: every group has an ``NX_class``; ``default`` attr
 the root to the raw channels (``/entry/data``, an NXdata); every array has dimension scales with
 ``units`` and ``long_name``, so ``xarray.open_dataset(path, group="entry/data",
 engine="h5netcdf")`` returns labelled arrays (also for ``entry/truth``, ``entry/clipping`` and
-``entry/model``). Layout (format version :data:`FORMAT_VERSION`)::
-
-    /                       @NX_class=NXroot @default=entry @creator @file_format
-                            @file_format_version @HDF5_Version @h5py_version
-    entry/                  NXentry @default=data @title @start_time (UTC ISO 8601) @seed
-                            @software @software_version @file_format_version @scene_name
-      status                S16 scalar: acquiring | complete | interrupted | failed
-      records_complete      int64 scalar: records fully written (the rest of the file agrees)
-      records_planned       int64 scalar
-      message               S512 scalar: why the run stopped early ("" if complete)
-      data/                 NXdata @signal=a @auxiliary_signals=[x, y] @axes=[record, time]
-        record  (record,)   int64, dimension scale, the record index
-        time    (time,)     float64 [s] dimension scale, time within a record
-        record_start (record,) float64 [s] first sample of each record from the start of the run
-        a, x, y (record, time) int16 ADC codes, chunk = one record, shuffle + gzip;
-                            @scale_factor = lsb_v, @add_offset = offset_v, @units = V (CF packing:
-                            xarray decodes to volts) @long_name @quantity @engineering_unit
-                            @volts_per_unit (signed) @units_per_volt @range_v @bits @lsb_v
-                            @offset_v @code_min @code_max
-      clipping/             NXcollection: record, time, channel (names) scales;
-        count   (record, channel) int64: clipped samples per record and channel
-        a, x, y (record, time) uint8: 1 where a sample was clipped
-      saturation/           NXcollection, the same layout: 1 where the channel's sensor was
-                            beyond its range (accelerometer over range, spot off the PSD) at
-                            some simulation instant since the previous sample (files written
-                            before it existed: read as never)
-      truth/                NXdata (only if acquisition.truth): record, time, body scales;
-        stage_accel_mps2, mirror_x_m, mirror_rot_rad, source_v (record, time) float64,
-        theta_rad (record, time, body) float64 -- sampled, not filtered (see daq.records);
-                            chunk = one record, not compressed (float64 noise barely shrinks)
-      model/                NXcollection @model @method @error_estimate[.<key>] ... (the bench's
-                            model_info, nested keys joined by dots; from the rig also @reason
-                            @requested_model @error_budget @budget_met @selection.chosen ...:
-                            which model ran and why) @model_info_json (all of it but
-                            wall-clock timings, which would make identical runs differ)
-        frequency (frequency,) [Hz] scale: the record's FFT grid k / record_s, 0 .. rate/2
-        <name>_real, <name>_imag (frequency,): exact complex responses @units @long_name; from
-                            the rig: a, x, y [V/V] (channel volts per source volt, the whole
-                            chain: DAC hold, stage, pendulum, sensors *and* the anti-alias
-                            filter), h_t [m/(m/s^2)] and theta_2 [rad/(m/s^2)] (what the
-                            analyzer should measure; the filter cancels), stage_accel,
-                            stage_disp, mirror_x, mirror_rot, h_t_pendulum, theta_2_pendulum
-                            (exact for the simulated samples: rig.bench.expected_response
-                            sampled=True), *_pendulum_continuous (the continuous pendulum),
-                            antialias [1]. NaN where undefined (0 Hz ratios).
-      instrument/           NXinstrument
-        antialias/          NXcollection @kind @order @fs_hz @rate_hz @decimation @passband_hz
-                            @stopband_hz @ripple_db @attenuation_db
-          sos (section, coefficient) float64: the second-order sections b0 b1 b2 a0 a1 a2
-                            (format 1.0: an attribute @sos, which netCDF readers reject)
-        acquisition/        NXcollection: the plan @rate_hz @records @samples_per_record ...
-      scene/                NXcollection @name @source @description
-        settings_json       str scalar: Scene.settings (rig.scene.scene_from_settings rebuilds it)
+``entry/model``). The layout (groups, datasets, attributes and their units, format version
+:data:`FORMAT_VERSION`) is drawn in docs/run-file.md; :func:`read_run` and :func:`run_info` are its
+reader, :class:`Hdf5Sink` its writer.
 
 Writing
 -------
@@ -191,10 +141,10 @@ class Hdf5Sink(Sink):
     path : the file to write.
     force : allow replacing an existing file (only once the new run is complete).
     compression_level : gzip level (with shuffle) of the channels and the clip and saturation
-        flags; 1 (default): the paper's run file 0.44 % larger than at level 4 for ~8 % less
-        CPU writing it (BENCHMARKS.md; its 12 MB of truth are not compressed).
+        flags; 1 (default): files slightly larger than at level 4 for less CPU writing them
+        (BENCHMARKS.md has both figures).
     truth_compression_level : gzip level of the truth; 0 (default): none -- float64 samples of
-        noise-driven signals shrink by ~11 % for ~0.03 s per 10^5 samples written.
+        noise-driven signals shrink little for the CPU their compression costs.
 
     After :meth:`stop`, :attr:`path` is the file that holds the run (None if none was kept).
     """

@@ -1,96 +1,29 @@
 """Modal curve fit of a measured FRF (the 35670A's curve-fit option), leakage-aware if asked.
 
 :func:`fit_modes` fits :class:`ModalFit` (its :class:`Mode` s with uncertainties) to a
-:class:`processing.frf.MeasuredResponse` over a band. The model and its leakage-aware forms are
-in :mod:`processing.modal_model`, the variable-projection solver in
-:mod:`processing.modal_solver`, the paper's rotation-isolation reading in
-:mod:`processing.rotation`. Measured calibration: docs/modal-fit-calibration.md.
+:class:`processing.frf.MeasuredResponse` over a band. The model (modes in the z or s domain plus a
+smooth residual) and its leakage-aware forms are in :mod:`processing.modal_model`, the
+variable-projection solver in :mod:`processing.modal_solver`, the paper's rotation-isolation
+reading in :mod:`processing.rotation`.
 
-The model (modes in the z or s domain plus a smooth residual, its fitted parameters) is stated
-in :mod:`processing.modal_model`.
+- ``method="leakage"`` fits the expected H1 of the window (:mod:`processing.compare`) of the modal
+  impulse response instead of ``H``, exact for white input in the ``"z"`` domain, so that a mode
+  narrower than a line (Q ~ 530 at 0.47 lines per half-power bandwidth) is measurable. With
+  ``input_spectrum`` (:class:`InputSpectrum`: the input's PSD, its noise and an input sensor) the
+  model is the window's smoothing of the coloured spectra, exact to :data:`KERNEL_TOL`.
+- Weights: each line's Bendat-Piersol standard deviation ``sigma_k = eps_k |H_k|`` per real
+  component (coherence-weighted). The covariance is the sandwich with the window's line
+  correlation when ``settings`` are given (without them the lines count as independent), times
+  ``n_d / (n_d - 2)``, and **not** scaled by the reduced chi^2. A reduced chi^2 above its
+  expectation by more than ``4 sqrt(2 / dof)`` marks a systematic misfit: ``ModalFit.adequate``
+  is false and ``ModalFit.birge_factor`` is the inflation that would cover it.
+- Reliability (SPEC section 6): a direct fit of a mode with fewer than ~8 lines across its
+  half-power bandwidth ``f/Q`` is ``leakage_limited`` (its Q biased low, its uncertainty
+  meaningless); a leakage-aware fit is not flagged for it.
 
-Leakage-aware fit (``method="leakage"``)
------------------------------------------
-A mode narrower than a line cannot be fitted by that model: the measured peak is the
-expected H1 of the window, not ``H`` (:mod:`processing.compare`). With ``method="leakage"`` the fit
-model is ``E[H1]`` of the modal impulse response ``g[n] = sum_r 2 Re(c_r z_r^(n-1))`` (n >= 1)::
-
-    E_k = sum_r [ c_r A_r[k] + conj(c_r) B_r[k] ] + P(f_k)
-    A_r[k] = sum_{n=1}^{N-1} r_w[n] z_r^(n-1) exp(-2j pi k n / N),  B_r[k] = conj(A_r[-k mod N])
-
-(one FFT of length ``N = nperseg`` per mode and evaluation; ``r_w`` the window's normalised
-autocorrelation). It is exact for white input and the ``"z"`` domain; ``P`` is added untapered
-(a smooth residual is unchanged by the kernel to second order in its curvature). The decay of
-the response inside the record then carries the information on Q, so a Q ~ 530 mode with 0.47
-lines per half-power bandwidth is measurable.
-
-Coloured input (``input_spectrum``)
------------------------------------
-``E[H1] = E[G_ux] / E[G_uu]`` and both expectations are the window's smoothing of the true
-spectra, so the input spectrum enters wherever it changes within the smoothing kernel: a notch
-of the input *at* the mode reweights the lines beside the peak. With the input's PSD ``S`` (its
-part coherent with the output), its noise ``N`` and an input sensor ``K`` (the recorded input is
-``K`` times the input the modes respond to; the fitted response is the measured ratio times
-``K``), :class:`InputSpectrum`, the model is::
-
-    E_k = K_k T[S G / K]_k / T[S + N]_k + P(f_k),    T[F]_k = (1/n2) sum_j D[k M - j] F(nu_j)
-
-with ``G`` the modal sum, ``nu_j = j fs / n2`` a grid ``M`` times finer than the lines
-(``n2 = M N``) and ``D`` the window's power kernel, the DFT of ``r_w(|tau|)``,
-``|tau| < N``, on ``n2`` points (real, even, ``sum_j D[j] / n2 = r_w(0) = 1``). This is the sum over
-lags of :mod:`processing.analyzer`'s expected estimate written in frequency, exact up to
-
-* the time aliasing of the correlations on the fine grid, ``exp(-(n2 - N) / (fs tau))`` for the
-  slowest decay time ``tau`` of the modes (``Q / (pi f)``) and of the input (a note is added
-  above 1e-8), and
-* the kernel's tail beyond ``L`` lines, which the band-limited convolution neglects: below
-  :data:`KERNEL_TOL` (1e-9) of the total.
-
-``M`` is the least that keeps the aliasing below :data:`KERNEL_TOL` for ``InputSpectrum.decay_s``
-and the starting modes (at least :data:`FINE_PER_LINE`; a start read off a leakage-broadened peak
-counts twice its Q); if the fitted modes decay more slowly, the fit is repeated once on the finer
-grid they need. All modes' terms and their derivatives come from one batched FFT convolution per
-evaluation. Windows whose kernel falls as ``1/L`` (uniform, force, exponential) use the same sum
-in the lag domain instead (:class:`_LagInputLeakage`: the correlation of ``S / K`` once, then per
-evaluation a convolution with ``z^n`` over ``|tau| < N`` and the geometric sum of its tail),
-exact whatever the modes' Q, slower. With ``S = 1``, ``N = 0``, ``K = 1`` either equals the
-white-input model above to 1e-8 (tests/processing/test_modal.py).
-
-Measured on the paper's bench: docs/modal-fit-calibration.md.
-
-Weights and uncertainties
--------------------------
-Each line's complex error has the Bendat-Piersol standard deviation ``sigma_k = eps_k |H_k|``
-per real component (``eps`` from the measured coherence and ``n_effective``); the fit minimises
-``sum_k |model_k - H_k|^2 / sigma_k^2`` (weights ``1 / sigma^2``, i.e. coherence-weighted).
-
-Lines are not independent: with a window ``w`` the errors of lines ``j`` apart are correlated.
-For white output noise the correlation is ``|rho_j|^2`` (:func:`processing.compare.
-line_correlation`; Hann: 4/9 and 1/36); near a sharp resonance the unexplained output is mostly
-the ringing carried over from before each segment, whose spectrum is smooth across lines, and
-the correlation approaches ``rho_j`` itself (Hann: -2/3, 1/6). No single correlation model holds
-over a band, so the estimate keeps the diagonal weights (docs/modal-fit-calibration.md), and the
-covariance is the sandwich ``A^-1 (J_w^T R J_w) A^-1`` (``A = J_w^T J_w``, ``J_w`` the
-Jacobian divided by ``sigma``, ``R`` the ``|rho_j|^2`` correlation) when ``settings`` are given, or
-``A^-1`` without them (lines independent: understated by up to ``sqrt(1 + 2 (4/9 + 1/36)) =
-1.39`` for Hann).
-
-The covariance is **not scaled by the reduced chi^2**: the weights are absolute variances
-predicted from the coherence, so the scatter is known, and a chi^2 that happens to be low must
-not shrink the error bars. It is multiplied by ``n_d / (n_d - 2)``, the mean of ``sigma^2 /
-sigma_hat^2`` for a variance estimated from ``n_d`` averages (``sigma_hat^2 ~ sigma^2
-chi^2_nu / nu (n_d - 1)/n_d``, ``nu = 2 n_d - 2``); the expected reduced chi^2 of an adequate
-model is that same factor (1.071 for 30 averages) whatever the line correlation. A reduced chi^2
-above it by more than ``4 sqrt(2 / dof)`` means a systematic misfit (leakage bias in a direct fit
-of a sharp mode, a missing mode), which no scaling turns into a random error: the fit is flagged
-(``ModalFit.adequate``), and ``ModalFit.birge_factor`` gives the inflation ``sqrt(chi2_red /
-expected)`` that would cover it.
-
-Reliability flag (SPEC section 6): the 35670A asks for at least ~8 lines across a half-power
-bandwidth ``f/Q``. A direct fit of a mode with fewer lines is ``leakage_limited``: its Q is biased
-low (the peak is broadened to the window's resolution) and its stated uncertainty is meaningless.
-A leakage-aware fit models that bias and is not flagged unreliable for it. Eight lines are not
-a guarantee either (docs/modal-fit-calibration.md).
+The derivations (the leakage kernel, the coloured-input model and its error bounds, the line
+correlations and the covariance): docs/modal-fit.md. Measured on the paper's bench:
+docs/modal-fit-calibration.md.
 """
 
 from __future__ import annotations

@@ -14,9 +14,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from matplotlib.colors import LogNorm
-from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, MultipleLocator, NullFormatter
+
+from rig.errors import import_extra
+
+import_extra("matplotlib", "plot", "drawing figures")
+
+from matplotlib.colors import LogNorm  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.ticker import FuncFormatter, MultipleLocator, NullFormatter  # noqa: E402
 
 from rig.describe import MirrorResponse, gain_db, phase_deg
 

@@ -26,20 +26,11 @@ and a cross spectrum is ``G_xy = < conj(X) Y >`` (``<>`` the chosen average). Wi
 
 Effective number of averages
 ----------------------------
-Overlapping segments are correlated, so the variance of an averaged PSD of Gaussian noise is not
-``1 / n_segments``. Welch (1967) gives, for weights ``c_k`` (``sum c_k = 1``) and the window overlap
-correlation ``rho_j = sum_n w[n] w[n + j D] / sum_n w[n]^2`` at a shift of ``j`` steps ``D``::
-
-    var(G) / G^2 = sum_k c_k^2 + 2 sum_j rho_j^2 sum_k c_k c_{k+j}      (pairs in the same record)
-    n_effective = 1 / that
-
-which is exact for white Gaussian noise away from 0 Hz and Nyquist and a good approximation for
-spectra smooth over the window's bandwidth. For Hann at 50 % overlap ``rho_1 = 1/6``, so one long
-record of ``K`` segments gives ``n_effective = K / (1 + (1 - 1/K) / 18)``, about ``0.947 K``.
-Segments in different records never overlap, so they are uncorrelated. Exponential averaging enters
-through its weights. Vector averaging averages complex spectra, whose correlation is
-``rho_j`` times a phase that depends on the line; ``n_effective`` then uses ``|rho_j|`` (a
-conservative bound, exact without overlap). Peak hold is not an average: ``n_effective = 1``.
+Overlapping segments are correlated, so an averaged PSD of Gaussian noise has the variance of
+``n_effective`` independent averages, by Welch (1967) from the averaging weights and the window's
+overlap correlation (Hann at 50 %: about ``0.947 K`` for one record of ``K`` segments); segments
+of different records are independent; vector averaging uses ``|rho_j|``; peak hold counts 1. The
+formula: docs/analyzer-notes.md.
 """
 
 from __future__ import annotations

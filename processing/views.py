@@ -142,6 +142,9 @@ def bode_figures(a, *, k: float | None = None, phase: str = "wrapped"):
 
 
 def _save_side_by_side(figs, path: Path, *, force: bool, dpi: int) -> None:
+    from rig.errors import import_extra
+
+    import_extra("matplotlib", "plot", "drawing figures")
     import matplotlib.image
 
     imgs = []

@@ -149,7 +149,8 @@ def atomic_output(path: Path, *, force: bool, suffix: str = ""):
 @functools.lru_cache(maxsize=1)
 def software_version() -> str:
     """The installed version of pendulum-daq (written into every file the project makes); read
-    once per process (the package's metadata is parsed: ~4 ms, every run of a sweep paid it)."""
+    once per process (parsing the package's metadata is not free, and every run of a sweep
+    would pay it)."""
     try:
         return importlib.metadata.version("pendulum-daq")
     except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed

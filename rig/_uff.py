@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from rig._io import atomic_output, check_writable
-from rig.errors import ConfigError
+from rig.errors import ConfigError, import_extra
 
 #: UFF 58 function types used here (record 6, field 1).
 TIME_RESPONSE, FRF, COHERENCE = 1, 4, 6
@@ -69,7 +69,7 @@ def uff58(*, func_type: int, response: Dof, reference: Dof | None, x: np.ndarray
     "frequency" [Hz]); ``data`` real or complex. A ratio's ordinate is the response's quantity
     over the reference's; ``ordinate_type``/``ordinate_unit`` replace the response's (e.g. for a
     coherence, unit "1")."""
-    import pyuff
+    pyuff = import_extra("pyuff", "uff", "writing UFF files")
 
     x = np.asarray(x, dtype=float)
     if x.size < 2:
@@ -99,7 +99,7 @@ def uff58(*, func_type: int, response: Dof, reference: Dof | None, x: np.ndarray
 def write_uff(datasets: list[dict], path: str | Path, *, force: bool = False) -> Path:
     """Write UFF data sets to a new file ``path`` (``.uff`` or ``.unv``), complete or not at
     all, never over an existing file without ``force``."""
-    import pyuff
+    pyuff = import_extra("pyuff", "uff", "writing UFF files")
 
     path = Path(path)
     if path.suffix.lower() not in (".uff", ".unv"):

@@ -1,5 +1,7 @@
 """Exceptions of the rig. Each is still catchable as the built-in it specialises."""
 
+import importlib
+
 
 class RigError(Exception):
     """Base class of every error raised by :mod:`rig`."""
@@ -24,3 +26,21 @@ class DivergenceError(RigError, FloatingPointError):
         super().__init__(message)
         self.time_s = time_s
         self.state = state
+
+
+class MissingExtraError(RigError, ImportError):
+    """An optional feature's package is not installed; the message names the extra that adds it."""
+
+
+def import_extra(module: str, extra: str, feature: str):
+    """``importlib.import_module(module)``, or :class:`MissingExtraError` saying that ``feature``
+    needs it and which extra of pendulum-daq installs it (``pip install 'pendulum-daq[extra]'``).
+    Only the absence of ``module`` itself is translated; any other import error propagates."""
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        top = module.split(".")[0]
+        if exc.name is None or exc.name.split(".")[0] != top:
+            raise
+        raise MissingExtraError(f"{feature} needs {top}, which is not installed: "
+                                f"pip install 'pendulum-daq[{extra}]'") from exc

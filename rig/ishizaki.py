@@ -24,17 +24,8 @@ their exact solution per unit base acceleration, normalised as the paper's (17),
     F = (1 + nu^2 + 4 nu zeta1 zeta2)(1-b2)
     G = (2 zeta1 nu^2 + 2 zeta2 nu)(1-b2) H = nu^2 (1-b2)           (b2 = beta^2, s2 = sigma^2)
 
-(derived here by Cramer's rule on the 2 x 2 system divided by D1 omega1^2 and I2 omega1^2, using
-``delta nu^2 sigma^2 = beta^2 r1 / l`` and ``(h / I2) alpha sigma^2 = eps beta^2``, then multiplied
-through by ``1 - beta^2`` as the paper does). The paper prints B1 = 2 zeta2 nu (b2 - s2),
-B2 = 2 zeta1 (eps b2 - alpha s2 nu^2) and G without the factor (1 - b2): its (7)', (8)' drop the
-two cross-damping terms ``-delta 2 zeta2 omega2 th2'`` and ``-(h/I2) 2 zeta1 omega1 th1'`` that
-inverting the mass matrix of (5)', (6)' produces. For ``l = r1`` one has ``eps b2 = alpha s2^2
-nu^2``, so the printed B2 is ``-2 zeta1 alpha s2 nu^2 (1 - s2)``: (1 - sigma^2) where (1 - beta^2)
-belongs. The printed A_i, C_i, D, E, F, H are right. One physical consequence: at design goal (ii)
-(sigma^2 = 1, A2 = 0) the exact |H2| falls as lambda^-4 only up to lambda ~ Q1 and as lambda^-3
-beyond (the damping torque on stage 1 reaches stage 2 through the mass matrix), whereas the
-printed (18), whose B2 also vanishes there, falls as lambda^-4 for ever.
+(derived by Cramer's rule; the paper's printed B1, B2 and G drop two cross-damping terms, SPEC
+section 3). The derivation, the printed forms and a physical consequence: docs/ishizaki.md.
 
 The paper compares H1 + H2 (G2, ``x_g2``) with its measured translation; the mirror centre is at O2
 = G1, whose translation is xi1 (``x_mirror``, SPEC section 5). |x_g2 / x_mirror| is 1 + alpha

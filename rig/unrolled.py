@@ -10,10 +10,10 @@ compiles it with :func:`load`.
 Generated modules are written once under ``<numba cache dir>/unrolled/<name>_<hash>.py`` (the
 hash of their text: any change of the generator or of the pattern is a new file), imported from
 there and compiled with ``cache=True``, so a second process loads the compiled code from numba's
-on-disk cache instead of compiling (~3 s for the paper's pattern). Writes are atomic (a temporary
-file, then ``os.replace``) and an existing file is never rewritten, so concurrent workers agree.
-Where no cache directory is writable the module goes to a fresh temporary directory (compiled
-per process, the same code).
+on-disk cache instead of compiling again. Writes are atomic (a temporary file, then
+``os.replace``) and an existing file is never rewritten, so concurrent workers agree. Where no
+cache directory is writable the module goes to a fresh temporary directory (compiled per
+process, the same code).
 
 Public API: :func:`load`.
 """

@@ -35,4 +35,9 @@ def __getattr__(name):  # the Zarr index needs the optional extra: imported when
         from processing.dataset import zarr_index
 
         return getattr(zarr_index, name)
-    raise AttributeError(f"module 'processing.dataset' has no attribute {name!r}")
+    return _submodule(name)  # a public submodule is an attribute on first use
+
+
+from rig._exports import submodule_getattr  # noqa: E402
+
+_submodule = submodule_getattr("processing.dataset")

@@ -3,8 +3,7 @@
 A sweep file names a base scene, the settings every run shares and the parameters that vary::
 
     seed = 2026                          # the sweep seed (0 <= seed < 2**63)
-    scene = "ishizaki2009"               # base scene: a preset name or a scene TOML file
-                                         # (relative to the sweep file)
+    scene = "ishizaki2009"               # base scene: a preset or a TOML file (relative to this)
     set = ["acquisition.records=30"]     # --set-style overrides applied to every run
 
     [grid]                               # parameters on a grid
@@ -14,10 +13,8 @@ A sweep file names a base scene, the settings every run shares and the parameter
     "stage.reaction" = [true, false]                            # a list of values
 
     [random]                             # parameters drawn at random, ``count`` draws per grid point
-    count = 5
+    count = 5                            # kinds: uniform, loguniform, normal (+ bounds)
     "pendulum.q2" = { loguniform = [50.0, 200.0] }
-    "stage.damping_nspm" = { uniform = [0.5, 2.0] }
-    "accelerometer.noise_mps2_rthz" = { normal = [1e-5, 2e-6], bounds = [0.0, 1e-4] }
 
     [analysis]                           # processing.analyzer.AnalyzerSettings fields
     window = "hann"
@@ -28,8 +25,7 @@ A sweep file names a base scene, the settings every run shares and the parameter
     frf = true                           # H_t, Theta_2 with coherence and relative error
     modal = true                         # the modal fits' f, Q and their standard deviations
     expected = true                      # the exact model and E[H1] at the analyzer's lines
-    analysis = true                      # false: no analysis at all (signals, truth and model
-                                         # only, at the acquisition's own throughput)
+    analysis = true                      # false: no analysis (signals, truth and model only)
 
 Parameters are scene keys (``section.key``, see :mod:`rig.scene`), written as quoted dotted keys
 or as nested tables (``[grid.pendulum] q1 = [...]``). Without ``[grid]`` and ``[random]`` the
@@ -40,10 +36,8 @@ parameter varying fastest, then the draws of each point) has the seed
 do not depend on the sweep's size, the order the runs finish in or the engine.
 
 Validation (:func:`load_sweep`) raises :class:`rig.errors.ConfigError` naming the key, the value
-and what is valid, for anything wrong with the file itself (unknown key or section, wrong type,
-a grid with no values, bounds in the wrong order, a base scene that does not load). A parameter
-*set* that the scene rejects (e.g. a negative Q from a wide normal draw) is not an error of the
-file: that run is recorded as failed with the scene's message (:meth:`Sweep.plan`).
+and what is valid for anything wrong with the file itself; a parameter *set* the scene rejects
+(a negative Q from a wide normal draw) fails only that run, with the scene's message.
 """
 
 from __future__ import annotations

@@ -6,28 +6,12 @@ plot consumes an analysis, which is why it lives in ``processing``: the analyzer
 the running average (:mod:`processing.running_average`), and ``daq`` must not import
 ``processing`` (the CLI composes them).
 
-What is shown (:func:`acquisition_blueprint` lays it out)
---------------------------------------------------------
-- ``/bench``: the bench in a 2D side view [mm], sizes to scale, motions magnified (the factor is
-  written in the view): the stage moving on its rail (``/bench/stage``, a translation), and on
-  it ``pendulum`` (line strips: the bodies, the mirror's face, the laser beam) and ``marks``
-  (points: the pivots, the centres of mass), each styled instance by instance; the laser and the
-  PSD (:mod:`processing.bench_geometry`); about 33 frames per simulated second;
-- ``/psd``: the 12 mm detector to scale with the spot and its last 2 s as a trail;
-- ``/signals``: the channels a, x, y in engineering units (m/s^2, m, rad), one series each, in a
-  20 s window that follows the run, one view per channel showing its series; ``/volts``: the
-  same samples as ADC volts (a tab);
-- ``/analyzer``: after every record, the running averaged H_t and Theta_2 (gain [dB] and phase
-  [deg]) over the exact model stored in the run and the expected estimate E[H1], and the
-  coherences, on a drawn log-frequency axis (:mod:`processing.bode_canvas`);
-- ``/status``: record k of N, clipped and saturated samples, the model in use and why, the seed.
-
-Cost: each entity costs a send and a time column per record, whatever it holds, hence few
-entities (the channels as one entity per unit system, the moving parts as two). With a viewer
-the columns go out once per block and entity; with only a file, the blocks of a record are held
-and drawn at its end, as one (one send per record and entity); the analyzer curves once per
-record. The sends run on a worker thread beside the acquisition. ``BENCHMARKS.md`` has the
-figures.
+What is shown: ``/bench`` (the bench in a 2D side view to scale, motions magnified), ``/psd``
+(the detector with the spot and its trail), ``/signals`` and ``/volts`` (the channels in
+engineering units and in ADC volts), ``/analyzer`` (the running averaged H_t and Theta_2 over the
+exact model and E[H1], and the coherences) and ``/status``; the entities, their layout
+(:func:`acquisition_blueprint`) and what each costs: docs/live-view.md. The sends run on a
+worker thread beside the acquisition.
 
 Sinks: a spawned viewer (``spawn``, with an explicit memory limit), a running viewer
 (``connect``), an ``.rrd`` file (``rrd``), any combination. A viewer that cannot be spawned,
@@ -69,3 +53,8 @@ from processing.live_view.stream import (MEMORY_LIMIT, TIMELINE, LiveViewError, 
 __all__ = ["ViewerOptions", "ViewerStream", "LiveView", "LiveViewWarning", "LiveViewError",
            "acquisition_blueprint", "replay", "show_trajectory", "screenshot",
            "screenshot_command", "recording_summary", "viewer_executable"]
+
+
+from rig._exports import submodule_getattr  # noqa: E402
+
+__getattr__ = submodule_getattr('processing.live_view')  # a public submodule is an attribute on first use

@@ -15,26 +15,17 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     instants. Its error is the linearisation (a model error, predicted by
     :func:`predict_linearisation_error`).
 ``nonlinear``
-    ``method="etdab"`` (default): the whole bench, nonlinear pendulum *and* its reaction on the
-    stage (or without it), integrated as one system by :mod:`rig.solvers.coupled`: the linear bench
-    is propagated exactly (the matrix exponential of the exact linear model) and only the nonlinear
-    remainder (relative size ~theta^2) is integrated, by exponential Adams-Bashforth of order 4
-    (:func:`rig.solvers.etdab.etd_ab_kernel`: the remainder's integral over a step from the
-    polynomial through its values at the last 4 steps; one evaluation per step, at the step's
-    own state), ``substeps`` steps per DAC interval. Where the motion is far from linear its
-    error constant is larger than lawson4's at the same step (the estimate says so).
-    ``method="lawson4"``: the same split, the remainder by Lawson's RK4 (four evaluations per
-    step). ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the stage is
-    discretised exactly at ``h / oversample`` and the pendulum's nonlinear equations are
-    integrated through :func:`rig.solvers.integrate` on that prescribed stage acceleration,
-    linear between the sub-instants (``hold="linear"``, O((h/oversample)^2)).
+    ``method="etdab"`` (default) or ``"lawson4"``: the whole bench, nonlinear pendulum and its
+    reaction, as one system (:mod:`rig.solvers.coupled`): the linear bench propagated exactly,
+    only the nonlinear remainder integrated, ``substeps`` steps per DAC interval.
+    ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the pendulum's
+    equations through :func:`rig.solvers.integrate` on the exactly discretised stage's
+    acceleration, linear between ``h / oversample`` sub-instants. The methods: docs/bench_model.md.
 ``auto`` (default)
     The cheapest model that meets ``acquisition.error_budget`` (:func:`select_model`).
 
 Error estimates: :func:`model_info` (:mod:`rig.bench.estimates`). Measured accuracies, costs and
-levels for the defaults are in docs/bench_model.md and BENCHMARKS.md; levels and signal-to-noise
-ratios of the sensors in :mod:`rig.devices.stage`, :mod:`rig.devices.accelerometer` and
-:mod:`rig.devices.optical_lever`.
+levels for the defaults: docs/bench_model.md; the sensors' levels: docs/devices.md.
 
 Rooms
 -----
@@ -46,10 +37,7 @@ Rooms
 ``selection``   :func:`predict_linearisation_error`, :func:`select_model`
 ``estimates``   :func:`model_info` and the error estimates (Richardson)
 
-Public API: :class:`BenchSimulation`, :class:`BenchModel`, :class:`BenchState`,
-:class:`BenchResponse`, :func:`build_model`, :func:`start`, :func:`advance`, :func:`calibrations`,
-:func:`expected_response`, :func:`stationary_levels`, :func:`signal_to_noise`, :func:`model_info`,
-:func:`select_model`, :func:`predict_linearisation_error`.
+Public API: the rooms' names above, re-exported here.
 """
 
 from rig.bench.selection import (FIRST_ORDER_LIMIT, PREDICTOR_BATCHES, PREDICTOR_ENTROPY,
@@ -66,3 +54,8 @@ __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "buil
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
            "model_info", "linear_method", "select_model", "predict_linearisation_error", "MODELS",
            "NONLINEAR_METHODS", "STREAMS"]
+
+
+from rig._exports import submodule_getattr  # noqa: E402
+
+__getattr__ = submodule_getattr('rig.bench')  # a public submodule is an attribute on first use

@@ -9,40 +9,23 @@ fixed to the ground would add the stage's own displacement, ~2.5 mm rms here, a 
 the mirror's relative motion at low frequency. So both are mounted on the stage (their mass is in
 ``stage.moving_mass_kg``) and the spot sees only the pendulum's motion relative to its pivot.
 
-Geometry (exact, used by :meth:`OpticalLever.spot_m`)
------------------------------------------------------
-Stage frame: x along the stage motion (the mirror's rest normal, toward the laser), y lateral
-(along the pivot axes), z up. The mirror centre is displaced by ``(dx, 0, dz)`` from its rest
-position and its body is rotated by ``theta`` about y (positive as theta, x = +sin theta), so its
-normal is ``n = (cos theta, 0, sin theta)``. The beam arrives in the horizontal plane at incidence
-``phi`` along ``d = (-cos phi, -sin phi, 0)`` through the rest reflection point (the origin); at
-rest it leaves along ``r0 = (cos phi, -sin phi, 0)`` and meets the detector, a plane normal to
-``r0`` at distance ``D``, at its centre. In general the beam meets the mirror at ``q = t d``,
-``t = n.p / n.d`` (p = mirror centre), leaves along ``r = d - 2 (d.n) n`` and hits the detector at
-``P = q + s r``, ``s = (D - r0.q) / (r0.r)``. The detector axes are ``e_u = (sin phi, cos phi,
-0)`` (horizontal, the sense in which +dx moves the spot) and ``e_v = (0, 0, 1)`` (up)::
-
-    u = e_u.P = 2 sin(phi) (dx + dz tan theta) - s 2 sin(phi) cos(phi) sin^2 theta
-    v = e_v.P = s cos(phi) sin(2 theta),   s = D + O(dx, theta)
-
-Linearised (what the calibrations use): ``u = 2 sin(phi) dx`` and ``v = 2 cos(phi) D theta``.
-The factor cos(phi) follows from ``r = d - 2 (d.n) n`` with ``d.n = -cos(phi) cos(theta)``: the
-vertical component of the reflected ray is ``r_z = 2 cos(phi) cos(theta) sin(theta) = cos(phi)
-sin(2 theta)``, i.e. only the part of the incoming beam along the normal (cos phi) is turned by the
-tilt. We use it (not the normal-incidence ``2 D theta``). A translation within the mirror plane
-(dz at theta = 0) moves nothing. :meth:`OpticalLever.measure` uses the exact form (numbers
-below).
+Geometry
+--------
+Stage frame: x along the stage motion (the mirror's rest normal, toward the laser), y lateral, z
+up. The mirror centre moves by ``(dx, 0, dz)`` and its body turns by ``theta`` about y; the beam
+arrives in the horizontal plane at incidence ``phi``, and the detector is a plane at distance
+``D`` normal to the rest reflected beam. :meth:`OpticalLever.spot_m` traces the ray exactly
+(the derivation: docs/devices.md); linearised, the spot moves by ``u = 2 sin(phi) dx``
+horizontally and ``v = 2 cos(phi) D theta`` vertically, which the calibrations use.
 
 Detector, output and edges
 --------------------------
 ``volts_x = sign_x G u``, ``volts_y = sign_y G v`` (G = ``gain_vpm``; the PSD and its amplifiers are
-flat far above the simulation band). Position noise (laser pointing, air, electronics), white with
-one-sided density ``noise_m_rthz`` on each axis, is added to the spot position. The detector is a
-square of side ``size_m`` centred on the rest spot: when the spot leaves it (|u| or |v| >
-size/2) a real PSD's normalised outputs lose their meaning (the centroid of the light still on
-the detector sits at the edge, then the sum current vanishes). We clip each coordinate at the
-edge (the output saturates at +-G size/2) and flag the sample (``off_detector``, both channels):
-flagged samples must not be trusted.
+flat far above the simulation band). Position noise, white with one-sided density
+``noise_m_rthz`` on each axis, is added to the spot position. The detector is a square of side
+``size_m`` centred on the rest spot: each coordinate is clipped at its edge (the output saturates
+at +-G size/2) and a spot beyond it flags the sample (``off_detector``, both channels): flagged
+samples must not be trusted.
 
 Defaults: the fields of :class:`OpticalLever`; the spot excursions and signal-to-noise ratios
 they give are in ``docs/devices.md``.

@@ -2,35 +2,26 @@
 
 The Agilent 35670A drives the voice-coil amplifier from its source output (SPEC sections 1, 6, 8).
 Here the source is a sequence of DAC samples ``v[k]`` at ``t_k = k / fs`` (``fs`` =
-``acquisition.simulation_rate_hz``, 1 kHz by default); the physical source voltage is that value
-held on ``[t_k, t_{k+1})`` (a zero-order hold). Everything downstream is continuous and integrated
-exactly from the held value (:mod:`rig.bench`). Like a real analyzer's source output, the held
-staircase first passes an analog reconstruction (smoothing) filter, a Butterworth low-pass
-(``source.reconstruction_hz`` = 100 Hz, order 4 by default): it removes the DAC's images near
-``m fs +- f`` (-80 dB at 990 Hz), which sampling the analog outputs at the DAC instants would
-otherwise fold back onto the band, coherently with the drive (without it the analyzer reads H_t
-1 % wrong at 10 Hz and 4.8 % in the stage's notch at 2.48 Hz). Being common to the stage's
-acceleration and the pendulum's motion, it does not change the ratios x/a and y/a.
+``acquisition.simulation_rate_hz``, 1 kHz by default), each held on ``[t_k, t_{k+1})`` (a
+zero-order hold) and smoothed by an analog reconstruction filter, a Butterworth low-pass
+(``source.reconstruction_hz`` = 100 Hz, order 4 by default) that removes the DAC's images.
+Everything downstream is continuous (:mod:`rig.bench`); the filter is common to the stage and the
+pendulum, so it does not change the ratios x/a and y/a (why it is needed: docs/devices.md).
 
 Signal types (``source.type``), level ``L = source.level_vrms``:
 
 ``random``
-    Gaussian noise band-limited to ``[fmin_hz, fmax_hz]`` (default the analysis span, 0-12.5 Hz),
-    flat inside the band, rms ``L`` (the expectation; the rms of a record of T seconds fluctuates
-    by about ``1 / (2 sqrt(B T))`` relative, B = fmax - fmin).
+    Gaussian noise band-limited to ``[fmin_hz, fmax_hz]`` (default the analysis span), flat in the
+    band, expected rms ``L``.
 ``burst-random``
-    the same noise generator running continuously but switched to the output only during the first
-    ``burst_fraction`` of every ``period_s`` (on/off with hard edges at sample instants; 0 V
-    otherwise). ``L`` is the rms *while on*.
+    the same noise, switched to the output only during the first ``burst_fraction`` of every
+    ``period_s`` (hard edges at sample instants, 0 V otherwise); ``L`` is the rms *while on*.
 ``periodic-chirp``
-    a linear sine sweep from ``fmin_hz`` to ``fmax_hz`` over ``period_s``, restarted (phase 0) every
-    period, amplitude ``sqrt(2) L`` (rms ``L``). Exactly periodic with ``period_s`` (which must be
-    a whole number of samples); continuous at the restart only if ``period_s (fmin + fmax) / 2`` is
-    an integer.
+    a linear sweep from ``fmin_hz`` to ``fmax_hz`` over ``period_s`` (a whole number of samples),
+    restarted at phase 0 every period, amplitude ``sqrt(2) L``.
 ``pink``
-    Gaussian noise with one-sided PSD proportional to ``1 / max(f, f_shelf)`` in ``[fmin_hz,
-    fmax_hz]`` (-10 dB per decade, -3 dB per octave), rms ``L``; ``f_shelf = fmin_hz`` if it is
-    > 0, else ``fmax_hz / 1000`` (below it the spectrum is flat down to DC instead of diverging).
+    Gaussian noise with one-sided PSD proportional to ``1 / max(f, f_shelf)`` in the band, rms
+    ``L``; ``f_shelf = fmin_hz`` if it is > 0, else ``fmax_hz / 1000``.
 ``sine``
     ``sqrt(2) L sin(2 pi frequency_hz t_k)``, phase 0 at t = 0.
 ``multisine``
@@ -38,35 +29,12 @@ Signal types (``source.type``), level ``L = source.level_vrms``:
     (``multisine_grid``: full, odd or random-odd), rms ``L``, new phases every
     ``multisine_periods`` periods (:mod:`rig.devices.multisine`).
 
-How the noise is made (random, burst-random, pink)
---------------------------------------------------
-White unit-variance Gaussian samples ``w[k]`` from a seeded :class:`numpy.random.Generator` are
-filtered by a long linear-phase FIR filter ``h`` (``v = L (h * w)`` with ``sum h^2 = 1``, so the
-expected variance is exactly ``L^2``). ``h`` is designed by frequency sampling: the ideal amplitude
-response (1 in the band, or ``1/sqrt(max(f, f_shelf))``; at the edges each grid point gets the
-fraction of its cell inside the band, so the edges fall exactly where asked) is inverse
-transformed on a grid 8 times finer than the filter, the central ``n_taps`` samples are kept and
-tapered by a Kaiser window (beta = 8.6, ~ 87 dB stopband). ``n_taps`` is the power of two reaching
-``FILTER_SPAN_S`` = 128 s (131072 taps at 1 kHz), so the band edges are about
-``2 sqrt(1 + (beta/pi)^2) / span`` = 0.045 Hz wide with -6.02 dB at the nominal edge, the pass
-band is flat to 1e-3 dB and the stop band is below -80 dB 0.05 Hz beyond the edges
-(tests/rig/devices/test_source.py). The filter runs by overlap-save in frames of ``4 n_taps``
-samples (FFT), each frame producing ``3 n_taps + 1`` outputs that are buffered; a request for
-any number of samples is served from that buffer. The frames are made two at a time, in one
-complex FFT (:func:`_frame_pair`: the first frame's input as the real part, the second's as the
-imaginary part; ``h`` is real, so the inverse transform's real and imaginary parts are the two
-frames' outputs): the paper run's source then costs ~0.75 of one real transform pair per frame
-here (BENCHMARKS.md; a run that needs an odd number of frames makes one more), and the outputs
-equal one real FFT per frame (:func:`_frame_real`, the path before) up to round-off (~4e-15 of
-the rms: tests/rig/devices/test_source.py). Because frames (and their pairs, counted from the
-first) never depend on how the output is requested, blocks of
-any size reproduce a one-shot run bit for bit, and the signal is continuous across blocks (it is
-one stationary process; there are no joins). The filter's history is primed with ``n_taps - 1``
-white samples before the first output, so the noise is stationary from t = 0. Deterministic types
-(sine, chirp) draw nothing from the generator.
-
-The one-sided PSD of the DAC samples is ``2 L^2 |H(f)|^2 / fs`` with ``H`` the normalised FIR's
-response (:meth:`Source.design_psd` gives the ideal design, without the window's edge smoothing).
+The noise types filter seeded white Gaussian samples by a linear-phase FIR ``h`` with
+``sum h^2 = 1`` (``FILTER_SPAN_S`` = 128 s of taps), run by overlap-save: blocks of any size
+reproduce a one-shot run bit for bit, the noise is stationary from t = 0, and the deterministic
+types draw nothing. The one-sided PSD of the DAC samples is ``2 L^2 |H(f)|^2 / fs``
+(:meth:`Source.design_psd`). The filter's design, its band edges and the frame arithmetic:
+docs/devices.md.
 
 Public API: :class:`Source`, :class:`SourceState`, :func:`start_source`, :func:`generate`,
 :data:`SOURCE_TYPES`.
@@ -369,8 +337,8 @@ def _real_spectrum(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
 
 
 def _fft():
-    """scipy.fft, imported when first used (its complex transforms were faster than numpy's
-    here; its real ones alike)."""
+    """scipy.fft, imported when first used (its complex transforms were the faster of the two
+    libraries' when timed)."""
     import scipy.fft
 
     return scipy.fft
@@ -401,7 +369,7 @@ class SourceState:
 def standard_normals(rng: np.random.Generator, n: int) -> np.ndarray:
     """``rng.standard_normal(n)``: the same values from the same stream, leaving ``rng`` in the
     same state, drawn in compiled code (numba's Generator runs numpy's ziggurat on the same bit
-    generator, ~3 times faster here than numpy's own loop)."""
+    generator, faster than numpy's own loop: docs/benchmarks/history.md)."""
     out = np.empty(int(n))
     _fill_standard_normal(rng, out)
     return out

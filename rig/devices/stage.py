@@ -12,36 +12,19 @@ Model (SI; the source voltage ``V`` is the DAC value held between samples,
 ``k`` the centring springs of the guide and ``c`` its viscous loss. ``F_p`` is the force the
 pendulum pulls on its pivot (the pendulum's reaction on the stage).
 
-The reaction (``stage.reaction``)
----------------------------------
-The pendulum's horizontal momentum is ``P = m x0' + sum_j S_j cos(th_j) th_j'`` (``m`` its total
-mass, ``S_j`` the first moments of :mod:`rig.chain`), and the only horizontal external force on it
-is the pivot force, so ``F_p = dP/dt`` (its damping torques, absolute or in the joints, are pure
-torques: the guide takes them without translating the stage). Linearised about the hanging rest,
-``F_p = m x0'' + S^T theta''``. With the pendulum's linear equation ``H theta'' + C theta' +
-g diag(S) theta = -S x0''`` the stage and pendulum share the symmetric mass matrix::
+The reaction (``stage.reaction``, on by default): stage and pendulum share the symmetric,
+positive definite mass matrix ``[[M + m, S^T], [S, H]]``, so in the frequency domain the
+pendulum acts as a frequency-dependent mass ``M_eff(s) = M + m + s^2 S^T T(s)`` (``T`` the
+angles per unit stage acceleration, :meth:`rig.chain.Chain.frf_angles`) and::
 
-    [[M + m, S^T], [S, H]] (x0'', theta'')^T = (Kf i - k x0 - c v0,  -C theta' - g diag(S) theta)^T
-
-which is the Hessian of the kinetic energy ``1/2 (M + m) x0'^2 + x0' S^T theta' + 1/2 theta'^T H
-theta'`` (Lagrange with x0 as a coordinate); it is positive definite because ``m - S^T H^-1 S >=
-0`` (the pendulum's kinetic energy is) and ``M > 0``. In the frequency domain, with ``Theta(s) =
-T(s) A(s)`` and ``T(s) = (H s^2 + C s + g diag(S))^-1 (-S)`` (:meth:`rig.chain.Chain.frf_angles`),
-the pendulum acts as a frequency-dependent mass::
-
-    M_eff(s) = M + m + s^2 S^T T(s)      (-> M + m at DC, -> M + m - S^T H^-1 S at high f)
     X(s) / V(s) = G Kf / ((L s + R)(M_eff(s) s^2 + c s + k) + Kf^2 s),   A = s^2 X
 
-Near a pendulum mode ``|s^2 S^T T|`` grows to about Q times the mode's effective mass, so the stage
-acceleration has a deep, narrow notch at each fixed-base pendulum mode (for the defaults -25 dB at
-2.479 Hz), followed by a coupled resonance (+21 dB at 2.523 Hz); the angles per unit *stage
-acceleration* are unchanged, so H_t = x/a is not (that is why the analyzer divides by the
-measured a). With ``reaction = false`` the stage ignores the
-pendulum altogether (neither its mass nor its swinging loads the stage). Nonlinear, the reaction
-is ``F_p = m x0'' + sum_j S_j (cos th_j th_j'' - sin th_j th_j'^2)``, the rate of the momentum
-above; :mod:`rig.solvers.coupled` integrates stage and nonlinear pendulum together with it (the
-chain's force is affine in ``x0''``, so the stage equation is solved for ``x0''`` at every
-evaluation).
+The stage acceleration then has a deep, narrow notch at each fixed-base pendulum mode, followed
+by a coupled resonance; the angles per unit *stage acceleration* are unchanged, so H_t = x/a is
+not (which is why the analyzer divides by the measured a). With ``reaction = false`` the stage
+ignores the pendulum. Nonlinear, :mod:`rig.solvers.coupled` integrates stage and pendulum together
+with ``F_p = m x0'' + sum_j S_j (cos th_j th_j'' - sin th_j th_j'^2)``. The derivation:
+docs/devices.md.
 
 Defaults: ``G = 1 V/V, Kf = 1 N/A, R = 8 ohm, L = 4 mH, M = 2 kg, k = 0.8 N/m, c = 1 N
 s/m`` (the fields of :class:`Stage`); their justification and the levels they give are in

@@ -105,3 +105,8 @@ __all__ = ["SOLVERS", "COUPLED_BENCH", "PENDULUM", "names_for", "HOLDS", "HeldIn
            "Run", "Solver", "integrate",
            "output_rows", "solver_named", "RK4", "Dop853", "Gauss4", "Midpoint", "Exact", "Etd3",
            "Etd3m", "Etd4m", "Lawson4", "Etdab", "ExactBench"]
+
+
+from rig._exports import submodule_getattr  # noqa: E402
+
+__getattr__ = submodule_getattr('rig.solvers')  # a public submodule is an attribute on first use

@@ -348,8 +348,8 @@ def arg_groups(prm):
     per-body arrays ``(mass, length, com, inertia, gamma, relative)`` and the stage's numbers
     ``(kf, k, c, m_stage, reaction)``, which a kernel takes out of its :class:`CoupledArgs` once. The helpers the
     kernels call in their loops take these and the few arrays they read, not the whole
-    :class:`CoupledArgs`: numba reference-counts every array passed into a call, at each call
-    (the whole tuple made etdab's step ~1.5 times slower)."""
+    :class:`CoupledArgs`: numba reference-counts every array passed into a call, at each call,
+    which for the whole tuple costs more than etdab's step itself."""
     return ((prm.g, prm.hc, prm.s, prm.cm, prm.mtot),
             (prm.mass, prm.length, prm.com, prm.inertia, prm.gamma, prm.relative),
             (prm.kf, prm.k, prm.c, prm.m_stage, prm.reaction))

@@ -29,7 +29,7 @@ sample a FIR of 6 weight sets (2n x n each), the stage sets skipped past their n
 every row in full, which the compiler vectorises; without a vertical input the n = 2 kernel
 forms neither N2 nor its products with the zero input, the same numbers, and forms the FIR, which
 no state enters, as BLAS products of :data:`FIR_CHUNK_STEPS` steps' input windows ahead of its
-serial chain: the same sums within round-off; BENCHMARKS.md, speed round 7). The first
+serial chain: the same sums within round-off; docs/benchmarks/history.md, speed round 7). The first
 step after a (re)start predicts with N(z0) at one more evaluation; the three stages are part of
 the native state (theta, omega, valid flag, step H, then 9n numbers), so blocks that end on output
 rows continue bit for bit.

@@ -250,8 +250,8 @@ def etd_ab_kernel(prm, mats, nsub, have, hist, phase, v, z, z_out, ax_out):
 # of its matrices (rig.unrolled: why, and how generated code is cached): the same operations in
 # the same order (each sum from its first term in the loop kernel's order, the zero products
 # left out, which leaves every finite sum's value unchanged) under the same compiler options, so
-# the two give equal values; the unrolled one measured 1.8x faster per step (docs/bench,
-# BENCHMARKS.md speed round 4).
+# the two give equal values; the unrolled one is faster per step (docs/benchmarks/history.md,
+# speed round 4).
 
 #: numba options of the generated etdab kernel: :func:`etd_ab_kernel`'s own
 ETDAB_OPTIONS = dict(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})

@@ -375,3 +375,30 @@ def test_a_sink_used_for_a_second_run_writes_the_file_a_fresh_one_writes(tmp_pat
         np.testing.assert_array_equal(a.codes[k], b.codes[k])
     for k in b.truth:
         np.testing.assert_array_equal(a.truth[k], b.truth[k])
+
+
+def test_every_group_dataset_and_attribute_of_a_run_file_is_in_docs_run_file(tmp_path):
+    """docs/run-file.md draws the layout; a real run of the bench (with truth) holds no group,
+    dataset or attribute it does not name, except where the page says "..." (the model's
+    information and the acquisition plan's attributes, the exact model's ``<name>_real`` and
+    ``_imag`` pairs, named as patterns)."""
+    OPEN_ENDED = ("entry/model", "entry/instrument/acquisition")
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "run-file.md").read_text()
+    path = tmp_path / "run.h5"
+    acquire(scene(1, 2.0, 1.0, "acquisition.truth=true"), seed=1, sinks=[Hdf5Sink(path)])
+    names = set()
+
+    def visit(name, obj):
+        leaf = name.rsplit("/", 1)[-1]
+        if not (name.startswith("entry/model/") and re.search(r"_(real|imag)$", leaf)):
+            names.add(leaf)
+        if not name.startswith(OPEN_ENDED):  # drawn as "@model @method ..." in the page
+            names.update(k for k in obj.attrs if not k.startswith(("DIMENSION_", "REFERENCE_",
+                                                                     "CLASS", "NAME", "_")))
+
+    with h5py.File(path, "r") as f:
+        f.visititems(visit)
+        names.update(f.attrs)
+    assert len(names) > 40
+    missing = sorted(n for n in names if not re.search(rf"(?<![\w.]){re.escape(n)}(?!\w)", doc))
+    assert not missing, f"in the run file but not in docs/run-file.md: {missing}"

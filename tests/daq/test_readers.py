@@ -1,9 +1,9 @@
 """Every file the project writes (run, spectra, trajectory, a dataset's run files and manifest) opens completely -- every object,
 every attribute -- in other readers: HDF5 1.10's command-line tools, an older h5py (HDF5 1.14),
 xarray under the h5netcdf and netCDF4 engines, nexusformat. The files are written by the real
-CLI in subprocesses; ``python3 tasks.py test`` installs the readers that are not Python packages
-of the test extra (``tasks.install_reader_tools``), and a test whose reader is missing skips
-saying why."""
+CLI in subprocesses; ``python3 tasks.py test`` makes ``.venv-compat`` (the older h5py), ``python3
+tasks.py setup-system`` installs the HDF5 tools (as root, with apt-get; CI runs it), and a test
+whose reader is missing skips saying why."""
 
 import hashlib
 import json
@@ -79,8 +79,8 @@ def test_files_use_the_hdf5_1_10_format_bounds_and_checksum_every_chunked_datase
 
 
 @pytest.mark.skipif(shutil.which("h5dump") is None,
-                    reason="h5dump (Debian hdf5-tools) not installed: `python3 tasks.py test` "
-                           "installs it when run as root with apt-get")
+                    reason="h5dump (Debian hdf5-tools) not installed: `python3 tasks.py "
+                           "setup-system` installs it (as root, with apt-get)")
 def test_hdf5_1_10_tools_dump_every_object_of_every_file(files):
     version = subprocess.run(["h5dump", "-V"], capture_output=True, text=True).stdout
     for kind, path in files.items():
