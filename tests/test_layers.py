@@ -9,8 +9,11 @@ included: a lazy import is still a dependency). The rules:
 - ``daq`` imports nothing from ``processing`` or ``benchmarks``, except its CLI (the composition
   root: the ``daq.cli`` package);
 - ``processing`` imports from ``daq`` only the run-file data contract (:data:`DAQ_CONTRACT`)
-  and nothing from ``benchmarks``; the few known exceptions are listed, each with its reason, in
-  :data:`EXCEPTIONS` (a new one fails);
+  and nothing from ``benchmarks``, except its declared composition sub-layers
+  (:data:`SUBLAYERS`, each with its reason), which compose the acquisition with the analysis
+  and may import any of ``daq``; nothing else in ``processing`` imports a sub-layer (it sits on
+  top); the few other known exceptions are listed, each with its reason, in :data:`EXCEPTIONS`
+  (a new one fails);
 - a package's public names (``__init__.py``'s lazy exports) come from that package.
 
 Known cycles inside one package that its own restructuring removes are listed in
@@ -32,11 +35,17 @@ PACKAGES = ("rig", "daq", "processing", "benchmarks")
 #: format), the sink protocol a consumer implements, the run file's check, and the facade.
 DAQ_CONTRACT = ("daq", "daq.records", "daq.hdf5", "daq.sinks", "daq.check")
 
-#: (importer, imported): the known upward imports, each with why it is there.
-EXCEPTIONS = {
-    ("processing.dataset.task", "daq.acquisition"):
-        "the dataset runner acquires its runs: a second composition root beside the CLI",
+#: Sub-packages of processing that compose daq's acquisition with the analysis, each with why:
+#: they may import any daq module; the rest of processing never imports them.
+SUBLAYERS = {
+    "processing.dataset": "the dataset runner acquires its runs: a second composition root "
+                          "beside the CLI",
+    "processing.instrument": "the virtual 35670A measures: it acquires (daq.acquire, pacing, "
+                             "run files) and analyses, like the instrument it emulates",
 }
+
+#: (importer, imported): the known upward imports, each with why it is there.
+EXCEPTIONS: dict = {}
 
 #: Cycles inside one package, each with what removes it (a new cycle fails).
 KNOWN_CYCLES: dict = {}
@@ -121,14 +130,27 @@ def _is_cli(module: str) -> bool:
     return module == "daq.cli" or module.startswith("daq.cli.")
 
 
-def upward_imports(graph: dict[str, set[str]]) -> list[str]:
-    """One line per import against the layers (see the module docstring)."""
+def _sublayer(module: str, sublayers) -> str | None:
+    return next((s for s in sublayers if module == s or module.startswith(s + ".")), None)
+
+
+def upward_imports(graph: dict[str, set[str]], sublayers=None) -> list[str]:
+    """One line per import against the layers (see the module docstring); ``sublayers``
+    defaults to :data:`SUBLAYERS`."""
+    subs = SUBLAYERS if sublayers is None else sublayers
     bad = []
     for m, targets in sorted(graph.items()):
         top = m.split(".")[0]
         for t in sorted(targets):
             layer = t.split(".")[0]
             if (m, t) in EXCEPTIONS:
+                continue
+            sub_m, sub_t = _sublayer(m, subs), _sublayer(t, subs)
+            if top == "processing" and sub_t and sub_t != sub_m:
+                bad.append(f"{m} imports {t}: {sub_t} is a composition sub-layer on top of "
+                           "processing; nothing below imports it")
+                continue
+            if top == "processing" and layer == "daq" and sub_m:
                 continue
             if top == "rig" and layer in ("daq", "processing", "benchmarks"):
                 bad.append(f"{m} imports {t}: rig imports nothing from {layer}")
@@ -156,6 +178,10 @@ def test_every_listed_exception_is_still_needed():
     graph = import_graph(ROOT)
     stale = [f"{m} -> {t}" for m, t in EXCEPTIONS if t not in graph.get(m, ())]
     assert not stale, f"remove from EXCEPTIONS (no longer imported): {stale}"
+    composing = {_sublayer(m, SUBLAYERS) for m, ts in graph.items() if _sublayer(m, SUBLAYERS)
+                 for t in ts if t.split(".")[0] == "daq" and t not in DAQ_CONTRACT}
+    idle = sorted(set(SUBLAYERS) - composing)
+    assert not idle, f"remove from SUBLAYERS (they import only the run-file contract): {idle}"
     found = {tuple(c) for c in cycles(graph)}
     gone = [" <-> ".join(c) for c in KNOWN_CYCLES if c not in found]
     assert not gone, f"remove from KNOWN_CYCLES (no longer a cycle): {gone}"
@@ -163,8 +189,9 @@ def test_every_listed_exception_is_still_needed():
 
 def test_the_check_catches_planted_violations(tmp_path):
     """A tree with a cycle, rig importing daq (function-local), daq importing processing
-    outside the CLI, and processing importing the acquisition: each is found; the CLI's own
-    imports and processing's import of the run reader are not."""
+    outside the CLI, processing importing the acquisition, and processing importing a
+    composition sub-layer: each is found; the CLI's own imports, processing's import of the run
+    reader and the sub-layer's import of the acquisition are not."""
     files = {
         "rig/__init__.py": "",
         "rig/a.py": "from rig import b\n",
@@ -177,6 +204,9 @@ def test_the_check_catches_planted_violations(tmp_path):
         "processing/__init__.py": "",
         "processing/spectra.py": "from daq.hdf5 import read_run\n",
         "processing/bad.py": "from daq.acquisition import acquire\n",
+        "processing/top/__init__.py": "",
+        "processing/top/run.py": "from daq.acquisition import acquire\n",
+        "processing/below.py": "from processing.top import run\n",
         "benchmarks/__init__.py": "",
     }
     for rel, text in files.items():
@@ -184,10 +214,12 @@ def test_the_check_catches_planted_violations(tmp_path):
         (tmp_path / rel).write_text(text)
     graph = import_graph(tmp_path)
     assert cycles(graph) == [["rig.a", "rig.b"]]
-    assert upward_imports(graph) == [
+    assert upward_imports(graph, {"processing.top": "composes"}) == [
         "daq.acquisition imports processing.spectra: only the CLI composes daq with processing",
         "processing.bad imports daq.acquisition: processing imports from daq only the run-file "
         f"contract ({', '.join(DAQ_CONTRACT)})",
+        "processing.below imports processing.top.run: processing.top is a composition "
+        "sub-layer on top of processing; nothing below imports it",
         "rig.c imports daq.hdf5: rig imports nothing from daq",
     ]
 

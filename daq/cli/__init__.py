@@ -3,7 +3,8 @@ composes rig, daq and processing. This package's ``__init__`` is the group; each
 command group) is a module of its own: :mod:`daq.cli.scene` (scene, model, simulate),
 :mod:`daq.cli.acquire` (acquire, inspect), :mod:`daq.cli.live` (the live view, view),
 :mod:`daq.cli.analyze`, :mod:`daq.cli.dataset`, :mod:`daq.cli.export`, :mod:`daq.cli.check`,
-:mod:`daq.cli.design` (with :mod:`daq.cli.design_verify`);
+:mod:`daq.cli.design` (with :mod:`daq.cli.design_verify`),
+:mod:`daq.cli.serve` (the virtual 35670A);
 shared options in :mod:`daq.cli.common`.
 
 Errors become one line and exit status 1 in one place, the group's class
@@ -25,6 +26,7 @@ from daq.cli import design as _design_cmd
 from daq.cli import export as _export_cmd
 from daq.cli import live as _live_cmds
 from daq.cli import scene as _scene_cmds
+from daq.cli import serve as _serve_cmd
 from daq.cli.errors import ErrorsAsMessages
 
 
@@ -52,7 +54,7 @@ def main(ctx, debug):
 for _command in (_scene_cmds.scene, _scene_cmds.model, _scene_cmds.simulate, _live_cmds.view,
                  _acquire_cmds.acquire, _acquire_cmds.inspect, _analyze_cmd.analyze,
                  _dataset_cmd.dataset, _export_cmd.export, _check_cmd.check_cmd,
-                 _design_cmd.design):
+                 _design_cmd.design, _serve_cmd.serve):
     main.add_command(_command)
 
 

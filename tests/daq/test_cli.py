@@ -41,7 +41,7 @@ def test_scene_show_applies_overrides_and_reports_bad_ones(runner):
     assert json.loads(res.output)["scene"]["chain"]["n"] == 4
     res = runner.invoke(main, ["scene", "show", "rod-chain", "--set", "pendulum.n=-3"])
     assert res.exit_code != 0
-    assert "pendulum.n = -3 is invalid: expected 1 <= n <= 10000" in res.output
+    assert "pendulum.n = -3 is invalid: expected 1 <= n <= 200" in res.output
 
 
 def test_model_csv_has_the_documented_columns_and_equals_the_direct_solve(runner, tmp_path):
