@@ -11,10 +11,10 @@ lawson4 (the earlier path), the exact linear bench, and their peers.
    (max over the bodies) against lawson4 at 2 steps per sample (its own error against 4 steps per
    sample on the first 100 s is printed).
 2. The peer for the nonlinear bench: ``scipy.integrate.solve_ivp`` on the same equations
-   (z' = A z + B V_k + P f(z), f by ``rig.coupled.remainder``), restarted at every held sample
-   (the input jumps there), DOP853 and RK45 over a range of rtol, on the first ``--piece`` seconds,
-   the cost extrapolated to the run; and once continuous (not restarted: the steps straddle the
-   jumps). Errors against lawson4 at 4 steps per sample on the same piece.
+   (z' = A z + B V_k + P f(z), f by ``rig.solvers.coupled.remainder``), restarted at every held
+   sample (the input jumps there), DOP853 and RK45 over a range of rtol, on the first ``--piece``
+   seconds, the cost extrapolated to the run; and once continuous (not restarted: the steps
+   straddle the jumps). Errors against lawson4 at 4 steps per sample on the same piece.
 3. The peer for the linear bench: ``scipy.signal.lsim`` (zero-order hold) on the same 12-state
    system and input over the whole run, once (``--no-lsim`` skips it, ~15 s).
 """
@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from rig import bench as rb  # noqa: E402
-from rig import coupled as rc  # noqa: E402
+from rig.solvers import coupled as rc  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 from rig.devices.source import generate, start_source  # noqa: E402
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""The nonlinear bench's step alone: etdab's loop kernel (``rig.coupled.etd_ab_kernel``) against
-the same step unrolled for the matrices' zero pattern (``rig.unrolled.etdab_kernel``, what the
-acquisition runs), each with the remainder at every step and every 5 steps (the default on this
-drive, ``rig.bench.model.remainder_every``), on the paper's bench (nonlinear model, 12 states)
+"""The nonlinear bench's step alone: etdab's loop kernel (``rig.solvers.etdab.etd_ab_kernel``)
+against the same step unrolled for the matrices' zero pattern (``rig.solvers.etdab.etdab_kernel``,
+what the acquisition runs), each with the remainder at every step and every 5 steps (the default on
+this drive, ``rig.bench.model.remainder_every``), on the paper's bench (nonlinear model, 12 states)
 over the paper's drive (the source's first ``--seconds`` of seed 2009, held at 1 kHz),
 interleaved rounds, medians and quartiles of CPU per DAC sample, the angles' difference, and
 whether loop and unrolled give the same bytes.
@@ -20,9 +20,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rig import unrolled  # noqa: E402
 from rig.bench import BenchSimulation, build_model  # noqa: E402
-from rig.coupled import etd_ab_kernel  # noqa: E402
+from rig.solvers.etdab import etd_ab_kernel, etdab_kernel  # noqa: E402
 from rig.devices.source import generate  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 
@@ -44,18 +43,18 @@ def main(argv=None):
     assert model.every == 5 and every5.every == 5  # the default on the paper's drive
     every1 = build_model(scene, method="etdab", every=1)
     kernels = {  # name: (kernel, model)
-        "loop, remainder every step (rig.coupled.etd_ab_kernel)": (etd_ab_kernel, every1),
-        "unrolled, remainder every step (rig.unrolled.etdab_kernel)":
-            (unrolled.etdab_kernel(*every1.etdab[:3], 4, prm.n), every1),
+        "loop, remainder every step (rig.solvers.etdab.etd_ab_kernel)": (etd_ab_kernel, every1),
+        "unrolled, remainder every step (rig.solvers.etdab.etdab_kernel)":
+            (etdab_kernel(*every1.etdab[:3], 4, prm.n), every1),
         "loop, remainder every 5 steps": (etd_ab_kernel, every5),
         "unrolled, remainder every 5 steps (the default here)":
-            (unrolled.etdab_kernel(*every5.etdab[:3], 4, prm.n), every5)}
+            (etdab_kernel(*every5.etdab[:3], 4, prm.n), every5)}
 
     def run(kernel, m):
         z, hist = z0.copy(), np.zeros((4, prm.rows.size))
         z_out, ax = np.empty((n, z.size)), np.empty(n)
         c = time.process_time()
-        kernel(*prm.args(), *m.etdab, 1, False, hist, np.zeros(1, np.int64), v, z, z_out, ax)
+        kernel(prm.args(), m.etdab, 1, False, hist, np.zeros(1, np.int64), v, z, z_out, ax)
         return time.process_time() - c, (z_out, ax, z, hist)
 
     outs = {k: run(*f)[1] for k, f in kernels.items()}  # warm-up (compiled code loaded)

@@ -22,7 +22,7 @@ code with the 128-bit step as LLVM's i128 arithmetic, the three streams interlea
 numpy's state (checked).
 
 ``etd4m``: the pendulum's nonlinear paper run (target 3) by its kernel
-(:func:`rig.solvers._kernels.etd4m_kernel2h`, 3000 s, m = 10, 0.01 s rows) with its per-step
+(:func:`rig.solvers.etd4m.etd4m_kernel2h`, 3000 s, m = 10, 0.01 s rows) with its per-step
 input FIR (480 multiply-adds a step) in the loop (speed round 6) and as BLAS products (now),
 against the same kernel with the FIR taken out and read from an array computed beforehand: the
 bound of the serial chain if the FIR were free (the loop's rows, checked).
@@ -232,7 +232,7 @@ def etd4m_part(rounds: int) -> None:
     from benchmarks.targets import paper_input
     from rig.scene import load_scene
     from rig.simulate import simulate
-    from rig.solvers._kernels import etd4m_kernel2h
+    from rig.solvers.etd4m import etd4m_kernel2h
 
     chain = load_scene("ishizaki2009").chain
     base = paper_input(3000.0)
@@ -245,8 +245,8 @@ def etd4m_part(rounds: int) -> None:
         simulate(chain, 3000.0, theta0=0.0, base=base, method="etd4m", dt_s=0.01,
                  output_dt_s=0.01, estimate_error=False)
     a = got["args"]
-    wt, ax, m, n_steps = a[9], a[15], a[16], a[17]
-    y, y_out, hist = a[19], a[20], a[21]
+    wt, ax, m, n_steps = a[1].wt, a[2], a[3], a[4]
+    y, y_out, hist = a[6], a[7], a[8]
     pre = _fir_free_kernel()
     idx = np.arange(n_steps)[:, None] * m + np.arange(wt.shape[0])[None, :]
     accs = ax[idx] @ wt
@@ -255,9 +255,9 @@ def etd4m_part(rounds: int) -> None:
     def run(which):
         yy, yo, hh = y.copy(), y_out.copy(), hist.copy()
         if which == "fir-free":
-            pre(*a[:18], accs, a[18], yy, yo, hh, a[22], 0)
+            pre(*a[:5], accs, a[5], yy, yo, hh, a[9], 0)
         else:
-            etd4m_kernel2h(*a[:19], yy, yo, hh, a[22], 0 if which == "loop" else a[23])
+            etd4m_kernel2h(*a[:6], yy, yo, hh, a[9], 0 if which == "loop" else a[10])
         rows[which] = yo
     cpu = _median_cpu({k: (lambda k=k: run(k)) for k in ("loop", "blas", "fir-free")}, rounds)
     same = np.array_equal(rows["loop"], rows["fir-free"])
@@ -276,7 +276,7 @@ def _fir_free_kernel():
     """etd4m_kernel2h with ``acc = given[k]`` in place of its FIR (compiled from its source)."""
     import inspect
 
-    import rig.solvers._kernels as k
+    import rig.solvers.etd4m as k
     from numba import njit
 
     src = inspect.getsource(k.etd4m_kernel2h.py_func if hasattr(k.etd4m_kernel2h, "py_func")

@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """How smooth the coupled bench's nonlinear remainder is: the case for stepping it coarser than
 the DAC rate. Runs the paper's bench (nonlinear, etdab) over the source's first ``--seconds`` at
-``--level`` volts, evaluates the remainder ``f`` (``rig.coupled.remainder``: the nonlinear minus
-the linear derivative, rows v0, omega_1, omega_2, q) at every DAC sample of the trajectory, and
-prints per row its rms and the fraction of its power above 5, 20 and 50 Hz (Welch, 16,384-point
+``--level`` volts, evaluates the remainder ``f`` (``rig.solvers.coupled.remainder``: the nonlinear
+minus the linear derivative, rows v0, omega_1, omega_2, q) at every DAC sample of the trajectory,
+and prints per row its rms and the fraction of its power above 5, 20 and 50 Hz (Welch, 16,384-point
 segments), next to how far the nonlinear angles are from the linear bench's on the same drive.
 
     .venv/bin/python benchmarks/remainder_spectrum.py                # 300 s at the paper's 0.1 V
@@ -19,9 +19,9 @@ import scipy.signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rig import unrolled  # noqa: E402
 from rig.bench import BenchSimulation  # noqa: E402
-from rig.coupled import remainder  # noqa: E402
+from rig.solvers.coupled import remainder  # noqa: E402
+from rig.solvers.etdab import etdab_kernel  # noqa: E402
 from rig.devices.source import generate  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 
@@ -41,12 +41,12 @@ def main(argv=None):
     v = np.ascontiguousarray(v, dtype=float)
     sim = BenchSimulation(scene, 2009, method="etdab", every=1)  # the remainder at every step
     phi_t, gam, w, lagv, w_rows, a_cols = sim.model.etdab
-    kern = unrolled.etdab_kernel(phi_t, gam, w, 4, prm.n)
+    kern = etdab_kernel(phi_t, gam, w, 4, prm.n)
     runs = {}
     for name, weights in (("nonlinear", w), ("linear", np.zeros_like(w))):  # no remainder
         z, hist = np.array(sim.state.z, dtype=float), np.zeros((4, prm.rows.size))
         z_out = np.empty((n, z.size))
-        kern(*prm.args(), phi_t, gam, weights, lagv, w_rows, a_cols, 1, False, hist,
+        kern(prm.args(), (phi_t, gam, weights, lagv, w_rows, a_cols), 1, False, hist,
              np.zeros(1, np.int64), v, z, z_out, np.empty(n))
         runs[name] = z_out
     th = model.slices["theta_rad"]

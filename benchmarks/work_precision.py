@@ -67,7 +67,7 @@ from scipy.integrate import solve_ivp
 from rig.chain import Chain
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers import integrate, solver_named
-from rig.solvers._kernels import RECURSIVE_FROM_N, _rhs
+from rig.solvers.primitives import RECURSIVE_FROM_N, rhs_alg
 from rig.solvers.rhs import bodies_array, rhs_algorithm
 from rig.ishizaki import chain_from_design
 from rig.scene import load_scene
@@ -280,7 +280,7 @@ def _ivp_rhs_held(t, y, hc, s, cm, g, bod, alg, ax, fs, work):
     if k < 0:
         k = 0
     out = np.empty((1, y.shape[0]))
-    _rhs(hc, s, cm, g, bod, alg, y, ax[k], 0.0, out, 0, work)
+    rhs_alg(hc, s, cm, g, bod, alg, y, ax[k], 0.0, out, 0, work)
     return out[0]
 
 
@@ -340,7 +340,7 @@ def _ivp_continuous(fun, y0, duration, t_out, method, options, limit_s, chunk_s)
 @numba.njit(cache=True)
 def _ivp_rhs_const(t, y, hc, s, cm, g, bod, alg, u, work):
     out = np.empty((1, y.shape[0]))
-    _rhs(hc, s, cm, g, bod, alg, y, u, 0.0, out, 0, work)
+    rhs_alg(hc, s, cm, g, bod, alg, y, u, 0.0, out, 0, work)
     return out[0]
 
 
@@ -882,7 +882,7 @@ def scene_chains(ctx: _Ctx) -> SceneResult:
                  + "; ".join(f"n={n}: {v['dense']:.0f} | {v['recursive']:.0f}"
                              for n, v in cost.items()))
     notes.append(f"rk4 and dop853 use the recursion from n = {RECURSIVE_FROM_N} "
-                 "(rig.solvers._kernels.RECURSIVE_FROM_N); n = 2 uses scalar code")
+                 "(rig.solvers.primitives.RECURSIVE_FROM_N); n = 2 uses scalar code")
     for sub, what in (("chains/n=100", "straight release"),
                       ("chains/whip n=100", "horizontal release (the whip)")):
         ok = [e for e in entries if e.scene == sub and e.error <= 1e-4 and math.isfinite(e.wall_s)]

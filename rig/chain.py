@@ -28,7 +28,7 @@ import scipy.linalg
 
 from rig.errors import ConfigError
 from rig._jit import njit
-from rig.solvers._kernels import _cholesky_solve, _rhs_rec
+from rig.solvers.primitives import cholesky_solve, rhs_rec
 
 G_STANDARD = 9.80665  # m/s^2
 DAMPING_MODES = ("absolute", "relative")
@@ -186,7 +186,7 @@ class Chain:
         return out
 
     def body_table(self) -> np.ndarray:
-        """The (6, n) body table of the O(n) recursion (:func:`rig.solvers._kernels._rhs_rec`):
+        """The (6, n) body table of the O(n) recursion (:func:`rig.solvers.primitives.rhs_rec`):
         rows mass, length, com, inertia, damping and the relative-damping flag (1.0 or 0.0)."""
         out = np.empty((6, self.n))
         out[0], out[1], out[2], out[3], out[4] = (self.mass_kg, self.length_m, self.com_m,
@@ -199,7 +199,7 @@ class Chain:
         n = self.n
         y = np.concatenate([np.asarray(theta, float), np.asarray(omega, float)])
         f = np.empty((1, 2 * n))
-        force = _rhs_rec(self.body_table(), self.g_mps2, y, float(ax), float(ay), f, 0,
+        force = rhs_rec(self.body_table(), self.g_mps2, y, float(ax), float(ay), f, 0,
                          np.empty((n, 6)))
         return f[0, n:], float(force)
 
@@ -354,7 +354,7 @@ def accel_kernel(hc, s, cm, g, theta, omega, ax, ay, out, work):
             m[k, j] = hcd
             out[j] -= hsd * omega[k] * omega[k]  # -N_jk w_k^2
             out[k] += hsd * omega[j] * omega[j]  # -N_kj w_j^2, N antisymmetric
-    _cholesky_solve(m, out.reshape((1, n)), 0, 0, n)
+    cholesky_solve(m, out.reshape((1, n)), 0, 0, n)
 
 
 @njit(cache=True)

@@ -9,6 +9,11 @@ feedthrough); :meth:`LinearSystem.discretise` gives its exact zero-order-hold st
 frequency and output instead of one ``(nz, nz)`` solve; its round-off differs from the solve's
 only where modal terms cancel (near 0 Hz, at anti-resonances), which the bench's tests bound.
 
+Van Loan's block exponential is built here once for every user: :func:`van_loan` (a held input's
+exact step), :func:`discretise` (its zero-order and linear holds, for the solvers and the bench)
+and :func:`monomial_integrals` (``int e^{A(h-s)} P (s/h)^k ds``, the exponential methods'
+weights); :func:`expm` is scipy's, imported on first use.
+
 :class:`FrequencyResponse` is a complex response on a frequency grid with its channel names and
 units, gain in dB and wrapped phase; the measured response of :mod:`processing.frf` extends it
 with coherence and averages, so a plot takes either.
@@ -27,7 +32,7 @@ import numpy as np
 from rig.errors import ConfigError
 
 __all__ = ["FrequencyResponse", "LinearSystem", "SampledSystem", "ModalForm", "ImpulseResponse",
-           "IMPULSE_METHODS", "wrap_deg"]
+           "IMPULSE_METHODS", "wrap_deg", "expm", "van_loan", "discretise", "monomial_integrals"]
 
 IMPULSE_METHODS = ("zoh", "bandlimited")
 
@@ -35,6 +40,72 @@ IMPULSE_METHODS = ("zoh", "bandlimited")
 def wrap_deg(p: np.ndarray) -> np.ndarray:
     """Phase in degrees wrapped from ``[-180, 180]`` to ``(-180, 180]``."""
     return np.where(p <= -180.0, p + 360.0, p)
+
+
+def expm(a: np.ndarray) -> np.ndarray:
+    """``scipy.linalg.expm(a)``, scipy imported on first use (importing rig stays light)."""
+    import scipy.linalg
+
+    return scipy.linalg.expm(a)
+
+
+def van_loan(a, b, h: float, *, ramp: bool = True) -> np.ndarray:
+    """Van Loan's block exponential of z' = A z + B u over one step ``h`` [s]:
+    ``expm([[A h, B h, 0], [0, 0, I], [0, 0, 0]])`` (``ramp``; its first block row is ``[Phi,
+    Gamma0, Gamma1]`` of :func:`discretise`), or ``expm([[A h, B h], [0, 0]])`` without the ramp
+    block (``[Phi, Gamma0]``). ``a`` (N, N), ``b`` (N, m); returns the whole exponential."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    nz, m = b.shape
+    size = nz + (2 * m if ramp else m)
+    big = np.zeros((size, size))
+    big[:nz, :nz] = a * h
+    big[:nz, nz:nz + m] = b * h
+    if ramp:
+        big[nz:nz + m, nz + m:] = np.eye(m)
+    return expm(big)
+
+
+def discretise(a, b, h: float, hold: str = "zoh"):
+    """Exact discretisation of z' = A z + B u over one step h for a held input (Van Loan).
+
+    With ``u(t_k + s) = u_k + (u_{k+1} - u_k) s / h`` (``linear``; ``zoh`` drops the second term)::
+
+        z_{k+1} = Phi z_k + Gamma0 u_k + Gamma1 (u_{k+1} - u_k)
+        Phi = e^{A h},  Gamma0 = int_0^h e^{A r} dr B,  Gamma1 = int_0^h e^{A (h - r)} B r / h dr
+
+    all read off ``expm([[A h, B h, 0], [0, 0, I], [0, 0, 0]]) = [[Phi, Gamma0, Gamma1], ...]``
+    (:func:`van_loan`). No one-sample delay and no start-up transient are introduced (unlike
+    ``zpk2sos`` of a hold model or ``dlsim`` with first-order hold from a zero state).
+
+    Returns (Phi (N, N), Gamma0 (N, m), Gamma1 (N, m)); Gamma1 is zero for ``zoh``.
+    """
+    nz, m = np.shape(b)
+    e = van_loan(a, b, h)
+    phi = e[:nz, :nz].copy()
+    g0 = e[:nz, nz:nz + m].copy()
+    g1 = e[:nz, nz + m:].copy() if hold == "linear" else np.zeros_like(g0)
+    return phi, g0, g1
+
+
+def monomial_integrals(a, rows, h: float, count: int):
+    """``(e^{A h}, [K_0, ..., K_{count-1}])`` with ``K_k = int_0^h e^{A(h-s)} P (s/h)^k ds``
+    (N, nf), ``P`` putting ``nf`` values into the ``rows`` of z (N): one matrix exponential of
+    the system augmented by the monomials (Van Loan; block k of its first block row is
+    ``K_k / k!``)."""
+    a = np.asarray(a, float)
+    rows = np.asarray(rows)
+    nz = a.shape[0]
+    nf = rows.size
+    big = np.zeros((nz + count * nf, nz + count * nf))
+    big[:nz, :nz] = a * h
+    big[rows, nz + np.arange(nf)] = h
+    for k in range(count - 1):
+        r0 = nz + k * nf
+        big[r0:r0 + nf, r0 + nf:r0 + 2 * nf] = np.eye(nf)
+    e = expm(big)
+    ks = [math.factorial(k) * e[:nz, nz + k * nf:nz + (k + 1) * nf] for k in range(count)]
+    return e[:nz, :nz].copy(), ks
 
 
 @dataclass(frozen=True, eq=False)
@@ -238,14 +309,8 @@ class LinearSystem:
         """Exact zero-order-hold discretisation at ``fs`` [Hz] (Van Loan block ``expm``)."""
         if not (math.isfinite(fs) and fs > 0):
             raise ConfigError(f"fs = {fs!r} is invalid: expected a finite rate > 0 Hz")
-        t = 1.0 / fs
         nz = self.a.shape[0]
-        big = np.zeros((nz + 1, nz + 1))
-        big[:nz, :nz] = self.a * t
-        big[:nz, nz:] = self.b * t
-        from scipy.linalg import expm
-
-        e = expm(big)
+        e = van_loan(self.a, self.b, 1.0 / fs, ramp=False)
         return SampledSystem(e[:nz, :nz], e[:nz, nz:], self.c, float(fs), self.outputs)
 
     def impulse_response(self, fs: float, n_taps: int, *, method: str = "zoh",

@@ -433,7 +433,7 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         starts at this state's time).
     algorithm : right-hand side of rk4 and dop853: ``"auto"`` (default: scalar code for n = 2,
         the O(n) articulated-body recursion from
-        :data:`rig.solvers._kernels.RECURSIVE_FROM_N` bodies),
+        :data:`rig.solvers.primitives.RECURSIVE_FROM_N` bodies),
         ``"dense"`` (mass-matrix Cholesky solve, O(n^3)) or ``"recursive"``; the same equations
         (tests: equal to round-off).
 

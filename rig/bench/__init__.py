@@ -16,8 +16,8 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
     :func:`predict_linearisation_error`).
 ``nonlinear``
     ``method="etdab"`` (default) or ``"lawson4"``: the whole bench, nonlinear pendulum and its
-    reaction, as one system (:mod:`rig.coupled`): the linear bench propagated exactly and only
-    the nonlinear remainder integrated, ``substeps`` steps per DAC interval.
+    reaction, as one system (:mod:`rig.solvers.coupled`): the linear bench propagated exactly,
+    only the nonlinear remainder integrated, ``substeps`` steps per DAC interval.
     ``method="rk4" | "gauss4" | "dop853"`` (``stage.reaction = false`` only): the pendulum's
     equations through :func:`rig.solvers.integrate` on the exactly discretised stage's
     acceleration, linear between ``h / oversample`` sub-instants. The methods: docs/bench_model.md.

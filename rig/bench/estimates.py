@@ -6,8 +6,8 @@ of the model that runs, measured on a ``probe_s`` run of the scene's own drive f
 
 - ``linear``: the predicted linearisation error plus the discretisation's (one exact step
   against two exact half steps per DAC sample: round-off only);
-- ``etdab`` / ``lawson4`` (the coupled bench, :mod:`rig.coupled`): Richardson against twice the
-  steps per DAC sample, ``|theta - theta_fine| 2^p / (2^p - 1)`` with the method's order ``p``
+- ``etdab`` / ``lawson4`` (the coupled bench, :mod:`rig.solvers.coupled`): Richardson against twice
+  the steps per DAC sample, ``|theta - theta_fine| 2^p / (2^p - 1)`` with the method's order ``p``
   (the error is the small nonlinear remainder's: the linear part is exact), and the
   nonlinear-minus-linear difference on the probe;
 - ``rk4`` / ``gauss4`` / ``dop853`` (reaction off, the pendulum on the prescribed stage
@@ -27,7 +27,7 @@ import numpy as np
 
 from rig.solvers import Exact, integrate
 from rig.solvers.etdab import ETDAB_ORDER
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 from rig.scene import Scene
 from rig.devices.source import generate, start_source
 from rig.bench.model import BenchModel, build_model

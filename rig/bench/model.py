@@ -12,8 +12,8 @@ linear bench is ``z' = A z + B V`` (:meth:`rig.devices.stage.Stage.state_space` 
 reconstruction filter and the high-pass ``q' = x0'' - w_c q``), and its exact zero-order-hold
 step ``z_{k+1} = Phi z_k + Gamma V_k`` (:func:`rig.solvers.exact.discretise`, Van Loan's matrix
 exponential). :func:`build_model` also precomputes what the nonlinear path needs: the coupled
-kernels' parameters and matrices (lawson4, etdab: :mod:`rig.coupled`) or the stage-only exact
-step at ``h / oversample`` (the prescribed-stage methods rk4, gauss4, dop853, reaction off).
+kernels' parameters and matrices (lawson4, etdab: :mod:`rig.solvers.coupled`) or the stage-only
+exact step at ``h / oversample`` (the prescribed-stage methods rk4, gauss4, dop853, reaction off).
 Cost: a few matrix exponentials of the ``(n_states, n_states)`` system per build.
 """
 
@@ -25,12 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from rig.devices.accelerometer import Accelerometer
-from rig import coupled as rcoupled
 from rig.chain import Chain
 from rig.errors import ConfigError
 from rig.solvers import ExactBench, solver_named
-from rig.solvers.etdab import ETDAB_ORDER
-from rig.solvers.exact import discretise
+from rig.solvers.coupled import CoupledParams, coupled_params
+from rig.solvers.etdab import ETDAB_ORDER, EtdabMatrices, etd_ab_phase_weights, etd_ab_sparsity
+from rig.linear import discretise
+from rig.solvers.lawson4 import lawson_matrices
 from rig.devices.optical_lever import OpticalLever
 from rig.scene import Scene
 from rig.devices.source import Source
@@ -39,7 +40,7 @@ from rig.bench.selection import select_model
 
 MODELS = ("auto", "linear", "nonlinear")  # acquisition.model; "auto" resolves to one of the others
 NONLINEAR_METHODS = ("lawson4", "etdab", "rk4", "gauss4", "dop853")
-COUPLED_METHODS = ("lawson4", "etdab")  # rig.coupled: the whole bench as one system
+COUPLED_METHODS = ("lawson4", "etdab")  # rig.solvers.coupled: the whole bench as one system
 DEFAULT_METHOD = "etdab"
 PRESCRIBED_STAGE_METHODS = ("rk4", "gauss4", "dop853")  # rig.solvers on a given stage motion
 
@@ -62,11 +63,11 @@ class BenchModel:
     accel_row : x0'' = accel_row . z.  slices : named slices of z.
     stage_phi, stage_gamma, stage_accel_row : prescribed-stage nonlinear path only: the stage +
         accelerometer (z_s = (i, x0, v0, q)) stepped exactly at 1 / (fs oversample).
-    coupled, lawson : lawson4 and etdab paths: the kernels' parameters (:class:`rig.coupled.
+    coupled, lawson : lawson4 and etdab paths: the kernels' parameters (:class:`rig.solvers.coupled.
         CoupledParams`); lawson4: (E_h, E_h/2, G_h, G_h/2) at h = 1 / (fs substeps).
     etdab : etdab path only: (Phi^T, Gamma, W, L) at h = 1 / (fs substeps), the remainder
-        every ``every`` steps (:func:`rig.coupled.etd_ab_phase_weights`), and their sparsity
-        (:func:`rig.coupled.etd_ab_sparsity`): the kernel's arguments after ``coupled``'s.
+        every ``every`` steps (:func:`rig.solvers.etdab.etd_ab_phase_weights`), and their sparsity
+        (:func:`rig.solvers.etdab.etd_ab_sparsity`): the kernel's arguments after ``coupled``'s.
     """
 
     scene: Scene
@@ -92,10 +93,10 @@ class BenchModel:
     stage_phi: np.ndarray | None = None
     stage_gamma: np.ndarray | None = None
     stage_accel_row: np.ndarray | None = None
-    coupled: rcoupled.CoupledParams | None = None
+    coupled: CoupledParams | None = None
     lawson: tuple | None = None
     selection: dict | None = None
-    etdab: tuple | None = None
+    etdab: EtdabMatrices | None = None
 
     @property
     def chain(self) -> Chain:
@@ -223,7 +224,7 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
     Lawson steps per DAC interval, or for the prescribed-stage methods ``oversample`` exact
     stage-acceleration instants per DAC interval (the pendulum sees them linearly interpolated)
     and ``substeps`` integrator steps per sub-interval; ``every``: etdab evaluates its remainder
-    at every ``every``-th step only (:func:`rig.coupled.etd_ab_phase_weights`; 1: every step;
+    at every ``every``-th step only (:func:`rig.solvers.etdab.etd_ab_phase_weights`; 1: every step;
     None, the default: :func:`remainder_every` for this drive).
 
     Raises
@@ -272,17 +273,17 @@ def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
     kw = {}
     if model == "nonlinear" and method in COUPLED_METHODS:
         q_idx = slices["accel_highpass_q_mps"].start if acc.n_states else -1
-        prm = rcoupled.coupled_params(chain, stage, a, q_idx=q_idx,
-                                      wc=acc.corner_rad_s if acc.n_states else 0.0)
+        prm = coupled_params(chain, stage, a, q_idx=q_idx,
+                              wc=acc.corner_rad_s if acc.n_states else 0.0)
         if method == "lawson4":
-            kw = dict(coupled=prm, lawson=rcoupled.lawson_matrices(a, b, h / substeps))
+            kw = dict(coupled=prm, lawson=lawson_matrices(a, b, h / substeps))
         else:
             hs = h / substeps
             phi_s, g_s, _ = discretise(a, b, hs, "zoh")
             phi_t = np.ascontiguousarray(phi_s.T)
-            w, lagv = rcoupled.etd_ab_phase_weights(a, prm.rows, hs, ETDAB_ORDER, every)
-            kw = dict(coupled=prm, etdab=(phi_t, np.ascontiguousarray(g_s[:, 0]), w, lagv)
-                      + rcoupled.etd_ab_sparsity(w, prm.a_rows))
+            w, lagv = etd_ab_phase_weights(a, prm.rows, hs, ETDAB_ORDER, every)
+            kw = dict(coupled=prm, etdab=EtdabMatrices(phi_t, np.ascontiguousarray(g_s[:, 0]), w,
+                                                       lagv, *etd_ab_sparsity(w, prm.a_rows)))
     elif model == "nonlinear":
         sa, sb, srow, _ = _bench_state_space(stage, chain, acc, with_chain=False, source=source)
         sphi, sg0, _ = discretise(sa, sb, h / oversample, "zoh")

@@ -16,8 +16,8 @@ and with the run length up to a few amplitude time constants ``tau = Q / (pi f)`
 The predictor: first-order perturbation
 ---------------------------------------
 ``z_nl = z_lin + d + O(theta^2 d)`` with ``d' = A d + f(z_lin(t))``, ``f`` the nonlinear
-remainder of the accelerations (:mod:`rig.coupled`): the linearisation error to first order is
-the linear bench's response to the remainder evaluated along the *linear* trajectory. It is
+remainder of the accelerations (:mod:`rig.solvers.coupled`): the linearisation error to first
+order is the linear bench's response to the remainder evaluated along the *linear* trajectory. It is
 computed for the scene's own source type, level, initial state and run length on a surrogate
 drive: the scene's source regenerated at a reduced rate (>= 8 times the highest source or
 pendulum frequency; its own random stream, so the choice is a property of the scene, not of the
@@ -45,10 +45,11 @@ import time
 
 import numpy as np
 
-from rig import coupled as rcoupled
 from rig.chain import Chain
+from rig._jit import njit
 from rig.errors import ConfigError, DivergenceError
-from rig.solvers.exact import discretise
+from rig.solvers.coupled import arg_groups, coupled_params, kernel_scratch, remainder_fast_at
+from rig.linear import discretise
 from rig.scene import Scene
 from rig.scene_memo import per_scene
 from rig.devices.source import generate, start_source
@@ -122,7 +123,7 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
     nz = a.shape[0]
     hr = 1.0 / fr
     phi, g0, g1 = discretise(a, ss.b, hr, "linear")
-    prm = rcoupled.coupled_params(chain, stage, a)
+    prm = coupled_params(chain, stage, a)
     nf = prm.rows.size
     bf = np.zeros((nz, nf))
     bf[prm.rows, np.arange(nf)] = 1.0
@@ -155,8 +156,8 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
     for r, child in enumerate(np.random.SeedSequence(PREDICTOR_ENTROPY).spawn(k_runs)):
         v, _ = generate(src, start_source(src, child), n_tot + 1)
         z, d = z0.copy(), np.zeros(nz)
-        rcoupled.first_order_kernel(*prm.args(), phi, g0c, g1c, gf0, gf1, v, z, d, k_rec,
-                                    batches, sums[r], peaks[r])
+        first_order_kernel(prm.args(), phi, g0c, g1c, gf0, gf1, v, z, d, k_rec,
+                           batches, sums[r], peaks[r])
         if not (np.all(np.isfinite(z)) and np.all(np.isfinite(d))):
             raise DivergenceError("the linearisation-error predictor diverged (is the linear "
                                   "bench unstable?)", 0.0, z)
@@ -284,3 +285,83 @@ def select_model(scene: Scene) -> dict:
             "linear_meets_budget": bool(ok), "predicted_linear_error": e,
             "predicted_linear_error_upper": up, "reason": reason, "prediction": pred,
             "predict_wall_time_s": time.perf_counter() - tic}
+
+
+# ================================================================================================
+# first-order linearisation error (the predictor)
+# ================================================================================================
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def first_order_kernel(prm, phi, g0, g1, gf0, gf1, v, z, d, k_rec, n_batches, sums, peaks):
+    """Linear bench z and its first-order linearisation error d over len(v) - 1 intervals.
+
+    z_{k+1} = Phi z_k + G0 v_k + G1 (v_{k+1} - v_k);  d_{k+1} = Phi d_k + GF0 f_k + GF1 (f_{k+1}
+    - f_k) with f_k = f(z_k) in ``rows`` (first-order hold of both inputs). From sample ``k_rec``
+    on, the samples are split into ``n_batches`` equal consecutive batches and
+    ``sums[b, 0, j] += theta_j^2``, ``sums[b, 1, j] += d_theta_j^2``,
+    ``sums[b, 2, j] = max |d_theta_j|``; over every sample ``peaks[0, j] = max |theta_j|``,
+    ``peaks[1, j] = max |d_theta_j|`` (is the first order valid all along?). ``z``, ``d``
+    (in/out) end at the last sample.
+
+    For n = 2, f is :func:`remainder2_fast`'s (polynomial sines, one division: the dense
+    equations rounded differently, a few ulp), as etdab's; the state products run row beside
+    row (each row's sum over the columns in order, as a loop per row would form it)."""
+    n, two, nz, nf, work, alpha = kernel_scratch(prm, z)
+    dense, bodies, stage = arg_groups(prm)
+    th0, q_idx, wc, a_rows = prm.th0, prm.q_idx, prm.wc, prm.a_rows
+    f = np.empty(nf)
+    fn = np.empty(nf)
+    zt = np.empty(nz)
+    dt = np.empty(nz)
+    phi_t = np.ascontiguousarray(phi.T)  # rows side by side: row r's terms in column order
+    gf0_t = np.ascontiguousarray(gf0.T)
+    gf1_t = np.ascontiguousarray(gf1.T)
+    a_cols = a_rows.shape[1]
+    n_s = v.shape[0]
+    n_rec = n_s - k_rec
+    ax = remainder_fast_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, a_cols, z,
+                           work, alpha, f)
+    for kk in range(n_s):
+        for j in range(n):
+            if abs(z[th0 + j]) > peaks[0, j]:
+                peaks[0, j] = abs(z[th0 + j])
+            if abs(d[th0 + j]) > peaks[1, j]:
+                peaks[1, j] = abs(d[th0 + j])
+        if kk >= k_rec:
+            b = ((kk - k_rec) * n_batches) // n_rec
+            for j in range(n):
+                t = z[th0 + j]
+                e = d[th0 + j]
+                sums[b, 0, j] += t * t
+                sums[b, 1, j] += e * e
+                if abs(e) > sums[b, 2, j]:
+                    sums[b, 2, j] = abs(e)
+        if kk + 1 == n_s:
+            break
+        v0 = v[kk]
+        dv = v[kk + 1] - v0
+        for r in range(nz):
+            zt[r] = g0[r] * v0 + g1[r] * dv
+        for col in range(nz):
+            zc = z[col]
+            for r in range(nz):
+                zt[r] += phi_t[col, r] * zc
+        for r in range(nz):
+            z[r] = zt[r]
+        ax = remainder_fast_at(two, dense, bodies, stage, th0, q_idx, wc, a_rows, a_cols, z,
+                               work, alpha, fn)
+        for r in range(nz):
+            dt[r] = 0.0
+        for col in range(nz):
+            dc = d[col]
+            for r in range(nz):
+                dt[r] += phi_t[col, r] * dc
+        for i in range(nf):
+            fi = f[i]
+            dfi = fn[i] - fi
+            for r in range(nz):
+                dt[r] += gf0_t[i, r] * fi + gf1_t[i, r] * dfi
+        for r in range(nz):
+            d[r] = dt[r]
+        for i in range(nf):
+            f[i] = fn[i]

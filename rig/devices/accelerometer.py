@@ -46,7 +46,7 @@ from rig.blocks import Calibration
 from rig.errors import ConfigError
 from rig._jit import njit
 from rig.params import check_fields, param
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 
 
 class AccelerometerRow(NamedTuple):

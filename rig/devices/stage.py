@@ -22,8 +22,8 @@ angles per unit stage acceleration, :meth:`rig.chain.Chain.frf_angles`) and::
 The stage acceleration then has a deep, narrow notch at each fixed-base pendulum mode, followed
 by a coupled resonance; the angles per unit *stage acceleration* are unchanged, so H_t = x/a is
 not (which is why the analyzer divides by the measured a). With ``reaction = false`` the stage
-ignores the pendulum. Nonlinear, :mod:`rig.coupled` integrates stage and pendulum together with
-``F_p = m x0'' + sum_j S_j (cos th_j th_j'' - sin th_j th_j'^2)``. The derivation:
+ignores the pendulum. Nonlinear, :mod:`rig.solvers.coupled` integrates stage and pendulum together
+with ``F_p = m x0'' + sum_j S_j (cos th_j th_j'' - sin th_j th_j'^2)``. The derivation:
 docs/devices.md.
 
 Defaults: ``G = 1 V/V, Kf = 1 N/A, R = 8 ohm, L = 4 mH, M = 2 kg, k = 0.8 N/m, c = 1 N

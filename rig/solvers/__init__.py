@@ -21,11 +21,13 @@ lawson4    4      lawson4      coupled bench: Lawson RK4, the linear bench exact
 etdab      4      etdab        coupled bench: exponential Adams-Bashforth 4 (the default)
 =========  =====  ===========  ============================================================
 
-The last two step the coupled bench (:mod:`rig.bench`, kernels in :mod:`rig.coupled`), as does
+The last two step the coupled bench (:mod:`rig.bench`; its equations in
+:mod:`rig.solvers.coupled`), as does
 :class:`ExactBench` (the exact linear bench, ``acquisition.model = "linear"``, not a method name);
 the others the pendulum on a prescribed base.
 
-The compiled kernels are in :mod:`rig.solvers._kernels`; measured accuracies and costs are in
+Each method's compiled kernels are in its module, the primitives they share in
+:mod:`rig.solvers.primitives`; measured accuracies and costs are in
 docs/solvers.md.
 """
 

@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from rig.errors import ConfigError, DivergenceError
-from rig.solvers._kernels import (NONFINITE, STEP_TOO_SMALL, momentum_to_omega,
-                                  omega_to_momentum)
+from rig.solvers.primitives import (NONFINITE, STEP_TOO_SMALL, HeldArgs, momentum_to_omega,
+                                    omega_to_momentum)
 
 if TYPE_CHECKING:
     from rig.chain import Chain
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 HOLDS = ("zoh", "linear")
 
 #: what a solver can step: the pendulum on a prescribed base (rig.solvers), the coupled bench
-#: (stage, reaction and pendulum as one system: rig.coupled, stepped by rig.bench)
+#: (stage, reaction and pendulum as one system: rig.solvers.coupled, stepped by rig.bench)
 PENDULUM, COUPLED_BENCH = "pendulum on a prescribed base", "coupled bench"
 
 
@@ -85,12 +85,12 @@ class HeldInput:
         return cls(ax, ay, hold, h_in, n_intervals, out_every, t0_s)
 
     @property
-    def kernel_args(self) -> tuple:
+    def kernel_args(self) -> HeldArgs:
         """(ax, ay, sa, la) as the kernels take them: ay a 1-sample dummy with sa = 0 where there
         is no vertical input, la = 1 for the linear hold."""
         use_ay = self.ay is not None
         ay = self.ay if use_ay else np.zeros(1)
-        return self.ax, ay, int(use_ay), int(self.hold == "linear")
+        return HeldArgs(self.ax, ay, int(use_ay), int(self.hold == "linear"))
 
     @property
     def rows(self) -> np.ndarray:

@@ -13,25 +13,21 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
 
 from rig.errors import ConfigError
 
-from rig.solvers._kernels import ETD3_NODES, etd3m_kernel, etd3m_kernel2
+from rig._jit import njit
+from rig.linear import expm, monomial_integrals
+from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos4, sincos_pair, store
+from rig.solvers.remainder import nsplit2, nsplit_n
 from rig.solvers.base import HOLDS, PendulumSolver, Refinement, multisample_refinement
-from rig.solvers.etd3 import Etd3, _phi_integrals
+from rig.solvers.etd3 import ETD3_NODES, Etd3, etd3_hist2
 
 if TYPE_CHECKING:
     from rig.chain import Chain
-
-
-def _expm(a):
-    """scipy.linalg.expm, imported on first use (importing rig.solvers stays light)."""
-    import scipy.linalg
-
-    return scipy.linalg.expm(a)
 
 
 # ================================================================================================
@@ -76,9 +72,9 @@ def _expm(a):
 ETD3M_BLOCKS = 4  # weight sets per sample: end node 0, end node 1, stage 1, stage 0
 
 
-@dataclass(frozen=True, eq=False)
-class Etd3mCoefficients:
-    """Everything :func:`etd3m_kernel` needs for one chain, input interval, m and hold.
+class Etd3mCoefficients(NamedTuple):
+    """Everything :func:`etd3m_kernel` needs for one chain, input interval, m and hold, its second
+    argument.
 
     Attributes
     ----------
@@ -119,9 +115,9 @@ def _piece_integral(a: np.ndarray, n: int, t_end: float, s_a: float, s_b: float,
     (2n, n): e^{A(t_end - s_b)} sum_k p~_k K_k(s_b - s_a), p~ p in x = (s - s_a)/(s_b - s_a)."""
     length = s_b - s_a
     coef = poly(np.polynomial.Polynomial([s_a, length])).coef
-    _, ks = _phi_integrals(a, n, length, max(coef.size - 1, 0))
+    _, ks = monomial_integrals(a, np.arange(n, 2 * n), length, max(coef.size - 1, 0) + 1)
     acc = sum(cf * ks[k] for k, cf in enumerate(coef))
-    return _expm(a * (t_end - s_b)) @ acc
+    return expm(a * (t_end - s_b)) @ acc
 
 
 def check_hold_and_m(hold: str, m) -> None:
@@ -195,7 +191,7 @@ def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoe
     poly = np.polynomial.Polynomial
     lag = [poly([-c[1], 1.0 / big_h]) / (c[0] - c[1]), poly([-c[0], 1.0 / big_h]) / (c[1] - c[0])]
     wt = staircase_weights(a, n, h_in, m, la, c, lag)
-    phic = np.array([_expm(a * (ci * big_h)) for ci in c])
+    phic = np.array([expm(a * (ci * big_h)) for ci in c])
     nodes = (c[0] - 1.0, c[1] - 1.0)
     xp = np.array([[(0.5 * ci - nodes[1]) / (nodes[0] - nodes[1]),
                     (0.5 * ci - nodes[0]) / (nodes[1] - nodes[0])] for ci in c])
@@ -205,7 +201,7 @@ def etd3m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd3mCoe
     widths = np.array([e0, e1, 4 * n2 * n, 3 * n2 * n, 2 * n2 * n], dtype=np.int64)
     arr = np.ascontiguousarray
     return Etd3mCoefficients(
-        m=m, phi=arr(_expm(a * big_h)), phic=arr(phic),
+        m=m, phi=arr(expm(a * big_h)), phic=arr(phic),
         wt=arr(wt.reshape(m + la, ETD3M_BLOCKS * n2 * n)), wq=arr(wt[:, :2].sum(axis=0)),
         pc=arr(wt[:, :1:-1].sum(axis=0)), xp=arr(xp), ck=ck, lohi=lohi, widths=widths,
         **linear_parts(chain, b))
@@ -279,9 +275,279 @@ class Etd3m(MultiSample):
         z, hist, have = self.split_history(chain, y, big_h)
         kernel = etd3m_kernel2 if chain.n == 2 else etd3m_kernel
         status, nrow, i_done, nfev = kernel(
-            chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic, co.wt,
-            co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths, ax, ay, sa, m, held.n_intervals // m,
-            held.out_every // m, z, y_out, hist, have)
+            chain_args(chain), co, ax, ay, sa, m, held.n_intervals // m, held.out_every // m, z,
+            y_out, hist, have)
         y = np.concatenate([z, [1.0, big_h], hist.reshape(-1)])
         return self.finish(chain, status, y, y_out, nrow, i_done, held, n_steps=i_done // m,
                            n_fev=nfev)
+
+
+# ================================================================================================
+# compiled kernels
+# ================================================================================================
+
+@njit(cache=True, inline="always")
+def _etd3m_fir(u, i0, stride, wt, widths, acc):
+    """acc = sum_q u[(i0 + q) stride] wt[q], skipping the rows' zero suffixes (``widths``)."""
+    for r in range(widths[2]):
+        acc[r] = 0.0
+    lo = 0
+    for seg in range(3):
+        hi = widths[seg] if seg < 2 else wt.shape[0]
+        width = widths[2 + seg]
+        for qq in range(lo, hi):
+            x = u[(i0 + qq) * stride]
+            for r in range(width):
+                acc[r] += x * wt[qq, r]
+        lo = hi
+
+
+@njit(cache=True)
+def _etd3m_eval(hc, s, cm, g, p, q, bw, zs, i, hn, w):
+    """hn[i] = (N0, N1, N2) at the state zs[i] (the n = 2 scalar code where n = 2)."""
+    if zs.shape[1] == 4:
+        s0, c0, s1, c1 = sincos_pair(zs[i, 0], zs[i, 1])
+        (hn[i, 0], hn[i, 1], hn[i, 2], hn[i, 3], hn[i, 4],
+         hn[i, 5]) = nsplit2(hc, s, cm, g, p, q, bw, zs[i, 0], zs[i, 1], zs[i, 2], zs[i, 3], s0,
+                              c0, s1, c1)
+    else:
+        nsplit_n(hc, s, cm, g, p, q, bw, zs, i, hn, i, w)
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"})
+def etd3m_kernel(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, have):
+    """etd3m (see the section comment above): ``n_steps`` steps of ``m`` input samples, any n.
+
+    ``chain``: :class:`rig.solvers.primitives.ChainArgs`; ``co``: :class:`Etd3mCoefficients`
+    (``co.wt`` the per-sample weights). ``ax``, ``ay`` hold the samples (``ay`` read with stride
+    ``sa``: 0 for none); a row is stored every ``out_steps`` steps
+    and at the end. ``hist`` (2, 3n) and ``have`` as :func:`etd3_kernel`. ``y`` (2n,) is
+    overwritten with the end state. Returns (status, rows written, input intervals done,
+    remainder evaluations)."""
+    hc, s, cm, g = chain
+    p, q, bw, phi, phic, wt = co.p, co.q, co.bw, co.phi, co.phic, co.wt
+    wq, pc, xp, ck, lohi, widths = co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths
+    n2 = y.shape[0]
+    n = n2 // 2
+    nw = n2 * n
+    kw = wt.shape[1]
+    acc = np.empty(kw)
+    accv = np.zeros(kw)
+    zs = np.empty((2, n2))
+    hn = np.empty((2, 3 * n))
+    gg = np.empty((2, n))
+    nh = np.empty((2, 3 * n))
+    zt = np.empty(n2)
+    w = np.empty((n, n + 5))
+    nev = 0
+    zero = n_steps - n_steps  # see _NOTE_LITERALS (rig.solvers.primitives)
+    one = zero + 1
+    if not have:
+        for c in range(n2):
+            zs[zero, c] = y[c]
+        _etd3m_eval(hc, s, cm, g, p, q, bw, zs, zero, hist, w)
+        for c in range(3 * n):
+            hist[one, c] = hist[zero, c]
+        nev += 1
+    store(y, y_out, zero)
+    row = one
+    left = out_steps
+    for k in range(n_steps):
+        i0 = k * m
+        # the FIR: acc = sum_q u_q wt[q] (all four weight sets), accv the same for ay
+        _etd3m_fir(ax, i0, 1, wt, widths, acc)
+        if sa:
+            _etd3m_fir(ay, i0, sa, wt, widths, accv)
+        # predicted stages
+        for i in range(2):
+            x0 = xp[i, 0]
+            x1 = xp[i, 1]
+            for c in range(3 * n):
+                nh[i, c] = x0 * hist[0, c] + x1 * hist[1, c]
+            for j in range(n):
+                gg[i, j] = bw[j] + nh[i, n + j]
+            du = ck[i] * (ax[i0 + lohi[i, 1]] - ax[i0 + lohi[i, 0]])
+            dv = ck[i] * (ay[(i0 + lohi[i, 1]) * sa] - ay[(i0 + lohi[i, 0]) * sa])
+            base = (3 - i) * nw
+            for r in range(n2):
+                t = 0.0
+                for c in range(n2):
+                    t += phic[i, r, c] * y[c]
+                for j in range(n):
+                    t += (acc[base + r * n + j] * gg[i, j]
+                          + accv[base + r * n + j] * nh[i, 2 * n + j]
+                          + pc[i, r, j] * nh[i, j])
+                zs[i, r] = t
+            for j in range(n):
+                zs[i, n + j] += du * gg[i, j] + dv * nh[i, 2 * n + j]
+        for i in range(2):
+            _etd3m_eval(hc, s, cm, g, p, q, bw, zs, i, hn, w)
+        nev += 2
+        # the step
+        for r in range(n2):
+            t = 0.0
+            for c in range(n2):
+                t += phi[r, c] * y[c]
+            for i in range(2):
+                base = i * nw
+                for j in range(n):
+                    t += (acc[base + r * n + j] * (bw[j] + hn[i, n + j])
+                          + accv[base + r * n + j] * hn[i, 2 * n + j] + wq[i, r, j] * hn[i, j])
+            zt[r] = t
+        for r in range(n2):
+            y[r] = zt[r]
+        for i in range(2):
+            for c in range(3 * n):
+                hist[i, c] = hn[i, c]
+        left -= 1
+        if left == 0 or k + 1 == n_steps:
+            left = out_steps
+            ok = store(y, y_out, row)
+            row += 1
+            if not ok:
+                return NONFINITE, row, (k + 1) * m, nev
+    return OK, row, n_steps * m, nev
+
+
+@njit(cache=True, inline="always")
+def _etd3m_w2(r, acc, accv, base, pc, ip, e0, e1, g0, g1, v0, v1):
+    """Row r of pc[ip] @ e + the (4, 2) blocks at ``base`` of acc @ g and accv @ v (n = 2)."""
+    k = base + 2 * r
+    return (((acc[k] * g0 + acc[k + 1] * g1) + (pc[ip, r, 0] * e0 + pc[ip, r, 1] * e1))
+            + (accv[k] * v0 + accv[k + 1] * v1))
+
+
+@njit(cache=True, inline="always")
+def _etd3m_row2(mat, i, r, z, acc, accv, base, pc, ip, e0, e1, g0, g1, v0, v1):
+    """Row r of mat[i] @ z + pc[ip] @ e + the (4, 2) blocks at ``base`` of acc @ g and accv @ v
+    (n = 2; ``z`` the state's four numbers)."""
+    z0, z1, z2, z3 = z
+    k = base + 2 * r
+    return (((mat[i, r, 0] * z0 + mat[i, r, 1] * z1) + (mat[i, r, 2] * z2 + mat[i, r, 3] * z3))
+            + ((acc[k] * g0 + acc[k + 1] * g1) + (pc[ip, r, 0] * e0 + pc[ip, r, 1] * e1))
+            + (accv[k] * v0 + accv[k + 1] * v1))
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"})
+def etd3m_kernel2(chain, co, ax, ay, sa, m, n_steps, out_steps, y, y_out, hist, have):
+    """:func:`etd3m_kernel` for the n = 2 chain: the state, the stages and the remainder parts in
+    scalars, the four stage angles' sin and cos in one branch (:func:`sincos4`)."""
+    hc, s, cm, g = chain
+    p, q, bw, phi, phic, wt = co.p, co.q, co.bw, co.phi, co.phic, co.wt
+    wq, pc, xp, ck, lohi, widths = co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths
+    kw = wt.shape[1]
+    acc = np.empty(kw)
+    accv = np.zeros(kw)
+    phi3 = phi.reshape((1, 4, 4))
+    nev = 0
+    z0, z1, z2, z3 = y[0], y[1], y[2], y[3]
+    if not have:
+        s0, c0, s1, c1 = sincos_pair(z0, z1)
+        a00, a01, a10, a11, a20, a21 = nsplit2(hc, s, cm, g, p, q, bw, z0, z1, z2, z3, s0, c0,
+                                                s1, c1)
+        b00, b01, b10, b11, b20, b21 = a00, a01, a10, a11, a20, a21
+        nev += 1
+    else:
+        a00, a01, a10, a11, a20, a21 = (hist[0, 0], hist[0, 1], hist[0, 2], hist[0, 3],
+                                        hist[0, 4], hist[0, 5])
+        b00, b01, b10, b11, b20, b21 = (hist[1, 0], hist[1, 1], hist[1, 2], hist[1, 3],
+                                        hist[1, 4], hist[1, 5])
+    bw0 = bw[0]
+    bw1 = bw[1]
+    zero = n_steps - n_steps  # see _NOTE_LITERALS (rig.solvers.primitives)
+    one = zero + 1
+    store(y, y_out, zero)
+    row = one
+    left = out_steps
+    for k in range(n_steps):
+        i0 = k * m
+        _etd3m_fir(ax, i0, 1, wt, widths, acc)
+        if sa:
+            _etd3m_fir(ay, i0, sa, wt, widths, accv)
+        # stage 0: predicted parts, then the exact step to c0 H with the staircase against b + N1^
+        x0 = xp[0, 0]
+        x1 = xp[0, 1]
+        e0 = x0 * a00 + x1 * b00
+        e1 = x0 * a01 + x1 * b01
+        g0 = bw0 + (x0 * a10 + x1 * b10)
+        g1 = bw1 + (x0 * a11 + x1 * b11)
+        v0 = x0 * a20 + x1 * b20
+        v1 = x0 * a21 + x1 * b21
+        du = ck[0] * (ax[i0 + lohi[0, 1]] - ax[i0 + lohi[0, 0]])
+        dv = ck[0] * (ay[(i0 + lohi[0, 1]) * sa] - ay[(i0 + lohi[0, 0]) * sa])
+        p0 = _etd3m_row2(phic, 0, 0, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
+                         e1, g0, g1, v0, v1)
+        p1 = _etd3m_row2(phic, 0, 1, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
+                         e1, g0, g1, v0, v1)
+        p2 = _etd3m_row2(phic, 0, 2, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
+                         e1, g0, g1, v0, v1)
+        p3 = _etd3m_row2(phic, 0, 3, (z0, z1, z2, z3), acc, accv, 24, pc, 0, e0,
+                         e1, g0, g1, v0, v1)
+        p2 += du * g0 + dv * v0
+        p3 += du * g1 + dv * v1
+        # stage 1
+        x0 = xp[1, 0]
+        x1 = xp[1, 1]
+        e0 = x0 * a00 + x1 * b00
+        e1 = x0 * a01 + x1 * b01
+        g0 = bw0 + (x0 * a10 + x1 * b10)
+        g1 = bw1 + (x0 * a11 + x1 * b11)
+        v0 = x0 * a20 + x1 * b20
+        v1 = x0 * a21 + x1 * b21
+        du = ck[1] * (ax[i0 + lohi[1, 1]] - ax[i0 + lohi[1, 0]])
+        dv = ck[1] * (ay[(i0 + lohi[1, 1]) * sa] - ay[(i0 + lohi[1, 0]) * sa])
+        q0 = _etd3m_row2(phic, 1, 0, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
+                         e1, g0, g1, v0, v1)
+        q1 = _etd3m_row2(phic, 1, 1, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
+                         e1, g0, g1, v0, v1)
+        q2 = _etd3m_row2(phic, 1, 2, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
+                         e1, g0, g1, v0, v1)
+        q3 = _etd3m_row2(phic, 1, 3, (z0, z1, z2, z3), acc, accv, 16, pc, 1, e0,
+                         e1, g0, g1, v0, v1)
+        q2 += du * g0 + dv * v0
+        q3 += du * g1 + dv * v1
+        sp0, cp0, sp1, cp1, sq0, cq0, sq1, cq1 = sincos4(p0, p1, q0, q1)
+        a00, a01, a10, a11, a20, a21 = nsplit2(hc, s, cm, g, p, q, bw, p0, p1, p2, p3, sp0,
+                                                cp0, sp1, cp1)
+        b00, b01, b10, b11, b20, b21 = nsplit2(hc, s, cm, g, p, q, bw, q0, q1, q2, q3, sq0,
+                                                cq0, sq1, cq1)
+        nev += 2
+        # the step: e^{AH} z + node 0's and node 1's weights
+        n0 = (_etd3m_row2(phi3, 0, 0, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+                          bw1 + a11, a20, a21)
+              + _etd3m_w2(0, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
+                          b21))
+        n1 = (_etd3m_row2(phi3, 0, 1, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+                          bw1 + a11, a20, a21)
+              + _etd3m_w2(1, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
+                          b21))
+        n2 = (_etd3m_row2(phi3, 0, 2, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+                          bw1 + a11, a20, a21)
+              + _etd3m_w2(2, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
+                          b21))
+        n3 = (_etd3m_row2(phi3, 0, 3, (z0, z1, z2, z3), acc, accv, 0, wq, 0, a00, a01, bw0 + a10,
+                          bw1 + a11, a20, a21)
+              + _etd3m_w2(3, acc, accv, 8, wq, 1, b00, b01, bw0 + b10, bw1 + b11, b20,
+                          b21))
+        z0 = n0
+        z1 = n1
+        z2 = n2
+        z3 = n3
+        left -= 1
+        if left == 0 or k + 1 == n_steps:
+            left = out_steps
+            y[0] = z0
+            y[1] = z1
+            y[2] = z2
+            y[3] = z3
+            ok = store(y, y_out, row)
+            row += 1
+            if not ok:
+                etd3_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21)
+                return NONFINITE, row, (k + 1) * m, nev
+    y[0] = z0
+    y[1] = z1
+    y[2] = z2
+    y[3] = z3
+    etd3_hist2(hist, a00, a01, a10, a11, a20, a21, b00, b01, b10, b11, b20, b21)
+    return OK, row, n_steps * m, nev

@@ -14,8 +14,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rig.errors import ConfigError
-from rig.solvers._kernels import (ALG_DENSE, ALG_RECURSIVE, ALG_TWO, RECURSIVE_FROM_N, _canon2,
-                                  _canon_n, _nsplit2, _nsplit_n, _rhs, _sincos_pair)
+from rig.solvers.primitives import (ALG_DENSE, ALG_RECURSIVE, ALG_TWO, RECURSIVE_FROM_N, canon2,
+                                    canon_n, rhs_alg, sincos_pair)
+from rig.solvers.remainder import nsplit2, nsplit_n
 
 if TYPE_CHECKING:
     from rig.chain import Chain
@@ -59,14 +60,14 @@ def rhs(chain: Chain, y, ax: float = 0.0, ay: float = 0.0, *, canonical: bool = 
     args = (chain.H, chain.S, chain.C, chain.g_mps2, y, float(ax), float(ay), f, 0)
     if canonical:
         if n == 2 and not generic:
-            _canon2(*args)
+            canon2(*args)
         else:
-            _canon_n(*args, w)
+            canon_n(*args, w)
         return f[0]
     alg = rhs_algorithm(chain, algorithm)
     if generic and alg == ALG_TWO:
         alg = ALG_DENSE
-    _rhs(chain.H, chain.S, chain.C, chain.g_mps2, bodies_array(chain), alg, y, float(ax),
+    rhs_alg(chain.H, chain.S, chain.C, chain.g_mps2, bodies_array(chain), alg, y, float(ax),
          float(ay), f, 0, w)
     return f[0]
 
@@ -85,8 +86,8 @@ def nonlinear_remainder(chain: Chain, y, *, generic: bool = False) -> np.ndarray
     co = etd3_coefficients(chain, 1.0, "zoh")
     args = (chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw)
     if n == 2 and not generic:
-        s0, c0, s1, c1 = _sincos_pair(y[0], y[1])
-        return np.array(_nsplit2(*args, y[0], y[1], y[2], y[3], s0, c0, s1, c1)).reshape(3, 2)
+        s0, c0, s1, c1 = sincos_pair(y[0], y[1])
+        return np.array(nsplit2(*args, y[0], y[1], y[2], y[3], s0, c0, s1, c1)).reshape(3, 2)
     out = np.empty((1, 3 * n))
-    _nsplit_n(*args, y[None, :], 0, out, 0, np.empty((n, n + 5)))
+    nsplit_n(*args, y[None, :], 0, out, 0, np.empty((n, n + 5)))
     return out.reshape(3, n)

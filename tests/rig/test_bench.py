@@ -348,7 +348,7 @@ def test_linear_model_info_reports_round_off_and_the_predicted_linearisation_err
     assert info["budget_met"] and info["selection"]["linear_meets_budget"]
 
 
-# -- the coupled nonlinear bench (rig.coupled, method lawson4) ---------------------------------
+# -- the coupled nonlinear bench (rig.solvers.coupled, method lawson4) ----------------------------
 
 def test_coupled_nonlinear_bench_at_small_amplitude_is_the_exact_linear_bench():
     # 1 mV drive: theta ~ 6e-5 rad, the nonlinearity ~ Q theta^2 ~ 1e-6 relative; the Lawson
@@ -365,9 +365,9 @@ def test_coupled_nonlinear_bench_at_small_amplitude_is_the_exact_linear_bench():
 
 def test_coupled_bench_difference_from_linear_is_the_first_order_perturbation():
     # the same drive through both models: (nonlinear - linear) is, to O(e^2), the linear bench's
-    # response to the nonlinear remainder along the linear trajectory (rig.coupled.
+    # response to the nonlinear remainder along the linear trajectory (rig.bench.selection.
     # first_order_kernel on the full bench at the DAC rate, zero-order hold of V)
-    from rig.coupled import first_order_kernel
+    from rig.bench.selection import first_order_kernel
     from rig.devices.source import generate, start_source
 
     over = [*QUIET, "source.level_vrms=0.1", "acquisition.model=nonlinear"]
@@ -381,14 +381,14 @@ def test_coupled_bench_difference_from_linear_is_the_first_order_perturbation():
     phi, gam = m.phi, m.gamma
     bf = np.zeros((m.n_states, p.rows.size))
     bf[p.rows, np.arange(p.rows.size)] = 1.0
-    from rig.solvers.exact import discretise
+    from rig.linear import discretise
 
     _, gf0, gf1 = discretise(m.a, bf, 1e-3, "linear")
     v, _ = generate(m.source, start_source(m.source, np.random.SeedSequence(8).spawn(4)[0]),
                     60_000)
     np.testing.assert_array_equal(v, nl.truth["source_v"])
     sums, peaks = np.zeros((1, 3, 2)), np.zeros((2, 2))
-    first_order_kernel(*p.args(), phi, gam, np.zeros_like(gam), gf0, gf1, v,
+    first_order_kernel(p.args(), phi, gam, np.zeros_like(gam), gf0, gf1, v,
                        np.zeros(m.n_states), np.zeros(m.n_states), 0, 1, sums, peaks)
     predicted = np.sqrt(sums[0, 1] / sums[0, 0])
     assert np.max(peaks[1]) < 0.1 * np.max(peaks[0])  # the first order holds all along
@@ -405,7 +405,7 @@ def test_free_stage_conserves_momentum_and_energy_within_the_estimate(method, dr
     # no spring, no guide damping, a (practically) disconnected coil, no drive, undamped chain:
     # the stage recoils as the double rod swings; horizontal momentum and total energy are
     # conserved by the equations, so their drift is the integrator's (Richardson at 2x steps)
-    from rig.coupled import energy, horizontal_momentum
+    from rig.solvers.coupled import energy, horizontal_momentum
 
     over = ["source.level_vrms=0", "stage.stiffness_npm=0", "stage.damping_nspm=0",
             "stage.force_constant_npa=1e-9", "initial.theta0_rad=[1.0, -0.5]",

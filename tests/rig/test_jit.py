@@ -23,7 +23,7 @@ def test_first_call_materialises_every_kernel_and_patches_the_module_namespaces(
     got = _run(
         "import sys, json\n"
         "import numpy as np\n"
-        "import rig.chain as ch, rig.solvers._kernels as it\n"
+        "import rig.chain as ch, rig.solvers.rk4 as it\n"
         "from rig._jit import LazyKernel\n"
         "from rig.devices.accelerometer import _first_order_recursion as f\n"
         "before = isinstance(it.rk4_kernel, LazyKernel)\n"
@@ -45,14 +45,14 @@ def test_a_lazy_kernel_forwards_to_its_dispatcher():
 
 def test_the_cache_directory_is_keyed_by_every_kernel_source(tmp_path, monkeypatch):
     """numba's cache checks a kernel's own file only; rig._jit keys the whole cache by a hash of
-    every kernel file, so a change in a callee's file (rig.solvers._kernels, called from rig.chain
-    and rig.coupled) starts a fresh cache."""
-    import rig.chain  # noqa: F401  (registers kernels that call rig.solvers._kernels)
-    import rig.coupled  # noqa: F401
+    every kernel file, so a change in a callee's file (rig.solvers.primitives, called from rig.chain
+    and rig.solvers.coupled) starts a fresh cache."""
+    import rig.chain  # noqa: F401  (registers kernels that call rig.solvers.primitives)
+    import rig.solvers.coupled  # noqa: F401
     from rig import _jit
 
     names = {p.relative_to(p.parents[1]).as_posix() for p in _jit.kernel_sources()}
-    assert {"rig/chain.py", "rig/coupled.py", "solvers/_kernels.py"} <= names
+    assert {"rig/chain.py", "solvers/coupled.py", "solvers/primitives.py"} <= names
     src = tmp_path / "k.py"
     src.write_text("@njit(cache=True)\ndef f(x):\n    return x + 1.0\n")
     monkeypatch.setattr(_jit, "kernel_sources", lambda: [src])

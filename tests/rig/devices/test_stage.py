@@ -190,7 +190,7 @@ def test_bad_stage_value_in_a_scene_is_reported_when_the_scene_is_loaded():
         ishizaki("stage.moving_mass_kg=-3")
 
 
-# -- the nonlinear reaction (rig.coupled) --------------------------------------------------------
+# -- the nonlinear reaction (rig.solvers.coupled) -------------------------------------------------
 
 @pytest.mark.parametrize("reaction", [True, False])
 @pytest.mark.parametrize("mode", ["absolute", "relative"])
@@ -200,7 +200,7 @@ def test_nonlinear_stage_acceleration_solves_the_stage_equation_with_the_chains_
     """At any state the coupled kernels' x0'' satisfies M x0'' = Kf i - k x0 - c v0 + F_chain,
     F_chain = rig.chain.Chain.base_force at that x0'' (zero without the reaction), and theta''
     are the chain's accelerations on that base; n = 2 (dense) and the O(n) recursion agree."""
-    from rig.coupled import accelerations, coupled_params
+    from rig.solvers.coupled import accelerations, coupled_params
 
     rng = np.random.default_rng(10 * n + reaction)
     for _ in range(4):
@@ -228,7 +228,7 @@ def test_nonlinear_remainder_vanishes_quadratically_so_it_linearises_to_the_stat
     """f(z) = (nonlinear - linear) derivative in the rows of v0, omega: O(|z|^3), so relative to
     the linear derivative it falls by 100 when the state shrinks by 10 (the coupled mass matrix
     [[M + m, S^T], [S, H]] of Stage.state_space is the exact linearisation)."""
-    from rig.coupled import coupled_params, remainder
+    from rig.solvers.coupled import coupled_params, remainder
 
     rng = np.random.default_rng(n)
     ch = random_sturdy_chain(rng, n, "relative")

@@ -1,4 +1,4 @@
-"""The coupled nonlinear bench by exponential Adams-Bashforth (method etdab, rig.coupled.
+"""The coupled nonlinear bench by exponential Adams-Bashforth (method etdab, rig.solvers.etdab.
 etd_ab_kernel): equal to the reference path (lawson4 at twice or four times its steps) within
 its stated error on the paper's scene, strongly driven scenes, a near-degenerate design and a
 long chain; block-wise equal to one-shot; the same seed, the same bytes."""
@@ -11,7 +11,7 @@ import scipy.integrate
 import scipy.linalg
 
 from rig.bench import BenchSimulation, build_model
-from rig.coupled import etd_ab_weights
+from rig.solvers.etdab import etd_ab_weights
 from rig.scene import load_scene
 
 QUIET = ["accelerometer.noise_mps2_rthz=0", "psd.noise_m_rthz=0"]
@@ -146,9 +146,9 @@ def test_etd_ab_weights_integrate_the_interpolating_polynomial_exactly(order, la
 
 
 def test_etdab_skipping_the_exact_zeros_changes_no_bit():
-    # rig.coupled.etd_ab_sparsity: the weights never reach the reconstruction filter's states,
+    # rig.solvers.etdab.etd_ab_sparsity: the weights never reach the reconstruction filter's states,
     # and the remainder's linear rows never read them
-    from rig.coupled import etd_ab_kernel
+    from rig.solvers.etdab import etd_ab_kernel
     from rig.devices.source import generate, start_source
 
     m = build_model(load_scene("ishizaki2009", ["acquisition.model=nonlinear",
@@ -159,7 +159,7 @@ def test_etdab_skipping_the_exact_zeros_changes_no_bit():
     out = []
     for rows_, cols_ in ((w_rows, a_cols), (m.n_states, m.n_states)):
         z, z_out, ax = np.zeros(m.n_states), np.empty((v.size, m.n_states)), np.empty(v.size)
-        etd_ab_kernel(*m.coupled.args(), phi_t, gam, w, lagv, rows_, cols_, 1, False,
+        etd_ab_kernel(m.coupled.args(), (phi_t, gam, w, lagv, rows_, cols_), 1, False,
                       np.zeros((w.shape[1], m.coupled.rows.size)), np.zeros(1, np.int64), v, z,
                       z_out, ax)
         out.append((z_out, ax))

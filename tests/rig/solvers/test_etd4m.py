@@ -8,7 +8,8 @@ import pytest
 
 from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.solvers import SOLVERS
-from rig.solvers._kernels import etd4m_kernel
+from rig.solvers.etd4m import etd4m_kernel
+from rig.solvers.primitives import chain_args
 from rig.solvers.etd4m import etd4m_coefficients
 from rig.simulate import BaseInput, simulate
 
@@ -85,9 +86,8 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
         for hold in ("zoh", "linear"):
             def kernel(ax, ay, h, n_int, y, y_out):
                 co = etd4m_coefficients(paper, h, m, hold)
-                etd4m_kernel(paper.H, paper.S, paper.C, paper.g_mps2, co.p, co.q, co.bw, co.phi,
-                             co.phic, co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi, co.widths, ax,
-                             ay, 1, m, n_int // m, 10 // m, y, y_out, np.zeros((3, 6)), False)
+                etd4m_kernel(chain_args(paper), co, ax, ay, 1, m, n_int // m, 10 // m, y, y_out,
+                             np.zeros((3, 6)), False)
 
             generic, scalar = scalar_and_generic_rows(paper, "etd4m", m, hold, kernel)
             scale = np.abs(scalar[:, :2]).max()

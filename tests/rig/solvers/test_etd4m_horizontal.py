@@ -17,7 +17,8 @@ from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 from rig.solvers import integrate, solver_named
-from rig.solvers._kernels import SINCOS_POLY_MAX, etd4m_kernel2, etd4m_kernel2h
+from rig.solvers.etd4m import etd4m_kernel2, etd4m_kernel2h
+from rig.solvers.primitives import SINCOS_POLY_MAX, chain_args
 from rig.solvers.etd4m import (BLAS_ONE_THREAD_MULADDS, FIR_CHUNK_STEPS, etd4m_coefficients,
                                fir_chunk_steps)
 
@@ -52,11 +53,10 @@ def _both(chain, ax, m, hold, y0, hist0, have, n_int, out_every):
         y = np.array(y0, float)
         y_out = np.empty((n_int // out_every + 1, 4))
         hist = hist0.copy()
-        args = (chain.H, chain.S, chain.C, chain.g_mps2, co.p, co.q, co.bw, co.phi, co.phic,
-                co.wt, co.wq, co.pn, co.xp, co.ck, co.lohi)
+        args = (chain_args(chain), co)
         if kernel is etd4m_kernel2:
-            res = kernel(*args, co.widths, ax, np.zeros(1), 0, m, n_int // m, out_every // m, y,
-                         y_out, hist, have)
+            res = kernel(*args, ax, np.zeros(1), 0, m, n_int // m, out_every // m, y, y_out, hist,
+                         have)
         else:
             res = kernel(*args, ax, m, n_int // m, out_every // m, y, y_out, hist, have, chunk)
         out.append((res, y, y_out, hist))

@@ -8,9 +8,11 @@ import pytest
 from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers import SOLVERS, integrate, solver_named
-from rig.solvers._kernels import etd3m_kernel
+from rig.solvers.etd3m import etd3m_kernel
+from rig.solvers.primitives import chain_args
 from rig.solvers.etd3m import etd3m_coefficients
-from rig.solvers.exact import discretise, lift_linear
+from rig.linear import discretise
+from rig.solvers.exact import lift_linear
 from rig.simulate import BaseInput, simulate
 
 from chains import (assert_blocks_reproduce_one_shot, dop853_fixed, multisample_run,
@@ -102,9 +104,8 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
     for hold in ("zoh", "linear"):
         def kernel(ax, ay, h, n_int, y, y_out):
             co = etd3m_coefficients(paper, h, m, hold)
-            etd3m_kernel(paper.H, paper.S, paper.C, paper.g_mps2, co.p, co.q, co.bw, co.phi,
-                         co.phic, co.wt, co.wq, co.pc, co.xp, co.ck, co.lohi, co.widths, ax, ay, 1,
-                         m, n_int // m, 10 // m, y, y_out, np.zeros((2, 6)), False)
+            etd3m_kernel(chain_args(paper), co, ax, ay, 1, m, n_int // m, 10 // m, y, y_out,
+                         np.zeros((2, 6)), False)
 
         generic, scalar = scalar_and_generic_rows(paper, "etd3m", m, hold, kernel)
         scale = np.abs(scalar[:, :2]).max()

@@ -9,7 +9,8 @@ import pytest
 
 from rig.errors import DivergenceError
 from rig.solvers import SOLVERS, integrate, solver_named
-from rig.solvers._kernels import SINCOS_POLY_MAX, _sincos_poly, etd3_kernel
+from rig.solvers.etd3 import etd3_kernel
+from rig.solvers.primitives import SINCOS_POLY_MAX, chain_args, sincos_poly
 from rig.solvers.etd3 import etd3_coefficients
 from rig.solvers.rhs import nonlinear_remainder, rhs
 from rig.scene import load_scene
@@ -43,7 +44,7 @@ def paper_input(seconds, seed=5):
 def test_sincos_polynomial_is_within_two_ulp_of_libm():
     @numba.njit
     def both(x):
-        return _sincos_poly(x)
+        return sincos_poly(x)
 
     for x in np.linspace(-SINCOS_POLY_MAX, SINCOS_POLY_MAX, 40001):
         s, c = both(x)
@@ -188,9 +189,8 @@ def test_scalar_n2_kernel_equals_the_generic_kernel(paper):
             y = np.array([0.01, -0.02, 0.0, 0.1])
             y_out = np.empty((n_int // 10 + 1, 4))
             hist = np.zeros((2, 6))
-            etd3_kernel(paper.H, paper.S, paper.C, paper.g_mps2, co.p, co.q, co.bw, co.phi,
-                        co.g0, co.g1, co.phic, co.g0c, co.g1c, co.pc, co.wq, co.xp, ax, ay, 1,
-                        int(hold == "linear"), h, 1, n_int, 10, y, y_out, hist, False)
+            etd3_kernel(chain_args(paper), co, (ax, ay, 1, int(hold == "linear")), h, 1, n_int,
+                        10, y, y_out, hist, False)
             outs.append(y_out)
         scale = np.abs(outs[0][:, :2]).max()
         np.testing.assert_allclose(outs[0], outs[1], rtol=0, atol=1e-12 * scale)

@@ -9,7 +9,7 @@ import scipy.linalg
 
 from rig.chain import G_STANDARD, Chain
 from rig.solvers import COUPLED_BENCH, PENDULUM, SOLVERS, integrate, names_for, solver_named
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 from rig.solvers.rhs import rhs
 from rig.simulate import BaseInput, simulate
 

@@ -12,8 +12,9 @@ from benchmarks.work_precision import paper_input, rel_rms_error
 from rig.chain import Chain
 from rig.errors import DivergenceError
 from rig.solvers import integrate, solver_named
-from rig.solvers._kernels import lifted_kernel, lifted_kernel2, linear_kernel
-from rig.solvers.exact import discretise, lift_linear
+from rig.solvers.exact import lifted_kernel, lifted_kernel2, linear_kernel
+from rig.linear import discretise
+from rig.solvers.exact import lift_linear
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate
 

@@ -7,7 +7,7 @@ import pytest
 
 from rig.chain import Chain
 from rig.errors import ConfigError
-from rig.solvers._kernels import RECURSIVE_FROM_N
+from rig.solvers.primitives import RECURSIVE_FROM_N
 from rig.solvers.rhs import rhs, rhs_algorithm
 from rig.scene import load_scene
 from rig.simulate import BaseInput, simulate

@@ -1,6 +1,7 @@
-"""The etdab step unrolled for one exact-zero pattern (rig.unrolled) gives the loop kernel's
-values (rig.coupled.etd_ab_kernel) bit for bit, whatever the pattern, chain, history lag, steps
-per DAC interval or block split; its generated module is written once and reused."""
+"""The etdab step unrolled for one exact-zero pattern (rig.solvers.etdab.etdab_kernel) gives the
+loop kernel's values (rig.solvers.etdab.etd_ab_kernel) bit for bit, whatever the pattern, chain,
+history lag, steps per DAC interval or block split; its generated module is written once and
+reused."""
 
 import math
 
@@ -9,9 +10,10 @@ import pytest
 
 from rig import unrolled
 from rig.bench import build_model
-from rig.coupled import etd_ab_kernel, etd_ab_phase_weights
+from rig.solvers.etdab import (UNROLL_MAX_STATES, etd_ab_kernel, etd_ab_phase_weights,
+                               etdab_kernel, etdab_source)
 from rig.scene import load_scene
-from rig.solvers.exact import discretise
+from rig.linear import discretise
 
 BETA2 = [f"pendulum.r1_m={0.999 * 9.80665 / (2 * math.pi * 2.4783) ** 2!r}", "pendulum.eps=1.001",
          f"pendulum.f2_hz={math.sqrt(0.999 * 9.80665 / 0.000846) / (2 * math.pi)!r}"]
@@ -40,7 +42,7 @@ def _run(kernel, model, v, z, hist, have, nsub=1, mats=None, phase=None):
     phase = np.zeros(1, np.int64) if phase is None else phase
     z_out = np.empty((v.size, z.size))
     ax = np.empty(v.size)
-    kernel(*model.coupled.args(), *(mats or model.etdab), nsub, have, hist, phase, v, z, z_out,
+    kernel(model.coupled.args(), tuple(mats or model.etdab), nsub, have, hist, phase, v, z, z_out,
            ax)
     return z_out, ax
 
@@ -53,7 +55,7 @@ def _both(model, v, *, nsub=1, lag=0, mats=None, z0=None):
         z = np.zeros(model.a.shape[0]) if z0 is None else z0.copy()
         hist = np.zeros((mats[2].shape[1] + lag, nf))
         kern = (etd_ab_kernel if k == "loop" else
-                unrolled.etdab_kernel(*mats[:3], hist.shape[0], model.coupled.n))
+                etdab_kernel(*mats[:3], hist.shape[0], model.coupled.n))
         z_out, ax = _run(kern, model, v, z, hist, False, nsub, mats)
         out.append((z_out, ax, z, hist))
     return out
@@ -74,7 +76,8 @@ def test_the_unrolled_step_equals_the_loop_kernel_with_substeps_and_a_lagged_his
     h = 1.0 / (2 * model.fs_hz)
     phi, g0, _ = discretise(model.a, model.b, h, "zoh")
     w, lagv = etd_ab_phase_weights(model.a, model.coupled.rows, h, 4, 1, lag=1)
-    mats = (np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w, lagv) + model.etdab[4:]
+    mats = ((np.ascontiguousarray(phi.T), np.ascontiguousarray(g0[:, 0]), w, lagv)
+            + tuple(model.etdab[4:]))
     (zl, al, el, hl), (zu, au, eu, hu) = _both(model, _drive("driven_3v", 5000), nsub=2, lag=1,
                                                mats=mats)
     for a, b in ((zl, zu), (al, au), (el, eu), (hl, hu)):
@@ -84,7 +87,7 @@ def test_the_unrolled_step_equals_the_loop_kernel_with_substeps_and_a_lagged_his
 def test_unrolled_blocks_continue_a_one_shot_run_bit_for_bit():
     model = _model("driven_3v")
     v = _drive("driven_3v", 9000)
-    kern = unrolled.etdab_kernel(*model.etdab[:3], 4, model.coupled.n)
+    kern = etdab_kernel(*model.etdab[:3], 4, model.coupled.n)
     nf, nz = model.coupled.rows.size, model.a.shape[0]
     one_z, one_h = np.zeros(nz), np.zeros((4, nf))
     one = _run(kern, model, v, one_z, one_h, False)
@@ -115,7 +118,7 @@ def test_a_remainder_every_few_steps_unrolled_equals_the_loop_kernel_bit_for_bit
 def test_a_remainder_every_five_steps_continues_across_blocks_that_split_its_nodes():
     model = _every_model("driven_3v", 5)
     v = _drive("driven_3v", 9000)
-    kern = unrolled.etdab_kernel(*model.etdab[:3], 4, model.coupled.n)
+    kern = etdab_kernel(*model.etdab[:3], 4, model.coupled.n)
     nf, nz = model.coupled.rows.size, model.a.shape[0]
     one_z, one_h, one_p = np.zeros(nz), np.zeros((4, nf)), np.zeros(1, np.int64)
     one = _run(kern, model, v, one_z, one_h, False, phase=one_p)
@@ -129,20 +132,20 @@ def test_a_remainder_every_five_steps_continues_across_blocks_that_split_its_nod
 
 def test_each_zero_pattern_has_its_own_kernel_and_a_pattern_is_generated_once():
     paper, free = _model("paper"), _model("no_reaction")
-    k1 = unrolled.etdab_kernel(*paper.etdab[:3], 4, 2)
-    k2 = unrolled.etdab_kernel(*free.etdab[:3], 4, 2)
+    k1 = etdab_kernel(*paper.etdab[:3], 4, 2)
+    k2 = etdab_kernel(*free.etdab[:3], 4, 2)
     assert (paper.etdab[0] != 0).sum() != (free.etdab[0] != 0).sum()  # other zeros
     assert k1 is not k2
-    assert unrolled.etdab_kernel(*paper.etdab[:3], 4, 2) is k1
+    assert etdab_kernel(*paper.etdab[:3], 4, 2) is k1
     # other values, the same zeros: the same kernel
     scaled = tuple(1.5 * x for x in paper.etdab[:3])
-    assert unrolled.etdab_kernel(*scaled, 4, 2) is k1
+    assert etdab_kernel(*scaled, 4, 2) is k1
 
 
 def test_the_generated_source_leaves_out_exactly_the_zero_products():
     model = _model("paper")
     phi_t, gam, w = model.etdab[:3]
-    src = unrolled.etdab_source(phi_t, gam, w, 4, True)
+    src = etdab_source(phi_t, gam, w, 4, True)
     n_phi = src.count(" = phi_t[")
     n_w = src.count(" = w[")
     assert n_phi == np.count_nonzero(phi_t) < phi_t.size
@@ -151,8 +154,8 @@ def test_the_generated_source_leaves_out_exactly_the_zero_products():
 
 
 def test_larger_benches_use_the_loop_kernel():
-    nz = unrolled.UNROLL_MAX_STATES + 1
-    k = unrolled.etdab_kernel(np.eye(nz), np.ones(nz), np.ones((1, 4, 3, nz)), 4, 7)
+    nz = UNROLL_MAX_STATES + 1
+    k = etdab_kernel(np.eye(nz), np.ones(nz), np.ones((1, 4, 3, nz)), 4, 7)
     assert k.py_func is etd_ab_kernel.py_func  # (the lazy kernel or its dispatcher)
 
 
