@@ -31,15 +31,12 @@ Rooms
 -----
 ``model``       :class:`BenchModel`, :func:`build_model` (the state space and its exact step)
 ``run``         :class:`BenchState`, :func:`start`, :func:`advance` (one block), the stage kernel
-``fused``       the bench fused with its sensors and the anti-alias filter, kept at the output
-                rate (:meth:`BenchSimulation.decimated_blocks`, :func:`fused_model_info`)
+``fused``       the bench fused with its sensors and anti-alias filter, at the output rate
 ``simulation``  :class:`BenchSimulation` (the stateful wrapper: blocks, calibrations, model info)
 ``response``    :func:`calibrations`, :func:`expected_response`, :class:`BenchResponse`,
                 :func:`stationary_levels`, :func:`signal_to_noise`
 ``selection``   :func:`predict_linearisation_error`, :func:`select_model`
 ``estimates``   :func:`model_info` and the error estimates (Richardson)
-
-Public API: the rooms' names above, re-exported here, and :func:`fused_model_info`.
 """
 
 from rig.bench.selection import (FIRST_ORDER_LIMIT, PREDICTOR_BATCHES, PREDICTOR_ENTROPY,
