@@ -29,6 +29,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from processing.dataset.manifest import unit_of
 from rig.errors import ConfigError
 
 __all__ = ["ExportSettings", "ExportResult", "export_dataset", "parse_split", "assign_splits",
@@ -305,7 +306,7 @@ def _write_parquet(path: Path, part: dict, units: dict, keys: list) -> None:
         if c == "start_s":
             md = {"unit": "s"}
         elif c in keys:
-            md = {"unit": _param_unit(c), "parameter": "varied scene parameter"}
+            md = {"unit": unit_of(c), "parameter": "varied scene parameter"}
         fields.append(pa.field(c, arr.type, metadata=md))
         arrays.append(arr)
     table = pa.Table.from_arrays(arrays, schema=pa.schema(fields))
@@ -317,16 +318,10 @@ def _write_parquet(path: Path, part: dict, units: dict, keys: list) -> None:
 def _write_npz(path: Path, part: dict, units: dict, keys: list) -> None:
     arrays = {c: (v.astype(str) if v.dtype == object else v) for c, v in part.items()}
     arrays["units_json"] = np.array(json.dumps({**units, "start_s": "s",
-                                                **{k: _param_unit(k) for k in keys}}))
+                                                **{k: unit_of(k) for k in keys}}))
     tmp = path.with_name(f".{path.name}.partial.npz")
     np.savez_compressed(tmp, **arrays)
     tmp.replace(path)
-
-
-def _param_unit(key: str) -> str:
-    from processing.dataset.manifest import unit_of
-
-    return unit_of(key)
 
 
 def _card(ds_dir, s, keys, units, counts, runs, meta, command) -> str:
@@ -361,7 +356,7 @@ def _card(ds_dir, s, keys, units, counts, runs, meta, command) -> str:
         lines.append(f"| {c} | {u} | {what.get(c, c)} (list of {meta['window_samples']} "
                      "float64) |")
     for k in keys:
-        lines.append(f"| {k} | {_param_unit(k)} | varied scene parameter |")
+        lines.append(f"| {k} | {unit_of(k)} | varied scene parameter |")
     split_rule = ("by run" if s.split_by is None
                   else f"by the value of `{s.split_by}` (runs sharing a value share a split)")
     lines += ["", "## Splits", "",
