@@ -123,11 +123,11 @@ class SweepInterrupted(KeyboardInterrupt):
 
 # -- planning --------------------------------------------------------------------------------
 
-def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = None
-              ) -> tuple[PlannedRun, ...]:
+def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = None,
+              every_s: float = 1.0) -> tuple[PlannedRun, ...]:
     """Resolve every run's scene (an invalid parameter set is recorded, not raised) and check the
-    analysis settings against its records. ``progress(done, total)`` is called about once a
-    second while that takes (a few ms per run; at most :data:`MAX_RUNS` runs)."""
+    analysis settings against its records. ``progress(done, total)`` is called at most once per
+    ``every_s`` seconds while that takes (a few ms per run; at most :data:`MAX_RUNS` runs)."""
     from processing.spectra import SettingsError
     from rig.scene import load_scene, read_scene_data
 
@@ -137,7 +137,7 @@ def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = Non
     specs = sweep.runs()
     shown = time.monotonic()
     for k, spec in enumerate(specs):
-        if progress is not None and time.monotonic() - shown >= 1.0:
+        if progress is not None and time.monotonic() - shown >= every_s:
             progress(k, len(specs))
             shown = time.monotonic()
         try:

@@ -2,7 +2,7 @@
 
 :class:`SineBench` runs the scene's bench (the model chosen for the sine's worst point by the
 error budget, :func:`sine_model`) from a :class:`rig.devices.stepped_sine.SinePoint` to the next
-through the fused chain of every acquisition (:mod:`rig.lifted`: stage, pendulum, sensors with
+through the fused chain of every acquisition (:mod:`rig.bench.fused`: stage, pendulum, sensors with
 their noise and clipping, the anti-alias filter, the decimation), carrying the bench, filter and
 source states, so the points are one continuous run.
 
@@ -46,6 +46,9 @@ from rig.devices.stepped_sine import SinePoint, SineSourceState, sine_samples
 from rig.bench.model import build_model
 from rig.bench.run import start
 from rig.bench.selection import select_model
+from rig.bench.fused import (advance_decimated, advance_decimated_nonlinear, lift,
+                             start_decimated)
+from rig.sosfilt import lift_sections
 
 CHANNELS = ("a", "x", "y")
 
@@ -336,29 +339,26 @@ class SineBench:
     """
 
     def __init__(self, model, seed, sos: np.ndarray):
-        from rig import lifted as rl
-
         self.model = model
-        self._rl = rl
         self.state = start(model, seed)
         sos = np.asarray(sos, float).reshape(-1, 6)
-        self._sections = rl.lift_sections(sos, model.decimation)
-        self._chain = rl.start_decimated(sos)
-        self._lifted = rl.lift(model, model.decimation) if model.model == "linear" else None
+        self._sections = lift_sections(sos, model.decimation)
+        self._chain = start_decimated(sos)
+        self._lifted = lift(model, model.decimation) if model.model == "linear" else None
         self.source = SineSourceState()
 
     def run(self, point: SinePoint):
         """Run ``point`` whole (settle and integrate): its :class:`rig.blocks.DecimatedBlock`
         (``point.samples`` output samples) and the source's phase at its first sample."""
-        rl, model = self._rl, self.model
+        model = self.model
         n = point.samples * model.decimation
         phase0 = self.source.phase_cycles
         v, self.source = sine_samples(point, self.source, n, model.fs_hz)
         src = dataclasses.replace(self.state.source, index=self.state.source.index + n)
         if self._lifted is not None:
-            block, self.state, self._chain = rl.advance_decimated(
+            block, self.state, self._chain = advance_decimated(
                 model, self._lifted, self.state, self._chain, n, self._sections, (v, src))
         else:
-            block, self.state, self._chain = rl.advance_decimated_nonlinear(
+            block, self.state, self._chain = advance_decimated_nonlinear(
                 model, self.state, self._chain, n, self._sections, (v, src))
         return block, phase0

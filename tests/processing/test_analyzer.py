@@ -240,7 +240,7 @@ def test_rotation_reading_extrapolates_to_the_exact_limit(run):
 def test_report_and_summary_say_what_was_compared(run):
     _, a = run
     md = a.report()
-    for text in ("## Run", "## Model", "*whole* sampled chain", "+0.97 dB and -26.6°",
+    for text in ("## Run", "## Model", "*whole* sampled chain", "+0.97 dB, -26.6 deg",
                  "The input is not white", "## Leakage bias and random error at the peaks",
                  "## Rotation isolation"):
         assert text in md

@@ -15,7 +15,7 @@ def same_scene(a, b):
     assert (a.mirror, a.theta0_rad, a.omega0_rad_s) == (b.mirror, b.theta0_rad, b.omega0_rad_s)
 
 
-def test_base_preset_inherits_every_key_not_given(tmp_path):
+def test_base_preset_inherits_every_key_not_given_and_the_file_names_the_scene(tmp_path):
     p = tmp_path / "soft.toml"
     p.write_text('base = "ishizaki2009"\n[pendulum]\nq1 = 300.0\n[source]\nlevel_vrms = 0.5\n')
     sc, ref = load_scene(p), load_scene("ishizaki2009")
@@ -23,8 +23,10 @@ def test_base_preset_inherits_every_key_not_given(tmp_path):
     assert sc.settings["source"]["level_vrms"] == 0.5
     for section, values in ref.settings.items():
         for key, value in values.items():
-            if (section, key) not in {("pendulum", "q1"), ("source", "level_vrms")}:
+            if (section, key) not in {("pendulum", "q1"), ("source", "level_vrms"),
+                                      ("scene", "name")}:
                 assert sc.settings[section][key] == value, (section, key)
+    assert sc.settings["scene"]["name"] == "soft"  # a file is named after itself
     assert sc.origin == f"{p} (base preset:ishizaki2009)"
 
 
