@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from rig._io import atomic_output, check_writable
+from rig.output_files import atomic_output, check_writable
 from rig.errors import RigError
 
 

@@ -13,7 +13,7 @@ The public names below are imported on first use (PEP 562), so ``import daq`` st
 
 from __future__ import annotations
 
-from rig._exports import lazy_exports
+from rig.lazy_exports import lazy_exports
 
 #: public name -> (module, attribute)
 _EXPORTS = {

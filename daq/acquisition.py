@@ -42,8 +42,8 @@ from daq.channels import channels_for
 from daq.records import (Block, Footer, Header, ModelResponse, RecordBuffer, RecordPlan,
                          TruthField)
 from daq.sinks import Fanout, Sink
-from rig._io import software_version
-from rig._threads import prefetch, single_threaded_blas
+from rig.output_files import software_version
+from rig.threads import prefetch, single_threaded_blas
 from rig.acquisition_settings import AcquisitionSettings
 from rig.blocks import DecimatedBlock
 from rig.errors import ConfigError

@@ -28,7 +28,7 @@ import numpy as np
 from daq.antialias import AntiAliasFilter
 from daq.records import RecordPlan
 from rig import bench as rb
-from rig._check import positive
+from rig.validation import positive
 from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
 from rig.errors import ConfigError, RigError
 from rig.scene import Scene

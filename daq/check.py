@@ -34,7 +34,7 @@ from daq.channels import Channel
 from daq.hdf5 import READABLE_FORMAT_VERSIONS
 from daq.records import STATUSES
 from daq.repair import UnreadableFile, _first_line, open_hdf5
-from rig._io import not_a_file
+from rig.output_files import not_a_file
 from rig.errors import ConfigError
 
 __all__ = ["FileCheck", "MissingFile", "check_file", "check_ok_or_raise"]

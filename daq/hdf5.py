@@ -45,7 +45,7 @@ from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Reco
                          TruthField)
 from daq.repair import open_hdf5, write_flags, writer_alive
 from daq.sinks import Sink
-from rig._io import check_writable, not_a_file, umask_mode
+from rig.output_files import check_writable, not_a_file, umask_mode
 from rig.errors import ConfigError
 
 try:
@@ -167,7 +167,7 @@ class Hdf5Sink(Sink):
     # -- stream ---------------------------------------------------------------------------
     def check(self) -> None:
         """Refuse an output that exists (without ``force``), is a directory or is in a missing
-        or read-only directory (:func:`rig._io.check_writable`), or that is not named as a
+        or read-only directory (:func:`rig.output_files.check_writable`), or that is not named as a
         run file (:data:`RUN_SUFFIXES`)."""
         path = check_writable(self.target, force=self.force)
         if path.suffix.lower() not in RUN_SUFFIXES:

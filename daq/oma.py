@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rig._io import atomic_output
+from rig.output_files import atomic_output
 from rig.errors import ConfigError
 
 __all__ = ["OMA_CHANNELS", "output_only_data", "write_oma_file"]

@@ -11,7 +11,7 @@ import os
 import struct
 from pathlib import Path
 
-from rig._io import not_a_file
+from rig.output_files import not_a_file
 from rig.errors import ConfigError
 
 try:

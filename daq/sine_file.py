@@ -39,7 +39,7 @@ import numpy as np
 
 from daq.acquisition import utc_now_iso
 from daq.hdf5 import LIBVER, RUN_SUFFIXES, attr_value
-from rig._io import check_writable, software_version, umask_mode
+from rig.output_files import check_writable, software_version, umask_mode
 from rig.errors import ConfigError
 
 FORMAT = "pendulum-daq sine"
@@ -78,7 +78,7 @@ class SineFileSink:
         self._f = None
 
     def check(self) -> None:
-        """Refuse an unusable output before any work (:func:`rig._io.check_writable`)."""
+        """Refuse an unusable output before any work (:func:`rig.output_files.check_writable`)."""
         path = check_writable(self.target, force=self.force)
         if path.suffix.lower() not in RUN_SUFFIXES:
             raise ConfigError(f"--out {str(path)!r}: unknown extension {path.suffix!r}; "

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rig._io import atomic_output
+from rig.output_files import atomic_output
 from rig.errors import ConfigError
 
 __all__ = ["write_sysid_file", "noise_floor_rms", "oracle_recording"]

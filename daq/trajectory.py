@@ -22,7 +22,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from rig._io import atomic_output, software_version
+from rig.output_files import atomic_output, software_version
 from rig.errors import ConfigError
 from rig.scene import Scene
 from rig.simulate import Trajectory

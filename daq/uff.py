@@ -1,7 +1,7 @@
 """The run's records as Universal File Format (UFF) 58 time responses (``daq export --uff``).
 
 Every finished record of every channel, in engineering units, one data set each (function type
-1, time response), on the nodes and directions of :data:`rig._uff.CHANNEL_DOFS` (node 1 the stage,
+1, time response), on the nodes and directions of :data:`rig.uff.CHANNEL_DOFS` (node 1 the stage,
 node 2 the mirror). The ID lines say what each set is (quantity, unit, scene, seed, record).
 ``processing.uff.write_frf_uff`` writes the analyzer's H_t and Theta_2 with their coherence in
 the same format.
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rig._io import check_writable
-from rig._uff import CHANNEL_DOFS, TIME_RESPONSE, uff58, write_uff
+from rig.output_files import check_writable
+from rig.uff import CHANNEL_DOFS, TIME_RESPONSE, uff58, write_uff
 from rig.errors import ConfigError
 
 __all__ = ["CHANNEL_DOFS", "time_datasets", "write_time_uff"]

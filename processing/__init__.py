@@ -11,7 +11,7 @@ modules it needs. Where each lives: spectra and windows :mod:`processing.spectra
 
 from __future__ import annotations
 
-from rig._exports import lazy_exports
+from rig.lazy_exports import lazy_exports
 
 _EXPORTS = {
     "processing.spectra": ("AVERAGING", "WINDOWS", "ProcessingError", "SettingsError",

@@ -52,8 +52,8 @@ from processing.sampled_bench import SampledBench
 from processing.spectra import (AVERAGING, WINDOWS, ChannelDataError, SettingsError,
                                 SpectralSettings, _readonly, auto_spectrum, cross_spectrum,
                                 segment_ffts)
-from rig import _check
-from rig._threads import single_threaded_blas
+from rig import validation
+from rig.threads import single_threaded_blas
 from rig.errors import ConfigError
 
 __all__ = ["AnalyzerSettings", "Analysis", "RunInfo", "ModelAtLines", "analyze",
@@ -77,11 +77,11 @@ def _band(name: str, value) -> tuple[float, float]:
 
 
 def _positive_int(name: str, value, minimum: int) -> int:
-    return _check.integer(name, value, minimum=minimum, error=SettingsError)
+    return validation.integer(name, value, minimum=minimum, error=SettingsError)
 
 
 def _finite(name: str, value, *, lo=None, hi=None, hi_open=False) -> float:
-    return _check.number(name, value, lo=lo, hi=hi, hi_open=hi_open, error=SettingsError)
+    return validation.number(name, value, lo=lo, hi=hi, hi_open=hi_open, error=SettingsError)
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 :func:`figure_format` reads a figure path's extension (``.png``, ``.pdf``, ``.svg``: the formats
 matplotlib writes without extra libraries) and refuses any other, or none, with a sentence naming
 the valid ones -- before anything is computed. :func:`save_figure` writes a matplotlib Figure in
-that format, whole or not at all (:func:`rig._io.atomic_output`). :func:`image_format` does the
+that format, whole or not at all (:func:`rig.output_files.atomic_output`). :func:`image_format` does the
 same for raster images (``.png``, ``.jpg``/``.jpeg``: the live view's screenshots).
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from processing.errors import SettingsError
-from rig._io import atomic_output
+from rig.output_files import atomic_output
 
 __all__ = ["FIGURE_FORMATS", "IMAGE_FORMATS", "figure_format", "image_format", "save_figure"]
 

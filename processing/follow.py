@@ -130,7 +130,7 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
     time record longer than a record)."""
     from daq.hdf5 import _status, open_run, read_run
     from processing.analyzer import AnalyzerSettings
-    from rig._io import not_a_file
+    from rig.output_files import not_a_file
     from rig.errors import ConfigError
 
     settings = settings if settings is not None else AnalyzerSettings()

@@ -273,7 +273,7 @@ def measure_sine(scene, settings: SineSettings = SineSettings(), seed: int = 0, 
 
     Raises ConfigError for invalid settings or a scene whose chain cannot settle (before any
     point is run)."""
-    from rig._threads import single_threaded_blas
+    from rig.threads import single_threaded_blas
 
     with single_threaded_blas():  # thin products: more threads only contend
         return _measure(scene, settings, seed, sinks, progress)

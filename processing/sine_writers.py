@@ -26,7 +26,7 @@ import numpy as np
 
 from processing.sine import DB
 from processing.writers import CSV_COLUMNS
-from rig._io import atomic_output, write_columns_csv
+from rig.output_files import atomic_output, write_columns_csv
 
 EXTRA_COLUMNS = ("settle_s", "integrate_s", "level_vrms",
                  "x_error_db", "x_error_deg", "y_error_db", "y_error_deg",
@@ -281,10 +281,10 @@ def write_sine_report(sweep, scene, path, *, force: bool = False) -> Path:
 
 def sine_uff_datasets(sweep, scene) -> list[dict]:
     """UFF 58 sets of the sweep: H_t and Theta_2 at the points (function type 4, FRF, uneven
-    abscissa), with the nodes and directions of ``daq analyze --uff`` (:mod:`rig._uff`). ASCII
+    abscissa), with the nodes and directions of ``daq analyze --uff`` (:mod:`rig.uff`). ASCII
     UFF 58 writes an uneven abscissa as E13.5 (6 significant digits: the frequencies within
     5e-6 relative; the run file and the CSV keep them whole), the values with 12 digits."""
-    from rig._uff import CHANNEL_DOFS, FRF, uff58
+    from rig.uff import CHANNEL_DOFS, FRF, uff58
 
     f = sweep.column("frequency_hz")
     out = []
@@ -302,6 +302,6 @@ def sine_uff_datasets(sweep, scene) -> list[dict]:
 
 def write_sine_uff(sweep, scene, path, *, force: bool = False) -> Path:
     """:func:`sine_uff_datasets` as a UFF file (``.uff``/``.unv``); returns the path."""
-    from rig._uff import write_uff
+    from rig.uff import write_uff
 
     return write_uff(sine_uff_datasets(sweep, scene), path, force=force)

@@ -22,7 +22,7 @@ import numpy as np
 
 from processing.choices import AVERAGING, WINDOWS
 from processing.errors import SettingsError
-from rig._check import integer, number, positive
+from rig.validation import integer, number, positive
 
 #: Cosine-sum coefficients of the periodic windows (those of scipy.signal.windows.hann, .flattop).
 _COSINE_SUMS = {"hann": (0.5, 0.5),

@@ -3,14 +3,14 @@
 Four data sets over the display band (the CSV's lines): H_t (function type 4, FRF: response the
 mirror, +X translation [m], reference the stage, +X acceleration [m/s^2]), its coherence
 (type 6, [1]), Theta_2 (FRF: mirror -Y rotation [rad] per stage acceleration) and its coherence.
-Nodes, directions and precision as in :mod:`rig._uff`.
+Nodes, directions and precision as in :mod:`rig.uff`.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from rig._uff import CHANNEL_DOFS, COHERENCE, FRF, UNKNOWN, uff58, write_uff
+from rig.uff import CHANNEL_DOFS, COHERENCE, FRF, UNKNOWN, uff58, write_uff
 
 
 def frf_datasets(a) -> list[dict]:

@@ -17,7 +17,7 @@ import numpy as np
 
 from processing.analyzer import incomplete_note, paper_figures
 from processing.sampled_bench import resolved_fields
-from rig._io import atomic_output, check_writable
+from rig.output_files import atomic_output, check_writable
 
 VIEWS = ("bode", "nyquist", "coherence", "all")
 

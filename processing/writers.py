@@ -42,7 +42,7 @@ import h5py
 import numpy as np
 
 from daq.hdf5 import LIBVER, attr_value
-from rig._io import atomic_output, write_columns_csv
+from rig.output_files import atomic_output, write_columns_csv
 
 __all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "CSV_COLUMNS", "write_spectra", "write_csv",
            "write_bode_png", "write_report"]
@@ -94,7 +94,7 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
     -------
     Path : ``path``.
     """
-    from rig._io import software_version
+    from rig.output_files import software_version
 
     a = analysis
     path = Path(path)

@@ -14,7 +14,7 @@ than the package directory::
 
 from __future__ import annotations
 
-from rig._exports import lazy_exports
+from rig.lazy_exports import lazy_exports
 
 #: public name -> (module, attribute)
 _EXPORTS = {

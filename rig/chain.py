@@ -27,7 +27,7 @@ import numpy as np
 import scipy.linalg
 
 from rig.errors import ConfigError
-from rig._jit import njit
+from rig.jit import njit
 from rig.solvers.primitives import cholesky_solve, rhs_rec
 
 G_STANDARD = 9.80665  # m/s^2

@@ -184,9 +184,9 @@ CSV_COLUMNS = ("frequency_hz", "x_re", "x_im", "x_gain_db", "x_phase_deg",
 def write_csv(resp: MirrorResponse, path, *, force: bool = False):
     """Write ``resp`` as CSV, one row per frequency (:data:`CSV_COLUMNS`; every value as
     ``repr(float)``, so it reads back bit for bit); never over an existing file without
-    ``force``, and the file appears whole or not at all (:func:`rig._io.atomic_output`).
+    ``force``, and the file appears whole or not at all (:func:`rig.output_files.atomic_output`).
     Returns the path."""
-    from rig._io import write_columns_csv
+    from rig.output_files import write_columns_csv
 
     cols = [resp.freqs_hz, resp.x.real, resp.x.imag, gain_db(resp.x), phase_deg(resp.x),
             resp.y.real, resp.y.imag, gain_db(resp.y), phase_deg(resp.y)]

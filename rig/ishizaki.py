@@ -42,7 +42,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from rig._check import number, positive
+from rig.validation import number, positive
 from rig.chain import G_STANDARD, Chain
 from rig.errors import ConfigError
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from rig.errors import ConfigError
-from rig._check import as_float, finite_at_least, shown
+from rig.validation import as_float, finite_at_least, shown
 
 REQUIRED = object()
 

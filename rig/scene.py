@@ -54,7 +54,7 @@ import numpy as np
 from rig.acquisition_settings import AcquisitionSettings
 from rig.chain import DAMPING_MODES, G_STANDARD, Chain
 from rig.devices import Accelerometer, OpticalLever, Source, Stage
-from rig._check import shown
+from rig.validation import shown
 from rig.errors import ConfigError
 from rig.params import REQUIRED, Key, check_value, keys_of
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rig._check import positive
+from rig.validation import positive
 from rig.chain import Chain
 from rig.errors import ConfigError
 from rig.solvers import HOLDS, PENDULUM, integrate, names_for, output_rows, solver_named

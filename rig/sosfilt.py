@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 
 
 @njit(cache=True, nogil=True)

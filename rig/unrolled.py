@@ -46,7 +46,7 @@ def load(source: str, name: str, options: dict):
         got = _loaded.get(key)
         if got is not None:
             return got
-        from rig._jit import materialise
+        from rig.jit import materialise
 
         materialise()  # numba imported with the kernels' cache directory; rig's kernels compiled
         import numba
@@ -62,9 +62,9 @@ def load(source: str, name: str, options: dict):
 
 
 def _module_dir() -> Path:
-    """``unrolled/`` in numba's cache directory (the kernels' one, :func:`rig._jit.cache_dir`),
+    """``unrolled/`` in numba's cache directory (the kernels' one, :func:`rig.jit.cache_dir`),
     or a fresh temporary directory where that is not writable."""
-    from rig._jit import cache_dir
+    from rig.jit import cache_dir
 
     base = Path(os.environ.get("NUMBA_CACHE_DIR") or cache_dir())
     path = base / "unrolled"

@@ -12,7 +12,7 @@ import click
 from daq.cli.common import (fmt, force_option, model_lines, note_cold_kernels, repair_file,
                             run_check, set_option, size_text)
 from daq.cli.live import live_options, live_sinks, rrd_preflight
-from rig._io import check_writable
+from rig.output_files import check_writable
 
 
 # -- acquisition -----------------------------------------------------------------------------

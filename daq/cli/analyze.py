@@ -10,7 +10,7 @@ import click
 from daq.cli.common import (UFF_SUFFIXES, figure_path, force_option, suffix_path,
                             verified_records)
 from processing.choices import AVERAGING, ESTIMATORS, WINDOWS
-from rig._io import check_writable
+from rig.output_files import check_writable
 
 
 # -- analysis --------------------------------------------------------------------------------

@@ -60,7 +60,7 @@ def suffix_path(suffixes: tuple[str, ...], what: str):
     return check
 
 
-#: extensions of a UFF file (rig._uff.write_uff)
+#: extensions of a UFF file (rig.uff.write_uff)
 UFF_SUFFIXES = (".uff", ".unv")
 
 
@@ -203,7 +203,7 @@ def note_cold_kernels() -> None:
     import sys
 
     import daq.acquisition  # noqa: F401 - registers the kernels, whose sources name the cache
-    from rig._jit import cache_dir
+    from rig.jit import cache_dir
 
     if "numba" in sys.modules:
         return

@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from daq.cli.common import figure_path, force_option
-from rig._io import atomic_output, check_writable
+from rig.output_files import atomic_output, check_writable
 
 
 def _read_text(path: Path, what: str) -> str:
@@ -152,7 +152,7 @@ def write_tradeoffs(d, folder: Path, *, force: bool) -> list[Path]:
     import numpy as np
 
     from processing.design_plots import policy_figure, tradeoff_figure
-    from rig._io import write_columns_csv
+    from rig.output_files import write_columns_csv
     from rig.design.report import design_curves
     from rig.design.tradeoffs import SWEEPS, policy_pair, sweep
     from rig.ishizaki import design_parameters
@@ -199,7 +199,7 @@ def run_tolerances(d, tol, samples, seed, folder, *, force):
     """The Monte Carlo and sensitivities of ``d``: (markdown text, data, files written)."""
     import numpy as np
 
-    from rig._io import write_columns_csv
+    from rig.output_files import write_columns_csv
     from rig.design.tolerance import monte_carlo, sensitivities
 
     if folder is not None:

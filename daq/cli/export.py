@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from daq.cli.common import UFF_SUFFIXES, force_option, suffix_path
-from rig._io import check_writable
+from rig.output_files import check_writable
 
 
 @click.command()

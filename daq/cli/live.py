@@ -9,7 +9,7 @@ import click
 
 from daq.cli.common import (NO_DISPLAY, check_viewer_url, display_missing, force_option,
                             image_path)
-from rig._io import check_writable
+from rig.output_files import check_writable
 
 
 # -- live view (rerun; imported only when one of these options is used) ---------------------

@@ -10,7 +10,7 @@ import click
 
 from daq.cli.common import figure_path, fmt, force_option, set_option
 from daq.cli.live import viewer_stream
-from rig._io import check_writable
+from rig.output_files import check_writable
 
 
 # -- scenes ----------------------------------------------------------------------------------
@@ -208,7 +208,7 @@ def simulate(scene_name, duration, theta0, omega0, method, rtol, dt_s, output_dt
     Writes t, theta_1..theta_n, omega_1..omega_n and the energy, with the method and its error
     estimate (how it was obtained is recorded too).
     """
-    from rig._io import check_writable
+    from rig.output_files import check_writable
     from daq.trajectory import trajectory_format, write_trajectory
     from rig.scene import load_scene
     from rig.simulate import simulate as run_simulation

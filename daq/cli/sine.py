@@ -120,7 +120,7 @@ def sine(scene_arg, out, fmin, fmax, points, auto_resolution, min_step, spacing,
     state, settling bias, random error and harmonics beside it."""
     import rig
     from processing.sine_sweep import SineSettings, measure_sine
-    from rig._io import check_writable
+    from rig.output_files import check_writable
 
     _exclusive(settle_cycles, settle_s, "--settle-cycles and --settle-s")
     _exclusive(level_vrms, auto_level, "--level and --auto-level")

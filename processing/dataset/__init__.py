@@ -38,6 +38,6 @@ def __getattr__(name):  # the Zarr index needs the optional extra: imported when
     return _submodule(name)  # a public submodule is an attribute on first use
 
 
-from rig._exports import submodule_getattr  # noqa: E402
+from rig.lazy_exports import submodule_getattr  # noqa: E402
 
 _submodule = submodule_getattr("processing.dataset")

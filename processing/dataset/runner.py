@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from rig._io import process_alive
+from rig.output_files import process_alive
 from rig.errors import ConfigError, ForceRequired
 
 from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table

@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from rig._check import integer, number
+from rig.validation import integer, number
 from rig.errors import ConfigError
 
 __all__ = ["Sweep", "Parameter", "RunSpec", "load_sweep", "parse_sweep", "run_seed",

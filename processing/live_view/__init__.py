@@ -55,6 +55,6 @@ __all__ = ["ViewerOptions", "ViewerStream", "LiveView", "LiveViewWarning", "Live
            "screenshot_command", "recording_summary", "viewer_executable"]
 
 
-from rig._exports import submodule_getattr  # noqa: E402
+from rig.lazy_exports import submodule_getattr  # noqa: E402
 
 __getattr__ = submodule_getattr('processing.live_view')  # a public submodule is an attribute on first use

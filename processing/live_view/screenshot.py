@@ -8,7 +8,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from rig._io import check_writable, remove_stale_temps, temp_beside
+from rig.output_files import check_writable, remove_stale_temps, temp_beside
 from processing.live_view.stream import LiveViewError, viewer_executable
 
 

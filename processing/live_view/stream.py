@@ -20,7 +20,7 @@ import pyarrow as pa
 import rerun as rr
 from rerun.components import LineStrip2DBatch
 
-from rig._io import check_writable, remove_stale_temps, temp_beside
+from rig.output_files import check_writable, remove_stale_temps, temp_beside
 from processing.viewer_url import DEFAULT_PORT, viewer_silence
 from processing.viewer_url import host_port as _host_port
 
@@ -124,7 +124,7 @@ class ViewerStream:
         self.rrd = None if options.rrd is None else Path(options.rrd)
         if self.rrd is not None:
             check_writable(self.rrd, force=options.force)
-            self._part = None  # made when the file sink opens (rig._io.temp_beside)
+            self._part = None  # made when the file sink opens (rig.output_files.temp_beside)
         self.url = None
         if options.connect:
             _host_port(options.connect)  # validates before anything runs

@@ -56,6 +56,6 @@ __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "buil
            "predict_linearisation_error", "MODELS", "NONLINEAR_METHODS", "STREAMS"]
 
 
-from rig._exports import submodule_getattr  # noqa: E402
+from rig.lazy_exports import submodule_getattr  # noqa: E402
 
 __getattr__ = submodule_getattr('rig.bench')  # a public submodule is an attribute on first use

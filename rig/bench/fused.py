@@ -43,7 +43,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.blocks import DecimatedBlock
 from rig.bench.estimates import linear_method
 from rig.bench.run import (SENSOR_STREAMS, bench_states, mirror_point, sensor_generators,

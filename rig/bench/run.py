@@ -21,7 +21,7 @@ import numpy as np
 from rig.blocks import AnalogBlock
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers import COUPLED_BENCH, integrate
-from rig._jit import njit
+from rig.jit import njit
 from rig.scene import Scene
 from rig.devices.source import SourceState, generate, start_source
 from rig.bench.model import COUPLED_METHODS, BenchModel

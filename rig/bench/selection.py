@@ -46,7 +46,7 @@ import time
 import numpy as np
 
 from rig.chain import Chain
-from rig._jit import njit
+from rig.jit import njit
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers.coupled import arg_groups, coupled_params, kernel_scratch, remainder_fast_at
 from rig.linear import discretise

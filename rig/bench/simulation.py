@@ -13,7 +13,7 @@ import numpy as np
 
 from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
 from rig.errors import ConfigError
-from rig._threads import Prefetch
+from rig.threads import Prefetch
 from rig.sosfilt import lift_sections
 from rig.scene import Scene
 from rig.devices.source import start_source
@@ -25,7 +25,7 @@ from rig.bench.run import _REL, _block_sizes, _source_blocks, _spawn, advance, s
 
 
 class _Replay:
-    """Items taken from a :class:`rig._threads.Prefetch` ahead of time, then the rest of it;
+    """Items taken from a :class:`rig.threads.Prefetch` ahead of time, then the rest of it;
     ``close()`` closes it."""
 
     def __init__(self, taken: list, rest: Prefetch):

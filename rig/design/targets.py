@@ -35,7 +35,7 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 
-from rig._check import number, positive, shown
+from rig.validation import number, positive, shown
 from rig.chain import G_STANDARD
 from rig.errors import ConfigError
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rig._check import integer, number, positive, shown
+from rig.validation import integer, number, positive, shown
 from rig.design.model import Pendulums
 from rig.design.relations import performance_bands
 from rig.design.solve import Design

@@ -19,6 +19,6 @@ from rig.devices.stage import Stage
 __all__ = ["Accelerometer", "OpticalLever", "Source", "Stage"]
 
 
-from rig._exports import submodule_getattr  # noqa: E402
+from rig.lazy_exports import submodule_getattr  # noqa: E402
 
 __getattr__ = submodule_getattr('rig.devices')  # a public submodule is an attribute on first use

@@ -44,7 +44,7 @@ import numpy as np
 
 from rig.blocks import Calibration
 from rig.errors import ConfigError
-from rig._jit import njit
+from rig.jit import njit
 from rig.params import check_fields, param
 from rig.linear import discretise
 

@@ -48,10 +48,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from rig._check import number as _number
+from rig.validation import number as _number
 from rig.devices import multisine as _ms
 from rig.errors import ConfigError
-from rig._jit import njit
+from rig.jit import njit
 from rig.params import param
 
 SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine", "multisine")

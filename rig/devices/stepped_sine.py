@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rig.errors import ConfigError
-from rig._jit import njit
+from rig.jit import njit
 
 
 @dataclass(frozen=True)

@@ -107,6 +107,6 @@ __all__ = ["SOLVERS", "COUPLED_BENCH", "PENDULUM", "names_for", "HOLDS", "HeldIn
            "Etd3m", "Etd4m", "Lawson4", "Etdab", "ExactBench"]
 
 
-from rig._exports import submodule_getattr  # noqa: E402
+from rig.lazy_exports import submodule_getattr  # noqa: E402
 
 __getattr__ = submodule_getattr('rig.solvers')  # a public submodule is an attribute on first use

@@ -32,7 +32,7 @@ acceleration, non-zero only in the rows of ``v0``, ``omega`` (and ``q``, which i
 All kernels are ``numba.njit(cache=True, error_model="numpy")`` (a blow-up gives non-finite
 numbers, checked once per block by the caller, not a ZeroDivisionError inside a step). They share
 the solvers' polynomial sines (:func:`rig.solvers.primitives.sincos_poly`; cross-file calls are safe
-with the keyed cache of :mod:`rig._jit`); their recursion (:func:`_accel`) carries the base-force
+with the keyed cache of :mod:`rig.jit`); their recursion (:func:`_accel`) carries the base-force
 split the pendulum-only one (:func:`rig.solvers.primitives.rhs_rec`) does not, so it is its own.
 """
 
@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.solvers.primitives import SINCOS_POLY_MAX, sincos_poly
 
 if TYPE_CHECKING:

@@ -18,7 +18,7 @@ from typing import ClassVar
 import numpy as np
 
 from rig.errors import ConfigError
-from rig._jit import njit
+from rig.jit import njit
 from rig.solvers.primitives import (NONFINITE, OK, STEP_TOO_SMALL, chain_args, rhs2, rhs_alg,
                                     rhs_n, rhs_rec, store)
 from rig.solvers.base import Refinement, SubstepSolver

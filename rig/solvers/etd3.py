@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, ClassVar, NamedTuple
 import numpy as np
 
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.linear import discretise, monomial_integrals
 from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos4, store
 from rig.solvers.remainder import nsplit2, nsplit_n

@@ -19,7 +19,7 @@ import numpy as np
 
 from rig.errors import ConfigError
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.linear import expm, monomial_integrals
 from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos4, sincos_pair, store
 from rig.solvers.remainder import nsplit2, nsplit_n

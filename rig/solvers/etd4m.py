@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING, ClassVar, NamedTuple
 import numpy as np
 
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.linear import expm
 from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos6, sincos_pair, store
 from rig.solvers.remainder import n2_at, nsplit2, nsplit2h, nsplit_n

@@ -19,7 +19,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.linear import monomial_integrals
 from rig.errors import ConfigError
 from rig.solvers.base import whole_number

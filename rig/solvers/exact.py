@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.linear import discretise
 from rig.solvers.primitives import NONFINITE, OK, store
 from rig.solvers.base import Refinement, SubstepSolver

@@ -10,7 +10,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.solvers.bench_base import BenchSolver
 
 

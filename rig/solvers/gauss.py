@@ -16,7 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.solvers.primitives import (NO_CONVERGENCE, NONFINITE, OK, all_finite, canon2, canon_n,
                                     chain_args, lu_factor, lu_solve, store)
 from rig.solvers.base import SubstepSolver

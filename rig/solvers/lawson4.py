@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.linear import van_loan
 from rig.solvers.bench_base import BenchSolver
 from rig.solvers.coupled import arg_groups, kernel_scratch, remainder_at

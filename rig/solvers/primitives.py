@@ -18,7 +18,7 @@ turns into :class:`rig.errors.DivergenceError`. Some are compiled with ``fastmat
 
 These primitives are called from the methods' modules, :mod:`rig.chain` (the Cholesky solve) and
 :mod:`rig.solvers.coupled` (the polynomial sines); numba's on-disk cache would not see a change
-here from there (numba/numba#1833), so :mod:`rig._jit` keys the cache directory by a hash of every
+here from there (numba/numba#1833), so :mod:`rig.jit` keys the cache directory by a hash of every
 kernel file. Tests hold the right-hand sides to :func:`rig.chain.accel_kernel`.
 
 References
@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 
 # Kernel status codes
 OK, NONFINITE, STEP_TOO_SMALL, NO_CONVERGENCE = 0, 1, 2, 3

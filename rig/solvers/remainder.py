@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from rig._jit import njit
+from rig.jit import njit
 
 
 @njit(cache=True, inline="always")

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from rig._jit import njit
+from rig.jit import njit
 from rig.solvers.primitives import (ALG_TWO, NONFINITE, OK, SINCOS_POLY_MAX, chain_args, rhs2,
                                     rhs_n, rhs_rec, sincos_poly, store)
 from rig.solvers.base import SubstepSolver

@@ -117,7 +117,7 @@ def test_an_output_on_a_dangling_link_is_refused_without_force_and_replaced_with
 
 
 def test_library_refusals_name_no_flag_and_the_command_line_adds_it(tmp_path):
-    from rig._io import check_writable
+    from rig.output_files import check_writable
     from rig.errors import ForceRequired
 
     (tmp_path / "m.csv").write_text("x")

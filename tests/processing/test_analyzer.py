@@ -218,7 +218,7 @@ def test_sampled_bench_equals_rig_expected_response(run):
 
 
 def test_blas_runs_single_threaded_inside_the_analysis_and_is_restored_after():
-    from rig._threads import _openblas_controls, single_threaded_blas
+    from rig.threads import _openblas_controls, single_threaded_blas
 
     controls = _openblas_controls()
     before = [get() for get, _ in controls]

@@ -1,4 +1,4 @@
-"""rig._threads.Prefetch: an iterator run ahead in a thread keeps order and content, hands exceptions over,
+"""rig.threads.Prefetch: an iterator run ahead in a thread keeps order and content, hands exceptions over,
 and stops when its consumer stops."""
 
 import threading
@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from rig._threads import prefetch
+from rig.threads import prefetch
 
 
 def test_items_arrive_in_order_and_unchanged():

@@ -1,4 +1,4 @@
-"""The one set of validators (rig._check): a bad value gets one line naming the key, the value as
+"""The one set of validators (rig.validation): a bad value gets one line naming the key, the value as
 given and what is valid, in the caller's error class; a good value comes back as a plain number."""
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from processing.errors import SettingsError
-from rig._check import finite_at_least, integer, number, positive
+from rig.validation import finite_at_least, integer, number, positive
 from rig.errors import ConfigError
 
 

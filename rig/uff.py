@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rig._io import atomic_output, check_writable
+from rig.output_files import atomic_output, check_writable
 from rig.errors import ConfigError, import_extra
 
 #: UFF 58 function types used here (record 6, field 1).

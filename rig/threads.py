@@ -1,4 +1,4 @@
-"""Threads, private infrastructure of the packages above: run an iterator ahead in a background
+"""Threads, shared infrastructure of the packages above: run an iterator ahead in a background
 thread, and hold every loaded OpenBLAS at one thread.
 
 :class:`Prefetch` is a bounded FIFO between two pipeline stages. The emulator's stages (source
