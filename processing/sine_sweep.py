@@ -75,6 +75,10 @@ class SineSettings:
     level_limit_vrms: float = 1.0
     auto_level_tries: int = 4
     harmonics: int = 5
+    mode: str = "stepped"
+    sweep_tolerance: float = 0.005
+    sweep_s: float | None = None
+    max_sweep_s: float = 2e6
 
     def __post_init__(self):
         def pos(name, lo=0.0, strict=True):
@@ -131,6 +135,19 @@ class SineSettings:
                 not 1 <= self.harmonics <= 20:
             raise ConfigError(f"harmonics = {self.harmonics!r} is invalid: expected an integer "
                               "1..20")
+        if self.mode not in ("stepped", "swept"):
+            raise ConfigError(f"mode = {self.mode!r} is invalid: expected stepped or swept")
+        pos("sweep_tolerance")
+        if self.sweep_s is not None:
+            pos("sweep_s")
+        pos("max_sweep_s")
+        if self.mode == "swept":
+            for name, what in (("auto_resolution", "auto resolution"),
+                               ("random_error_db", "a random-error target")):
+                if getattr(self, name) is not None:
+                    raise ConfigError(f"{name} = {getattr(self, name)!r} is invalid in swept "
+                                      f"mode: {what} is a stepped-sine option (the swept "
+                                      "source cannot go back or stay); expected None")
 
     def grid(self) -> np.ndarray:
         """The nominal frequencies [Hz] in the sweep's order."""
@@ -151,6 +168,7 @@ class SineSweep:
     model_info: dict
     status: str = "complete"
     settings: SineSettings = field(default_factory=SineSettings)
+    warnings: tuple = ()
 
     def column(self, name: str) -> np.ndarray:
         """One attribute of every accepted point as an array."""
@@ -299,20 +317,31 @@ def _measure(scene, settings, seed, sinks, progress) -> SineSweep:
         if hasattr(s, "check"):
             s.check()
     worst = _worst_frequency(scene, settings)
-    acq = SineAcquisition(scene, seed, worst_hz=worst,
-                          level_vrms=_worst_level(scene, settings, level0, worst),
+    worst_level = _worst_level(scene, settings, level0, worst)
+    acq = SineAcquisition(scene, seed, worst_hz=worst, level_vrms=worst_level,
                           duration_s=_worst_duration(scene, settings, worst),
                           fmax_hz=settings.fmax_hz)
     info = {"settings": _settings_dict(settings), "seed": int(seed), "worst_hz": worst,
             "model": acq.model_info, "channels": acq.channels, "antialias": acq.antialias,
-            "scene": scene, "columns": POINT_COLUMNS, "harmonics": settings.harmonics}
+            "scene": scene, "columns": POINT_COLUMNS, "harmonics": settings.harmonics,
+            "mode": settings.mode}
+    plan = None
+    if settings.mode == "swept":
+        from processing.swept_sine import run_swept, swept_plan
+
+        # swept: one level for the whole sweep, the auto level's at the worst point
+        plan = swept_plan(settings, acq, worst_level)
+        info["sweep_s"] = plan.duration_s
     for s in sinks:
         s.start(info)
     accepted, discarded = [], []
     status = "failed"
     try:
-        _sweep(settings, acq, rate, level0, accepted, discarded, sinks, progress,
-               settling_bias, step_error)
+        if plan is None:
+            _sweep(settings, acq, rate, level0, accepted, discarded, sinks, progress,
+                   settling_bias, step_error)
+        else:
+            run_swept(plan, acq, accepted, sinks, progress)
         status = "complete"
     except KeyboardInterrupt:
         status = "interrupted"
@@ -320,10 +349,12 @@ def _measure(scene, settings, seed, sinks, progress) -> SineSweep:
     finally:
         for s in sinks:
             s.stop(status)
-    bench_s = sum(p.settle_s + p.integrate_s for p in accepted + discarded)
+    bench_s = (sum(p.settle_s + p.integrate_s for p in accepted + discarded) if plan is None
+               else plan.duration_s)
     return SineSweep(points=tuple(accepted), discarded=tuple(discarded), bench_s=bench_s,
                      cpu_s=time.process_time() - t_cpu, model_info=acq.model_info,
-                     status=status, settings=settings)
+                     status=status, settings=settings,
+                     warnings=() if plan is None else plan.warnings)
 
 
 def _sweep(settings, acq, rate, level, accepted, discarded, sinks, progress, settling_bias,

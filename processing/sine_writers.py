@@ -153,7 +153,7 @@ def sine_bode_figure(sweep, scene, *, title: str = ""):
                 labels += l_
             fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=8,
                        frameon=False)
-    fig.suptitle(title or f"{scene.name}: stepped sine {sweep.settings.fmin_hz:g}-"
+    fig.suptitle(title or f"{scene.name}: {sweep.settings.mode} sine {sweep.settings.fmin_hz:g}-"
                           f"{sweep.settings.fmax_hz:g} Hz, {sweep.bench_s / 3600:.1f} h of bench "
                           f"time ({sweep.model_info.get('model', '?')} model)")
     return fig
@@ -178,7 +178,7 @@ def sine_report(sweep, scene) -> str:
     explains), the points at the modes and anti-resonance, the harmonics against the optical
     lever's prediction, and any clipping or saturation."""
     st, pts = sweep.settings, sweep.points
-    lines = [f"# Stepped sine: {scene.name}", "", "## Sweep", ""]
+    lines = [f"# {st.mode.capitalize()} sine: {scene.name}", "", "## Sweep", ""]
     lines += [f"- {len(pts)} points {st.fmin_hz:g}-{st.fmax_hz:g} Hz ({st.spacing}, "
               f"{st.direction}); {len(sweep.discarded)} more run and discarded (auto "
               f"resolution {st.auto_resolution}, auto level {st.auto_level})",
@@ -189,6 +189,12 @@ def sine_report(sweep, scene) -> str:
                                else f"the rule from the poles: until every channel's modal "
                                     f"transient bound is {st.settle_tolerance:g} of its steady "
                                     f"amplitude (at most {st.max_settle_s:g} s)"),
+              *([f"- swept: " + (f"a {st.spacing} chirp of {st.sweep_s:g} s" if st.sweep_s
+                                   else f"the rule's path from the poles and zeros (tolerance "
+                                        f"{st.sweep_tolerance:g})") + "; settle above: the "
+                 "lead-in at the first frequency; a point's bias is the sweep's"]
+                if st.mode == "swept" else []),
+              *[f"- WARNING: {w}" for w in sweep.warnings],
               f"- model: {sweep.model_info.get('model')} "
               f"({sweep.model_info.get('reason', 'forced')})", ""]
     lines += ["## Accuracy against the exact response", "",
@@ -293,7 +299,8 @@ def sine_uff_datasets(sweep, scene) -> list[dict]:
         h = np.array([getattr(p, attr) for p in sweep.points])
         out.append(uff58(func_type=FRF, response=CHANNEL_DOFS[ch], reference=CHANNEL_DOFS["a"],
                          x=f, data=h, abscissa="frequency", even=False, ids=(
-                             f"{name} = {ch}/a [{unit}], stepped sine (synchronous DFT)",
+                             f"{name} = {ch}/a [{unit}], {sweep.settings.mode} sine "
+                             "(synchronous DFT)",
                              f"scene {scene.name}, {len(f)} points {f.min():.4g}-{f.max():.4g} Hz",
                              f"model {sweep.model_info.get('model')}, bench "
                              f"{sweep.bench_s:.0f} s simulated")))
