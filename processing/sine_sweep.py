@@ -27,6 +27,9 @@ Per point (:class:`SineSettings`):
   measured (capped at ``level_limit_vrms``), up to ``auto_level_tries`` times in all, and the
   next point starts at the level that held (the 35670A's ``SOUR:VOLT:AUTO``).
 
+``mode = "swept"`` sweeps continuously instead (:mod:`processing.swept_sine`: the rule's rate
+from the poles, ``sweep_tolerance``, or a chirp of ``sweep_s``; one level; no auto resolution).
+
 Sinks receive ``start(info)`` (settings, seed, model, channels, filter, scene, the row's
 columns), ``point(row, record)`` (:func:`processing.sine.point_row` and the
 :class:`daq.sine.PointRecord`) for every accepted point and ``stop(status)`` (the sine run file,
@@ -53,7 +56,9 @@ CHANNELS = ("a", "x", "y")
 
 @dataclass(frozen=True)
 class SineSettings:
-    """A stepped-sine sweep (module docstring). Frequencies [Hz], times [s], levels [V rms]."""
+    """A sine sweep, stepped or swept (``mode``; module docstring). Frequencies [Hz], times
+    [s], levels [V rms]; ``sweep_tolerance`` [1], ``sweep_s`` and ``max_sweep_s`` [s] apply to
+    the swept mode."""
 
     fmin_hz: float = 0.1
     fmax_hz: float = 10.0

@@ -1,12 +1,12 @@
-"""The files of a sine sweep (stepped or swept): CSV, Bode PNG over the exact model, Markdown report.
+"""The files of a sine sweep (stepped or swept): CSV, Bode PNG over the exact model, report.
 
 :func:`write_sine_csv` writes one row per point: the columns of ``daq analyze``'s CSV
 (:data:`processing.writers.CSV_COLUMNS`; the coherence columns hold the fundamental's share of
 the output channel's power) followed by :data:`EXTRA_COLUMNS`: the point's settle and
 integration time (simulated seconds), source level, the random errors (1 sigma, dB and degrees),
-the exact steady state and the settling (swept: sweep) bias (dB, degrees) of H_t (x) and Theta_2 (y), and the
-magnitudes of harmonics 2..H of a, x, y in engineering units with the optical lever's predicted
-2f magnitudes of x and y. :func:`sine_bode_figure` draws the points over the exact whole-chain
+the exact steady state and the settling (swept: sweep) bias (dB, degrees) of H_t (x) and
+Theta_2 (y), and the magnitudes of harmonics 2..H of a, x, y in engineering units with the
+optical lever's predicted 2f magnitudes of x and y. :func:`sine_bode_figure` draws the points over the exact whole-chain
 response, with their difference from it against the stated settling bias and random error;
 :func:`sine_report` writes the report (settling bias, random error and distortion separated at
 every point). Files are written under a temporary name and renamed when complete; an existing

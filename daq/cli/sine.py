@@ -132,7 +132,8 @@ def _exclusive(a, b, names: str) -> None:
 @set_option
 @force_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress line.")
-def sine(scene_arg, out, mode, sweep_tolerance, sweep_s, max_sweep_s, fmin, fmax, points, auto_resolution, min_step, spacing, direction,
+def sine(scene_arg, out, mode, sweep_tolerance, sweep_s, max_sweep_s, fmin, fmax, points,
+         auto_resolution, min_step, spacing, direction,
          settle_cycles, settle_s, settle_tolerance, integrate_cycles, integrate_s,
          random_error_db, max_integrate_s, level_vrms, auto_level, level_limit, harmonics,
          seed, keep_records, plot, csv_path, report, uff_path, overrides, force, quiet):
@@ -208,7 +209,8 @@ def sine(scene_arg, out, mode, sweep_tolerance, sweep_s, max_sweep_s, fmin, fmax
     for w in sweep.warnings:
         click.echo(f"WARNING: {w}", err=True)
     click.echo(f"{len(sweep.points)} points {settings.fmin_hz:g}-{settings.fmax_hz:g} Hz, "
-               f"{mode} ({sweep.model_info.get('model')} model): {sweep.bench_s / 3600:.2f} h of bench "
+               f"{mode} ({sweep.model_info.get('model')} model): "
+               f"{sweep.bench_s / 3600:.2f} h of bench "
                f"time in {sweep.cpu_s:.1f} s CPU ({sweep.bench_s / max(sweep.cpu_s, 1e-9):,.0f}"
                " x)")
     for name, what in (("h_t", "H_t"), ("theta_2", "Theta_2")):
