@@ -28,7 +28,8 @@ Per point (:class:`SineSettings`):
   next point starts at the level that held (the 35670A's ``SOUR:VOLT:AUTO``).
 
 ``mode = "swept"`` sweeps continuously instead (:mod:`processing.swept_sine`: the rule's rate
-from the poles, ``sweep_tolerance``, or a chirp of ``sweep_s``; one level; no auto resolution).
+from the poles, ``sweep_tolerance``, or a chirp of ``sweep_s``; auto level as a profile from the
+model; no auto resolution).
 
 Sinks receive ``start(info)`` (settings, seed, model, channels, filter, scene, the row's
 columns), ``point(row, record)`` (:func:`processing.sine.point_row` and the
@@ -334,8 +335,8 @@ def _measure(scene, settings, seed, sinks, progress) -> SineSweep:
     if settings.mode == "swept":
         from processing.swept_sine import run_swept, swept_plan
 
-        # swept: one level for the whole sweep, the auto level's at the worst point
-        plan = swept_plan(settings, acq, worst_level)
+        # swept: the fixed level, or the auto level's profile along the sweep
+        plan = swept_plan(settings, acq, level0)
         info["sweep_s"] = plan.duration_s
     for s in sinks:
         s.start(info)

@@ -9,6 +9,8 @@ acquisition chain of every run, read by a tracking DFT at the source's instantan
   (:func:`rig.bench.swept.rule_rate`, ``sweep_tolerance``); a plan longer than ``max_sweep_s``
   is refused. A chirp faster than the rule anywhere is reported (:attr:`SweptPlan.warnings`,
   one line: where, how much faster, the bias to expect).
+- **level**: ``level_vrms``, or with ``auto_level`` a profile holding the reference channel's
+  exact steady amplitude at the target, capped (the level steps with the frequency).
 - **lead-in and tail**: the source holds the first frequency for the settle (``settle_s``,
   ``settle_cycles`` or the stepped sine's settle rule from rest, :func:`rig.bench.sine.
   settle_samples`) plus half the first window, and the last frequency for half the last window.
@@ -46,13 +48,15 @@ CHUNK = 1 << 15  # output samples per chunk
 @dataclass(frozen=True, eq=False)
 class SweptPlan:
     """A planned sweep: the path, the points' frequencies [Hz] in time order, their windows'
-    cycles, the level [V rms], the rule's relative first-order bias at each point, the
-    settings and the warnings (one line each)."""
+    cycles, the level profile (``level_f_hz`` increasing, ``level_v`` [V rms] there), the
+    rule's relative first-order bias at each point, the settings and the warnings (one line
+    each)."""
 
     path: object
     freqs_hz: np.ndarray
     cycles: np.ndarray
-    level_vrms: float
+    level_f_hz: np.ndarray
+    level_v: np.ndarray
     rule_bias: np.ndarray
     settings: object
     warnings: tuple
@@ -60,6 +64,10 @@ class SweptPlan:
     @property
     def duration_s(self) -> float:
         return self.path.duration_s
+
+    def level(self, f_hz) -> np.ndarray:
+        """The source level [V rms] at ``f_hz`` (linear between the profile's frequencies)."""
+        return np.interp(f_hz, self.level_f_hz, self.level_v)
 
 
 def _frequency_grid(settings, singularities: np.ndarray) -> np.ndarray:
@@ -80,10 +88,26 @@ def _window_s(settings, f_hz):
                       settings.integrate_s)
 
 
+def _level_profile(settings, chain, f: np.ndarray, level_vrms: float) -> np.ndarray:
+    """The level [V rms] at ``f``: ``level_vrms``, or with ``auto_level = (channel, target,
+    tol)`` the level that puts the channel's exact steady response at ``target`` (its unit),
+    at most ``level_limit_vrms``."""
+    if settings.auto_level is None:
+        return np.full(f.shape, float(level_vrms))
+    ch, target, _ = settings.auto_level
+    i = ("a", "x", "y").index(ch)
+    per_volt = np.array([abs(chain.steady_state(fi)[1][i]) for fi in f]) \
+        * math.sqrt(2.0) / abs(chain.volts_per_unit[i])
+    with np.errstate(divide="ignore"):
+        return np.minimum(settings.level_limit_vrms, target / per_volt)
+
+
 def swept_plan(settings, acq, level_vrms: float) -> SweptPlan:
     """Plan the sweep of ``settings`` on ``acq`` (a :class:`daq.sine.SineAcquisition`) at
-    ``level_vrms`` (module docstring). Raises ConfigError for a plan longer than
-    ``max_sweep_s``."""
+    ``level_vrms``, or with ``auto_level`` at the level that holds the reference channel's exact
+    steady amplitude at the target along the whole sweep, capped at ``level_limit_vrms`` (the
+    instrument's SOUR:VOLT:AUTO, here from the model; module docstring). Raises ConfigError for a
+    plan longer than ``max_sweep_s``."""
     from rig.bench.sine import settle_samples, step_error
     from rig.bench.swept import rule_rate, singularities_hz
     from rig.devices.stepped_sine import SinePoint
@@ -108,13 +132,16 @@ def swept_plan(settings, acq, level_vrms: float) -> SweptPlan:
                 f"against {rule[i]:.3g} Hz/s for a {settings.sweep_tolerance:g} relative "
                 "bias): expect biases of about that many times the tolerance there (each "
                 "point states its own)")
+    lev_f = np.unique(np.concatenate([np.geomspace(settings.fmin_hz, settings.fmax_hz, 2001),
+                                      fg[::4], [settings.fmax_hz]]))
+    lev_v = _level_profile(settings, chain, lev_f, level_vrms)
     f_start, f_end = float(path.f_hz[0]), float(path.f_hz[-1])
     if settings.settle_s is not None:
         settle = settings.settle_s
     elif settings.settle_cycles is not None:
         settle = settings.settle_cycles / f_start
     else:
-        p0 = SinePoint(f_start, float(level_vrms), 0, 2, 1)
+        p0 = SinePoint(f_start, float(np.interp(f_start, lev_f, lev_v)), 0, 2, 1)
         e0 = step_error(chain, np.zeros(chain.a.shape[0]), None, p0, 0.0)
         settle = settle_samples(chain, e0, p0, settings.settle_tolerance, 0,
                                 int(round(settings.max_settle_s * rate))) / rate
@@ -132,7 +159,7 @@ def swept_plan(settings, acq, level_vrms: float) -> SweptPlan:
                         np.ceil(settings.integrate_s * f - 1e-9)).astype(np.int64)
     d = np.min(np.abs(f[:, None] - sing[None, :]), axis=1)
     bias = path.rate(f) / (2 * np.pi * np.maximum(d, 1e-12) ** 2)
-    return SweptPlan(path=path, freqs_hz=f, cycles=cycles, level_vrms=float(level_vrms),
+    return SweptPlan(path=path, freqs_hz=f, cycles=cycles, level_f_hz=lev_f, level_v=lev_v,
                      rule_bias=bias, settings=settings, warnings=tuple(warnings))
 
 
@@ -182,7 +209,7 @@ def run_swept(plan: SweptPlan, acq, accepted: list, sinks=(), progress=None) -> 
 
     st, chain, rate = plan.settings, acq.chain, acq.rate_hz
     q, fs = chain.q, chain.fs_hz
-    path, level = plan.path, plan.level_vrms
+    path = plan.path
     total = int(math.ceil(path.duration_s * rate))
     centre = np.clip(np.rint(path.time_at(plan.freqs_hz) * rate).astype(np.int64), 0,
                      total - 1)
@@ -190,18 +217,18 @@ def run_swept(plan: SweptPlan, acq, accepted: list, sinks=(), progress=None) -> 
     first = np.clip(centre - half, 0, total)
     last = np.clip(centre + half + 1, 0, total)
     pending_first = np.minimum.accumulate(first[::-1])[::-1]  # earliest start still needed
-    truth = ModalSweep(chain, level)
+    truth = ModalSweep(chain)
     buf = _Buffer()
     phase, i, t_prev = 0.0, 0, 0.0
-    unit = -1j * math.sqrt(2.0) * level  # the sine's phasor
     lever = acq.scene.lever
     for n0 in range(0, total, CHUNK):
         n1 = min(n0 + CHUNK, total)
         f_out = path.frequency((np.arange(n0, n1) + 0.5) / rate)
         phi, phase = stair_phases(f_out, phase, q, fs)
-        v = swept_samples(f_out, phi, q, fs, level)
+        lev = plan.level(f_out)
+        v = swept_samples(f_out, phi, q, fs, lev)
         codes, clip, volts, sat = acq.samples(v)
-        buf.append(phi, volts, truth.run(f_out, phi), codes,
+        buf.append(phi, volts, truth.run(f_out, phi, lev), codes,
                    np.stack([clip[c] for c in ("a", "x", "y")]),
                    np.stack([sat.get(c, np.zeros(n1 - n0, bool)) for c in ("a", "x", "y")]))
         while i < plan.freqs_hz.size and last[i] <= buf.end:
@@ -214,6 +241,8 @@ def run_swept(plan: SweptPlan, acq, accepted: list, sinks=(), progress=None) -> 
             coef, var = tracking_fit(y, buf.phi[sel], st.harmonics)
             noiseless, _ = tracking_fit(yt, buf.phi[sel], st.harmonics)
             fi = float(plan.freqs_hz[i])
+            level = float(plan.level(fi))
+            unit = -1j * math.sqrt(2.0) * level  # the sine's phasor
             t_c = centre[i] / rate
             res = point_result(
                 coef, var, np.var(y, axis=1), sel.size,

@@ -18,8 +18,8 @@ analysis window: a relative first-order sweep bias of about ``tolerance`` per si
 
 **The truth** (:class:`ModalSweep`). The chain ``x_{k+1} = A x_k + B v_k``, ``y_k = C x_k`` in
 its modal coordinates ``x = V z``: over one output interval of the stair source
-(:mod:`rig.devices.swept_sine`: frequency ``f_n``, phase ``phi_n``, amplitude ``a``) the
-forced part is summed in closed form, ``z_m <- lambda_m^q z_m + beta_m a (P g_m(psi) - P* g_m(-psi))
+(:mod:`rig.devices.swept_sine`: frequency ``f_n``, phase ``phi_n``, amplitude ``a_n``) the
+forced part is summed in closed form, ``z_m <- lambda_m^q z_m + beta_m a_n (P g_m(psi) - P* g_m(-psi))
 / 2i`` with ``P = e^{i 2 pi phi_n}``, ``psi = 2 pi f_n / fs``, ``g(psi) = (lambda^q - e^{i psi
 q}) / (lambda - e^{i psi})``, ``beta = V^-1 B``; the channel volts at output sample n are ``Re(C V
 z)`` before the interval. Only one mode of each conjugate pair is carried (its real part
@@ -93,7 +93,7 @@ def _modal_kernel(lam, lam_q, beta, cv, f_out, phi, q, fs, amplitude, z, out):
         for m in range(nm):
             gp = (lam_q[m] - eq) / (lam[m] - e1)
             gm = (lam_q[m] - eq.conjugate()) / (lam[m] - e1.conjugate())
-            w = beta[m] * amplitude * (p * gp - p.conjugate() * gm) / 2j
+            w = beta[m] * amplitude[n] * (p * gp - p.conjugate() * gm) / 2j
             z[m] = lam_q[m] * z[m] + w
 
 
@@ -104,10 +104,9 @@ class ModalSweep:
     Parameters
     ----------
     chain : the :class:`rig.bench.sine.SineChain`.
-    level_vrms : the source's rms level [V] (constant over the sweep).
     """
 
-    def __init__(self, chain, level_vrms: float):
+    def __init__(self, chain):
         lam = chain.poles.astype(complex)
         keep = lam.imag >= 0  # real modes and one of each conjugate pair
         weight = np.where(lam.imag > 0, 2.0, 1.0)[keep]
@@ -116,15 +115,17 @@ class ModalSweep:
         self._beta = np.ascontiguousarray((chain.modes_inv @ chain.b.astype(complex))[keep])
         self._cv = np.ascontiguousarray((chain.c @ chain.modes)[:, keep] * weight[None, :])
         self.q, self.fs_hz = int(chain.q), float(chain.fs_hz)
-        self.amplitude = math.sqrt(2.0) * float(level_vrms)
         self.z = np.zeros(self._lam.size, complex)
 
-    def run(self, f_out_hz: np.ndarray, phases_cycles: np.ndarray) -> np.ndarray:
+    def run(self, f_out_hz: np.ndarray, phases_cycles: np.ndarray, level_vrms) -> np.ndarray:
         """The channel volts (3, n) at the next ``n`` output samples (the intervals' first DAC
-        samples) of the stair ``f_out_hz``, ``phases_cycles``; the state moves on past them."""
+        samples) of the stair ``f_out_hz``, ``phases_cycles`` at ``level_vrms`` [V rms] (one,
+        or one per interval); the state moves on past them."""
         f = np.ascontiguousarray(f_out_hz, dtype=float)
+        amp = np.ascontiguousarray(np.broadcast_to(
+            math.sqrt(2.0) * np.asarray(level_vrms, float), f.shape))
         out = np.empty((self._cv.shape[0], f.size))
         _modal_kernel(self._lam, self._lam_q, self._beta, self._cv, f,
                       np.ascontiguousarray(phases_cycles, dtype=float), self.q, self.fs_hz,
-                      self.amplitude, self.z, out)
+                      amp, self.z, out)
         return out

@@ -12,8 +12,8 @@ The source is a stair in frequency at the output rate: over output interval ``n`
 DAC samples ``n q .. n q + q - 1``) the frequency is ``f_n``, the path's value at the interval's
 middle, ``(n + 1/2) / rate_hz``; the phase in cycles at the interval's first DAC sample is
 ``phi_n``, with ``phi_{n+1} = phi_n + f_n q / fs_hz`` (it never jumps), and the DAC samples are
-``v = sqrt(2) L sin(2 pi (phi_n + f_n j / fs_hz))``, ``j = 0..q-1`` (as a DDS whose frequency
-word is updated at the output rate). The output sample ``n`` pairs with the phase ``phi_n``
+``v = sqrt(2) L_n sin(2 pi (phi_n + f_n j / fs_hz))``, ``j = 0..q-1`` (as a DDS whose
+frequency word, and level ``L_n``, are updated at the output rate). The output sample ``n`` pairs with the phase ``phi_n``
 (:func:`stair_phases`). No random stream is drawn.
 
 Public API: :class:`SweepPath`, :func:`chirp_path`, :func:`rate_path`, :func:`stair_phases`,
@@ -131,22 +131,25 @@ def stair_phases(f_out_hz: np.ndarray, phase0_cycles: float, q: int, fs_hz: floa
 
 @njit(cache=True, nogil=True)
 def _stair_kernel(f_out, phi, q, fs, amplitude, out):
-    """``out[n q + j] = amplitude sin(2 pi frac(phi[n] + f_out[n] j / fs))``."""
+    """``out[n q + j] = amplitude[n] sin(2 pi frac(phi[n] + f_out[n] j / fs))``."""
     for n in range(f_out.shape[0]):
         step = f_out[n] / fs
         p0 = phi[n] - math.floor(phi[n])
         for j in range(q):
             c = p0 + step * j
             c = c - math.floor(c)
-            out[n * q + j] = amplitude * math.sin(2.0 * math.pi * c)
+            out[n * q + j] = amplitude[n] * math.sin(2.0 * math.pi * c)
 
 
 def swept_samples(f_out_hz: np.ndarray, phases_cycles: np.ndarray, q: int, fs_hz: float,
-                  level_vrms: float) -> np.ndarray:
+                  level_vrms) -> np.ndarray:
     """The DAC samples [V] (``q`` per output interval) of the stair with frequencies
-    ``f_out_hz`` and phases ``phases_cycles`` (:func:`stair_phases`) at ``level_vrms``."""
+    ``f_out_hz`` and phases ``phases_cycles`` (:func:`stair_phases`) at ``level_vrms`` (one
+    level, or one per output interval: the level too steps at the output rate)."""
     f = np.ascontiguousarray(f_out_hz, dtype=float)
     phi = np.ascontiguousarray(phases_cycles, dtype=float)
+    amp = np.ascontiguousarray(np.broadcast_to(math.sqrt(2.0) * np.asarray(level_vrms, float),
+                                               f.shape))
     v = np.empty(f.size * int(q))
-    _stair_kernel(f, phi, int(q), float(fs_hz), math.sqrt(2.0) * float(level_vrms), v)
+    _stair_kernel(f, phi, int(q), float(fs_hz), amp, v)
     return v

@@ -27,10 +27,11 @@ def test_modal_sweep_equals_the_chain_sample_by_sample(chain):
     q, fs, n = chain.q, chain.fs_hz, 3000
     f = chirp_path(2.0, 3.0, 30.0).frequency((np.arange(n) + 0.5) * q / fs)
     phi, _ = stair_phases(f, 0.3, q, fs)
-    v = swept_samples(f, phi, q, fs, 0.05)
-    modal = ModalSweep(chain, 0.05)
-    fast = np.concatenate([modal.run(f[:1234], phi[:1234]), modal.run(f[1234:], phi[1234:])],
-                          axis=1)
+    level = np.linspace(0.05, 0.02, n)  # the level steps too (auto level along the sweep)
+    v = swept_samples(f, phi, q, fs, level)
+    modal = ModalSweep(chain)
+    fast = np.concatenate([modal.run(f[:1234], phi[:1234], level[:1234]),
+                           modal.run(f[1234:], phi[1234:], level[1234:])], axis=1)
     x, slow = np.zeros(chain.a.shape[0]), np.empty((3, n))
     for k in range(n * q):
         if k % q == 0:
