@@ -41,7 +41,7 @@ ACCURACY = SineSettings(fmin_hz=0.1, fmax_hz=10.0, points=50, auto_resolution=(2
                         auto_level=("y", 3e-4, 0.2), level_limit_vrms=1.0,
                         random_error_db=0.02, max_integrate_s=20000.0)
 #: the swept sine of ``daq sine --mode swept`` (200 points, the rule's path at its default
-#: tolerance, one level: the auto level's at the worst point)
+#: tolerance, the auto level a profile along the sweep)
 SWEPT = SineSettings(fmin_hz=0.1, fmax_hz=10.0, points=200, auto_level=("y", 3e-4, 0.2),
                      level_limit_vrms=1.0, mode="swept")
 

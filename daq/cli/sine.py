@@ -5,9 +5,9 @@ Defaults: the accuracy sweep of the README (auto resolution 2 dB / 20 deg from a
 grid, the mirror's rotation held at 3e-4 rad up to 1 V, windows continued to a 0.02 dB random
 error, the settle from the bench's poles); ``--points N`` alone gives a fixed grid, ``--level V``
 a fixed level, ``--random-error 0`` the windows as given. ``--mode swept``: the frequency moves
-continuously at the rule's rate (:mod:`rig.bench.swept`), 200 points read as it passes them, one
-level (the auto level's at the worst point); auto resolution and the random-error target are
-stepped-only.
+continuously at the rule's rate (:mod:`rig.bench.swept`), 200 points read as it passes them,
+the auto level a profile from the model along the sweep; auto resolution and the random-error
+target are stepped-only.
 
 A thin layer over :func:`processing.sine_sweep.measure_sine`: every option is validated and
 every output path checked before anything is simulated; errors are one line naming the value.
