@@ -170,6 +170,15 @@ def test_status_says_measuring_and_sweeping_until_opc(short_sweep):
     assert short_sweep["event"] & (8 | 16) == 8 | 16  # measured, swept
 
 
+def test_overload_flags_follow_the_sweeps_points(visa):
+    visa.write(":INST:SEL SINE;:FREQ:STAR 2.4;STOP 2.5;RES 2;:SWE:STIM 1 S;DWEL 5 CYCLE")
+    visa.write(":OUTP ON;:VOLT2:RANG -20")  # 0.1 V peak: the PSD's x (~0.4 V here) clips
+    assert visa.query(":INIT;*OPC?") == "1"
+    assert visa.query(":STAT:DEV:COND?;:STAT:QUES:COND?") == "2;1"  # input 2 overloaded
+    assert visa.query(":VOLT2:RANG 0;:INIT;*OPC?;:STAT:DEV:COND?") == "1;0"
+    assert _errors(visa) == []
+
+
 def test_kept_file_and_printed_daq_sine_command_hold_the_same_numbers(short_sweep, server,
                                                                       tmp_path):
     from click.testing import CliRunner
