@@ -251,6 +251,22 @@ class SineResult:
         return np.conj(self.fundamental(m)) * self.fundamental(n) / 2.0
 
 
+class _SweepClock:
+    """Starts a paced sweep's wall clock as its first point starts (a sweep sink)."""
+
+    def __init__(self, pacer):
+        self.pacer = pacer
+
+    def start(self, info) -> None:
+        self.pacer.wait(0.0)
+
+    def point(self, row, record) -> None:
+        return None
+
+    def stop(self, status) -> None:
+        return None
+
+
 class SineMode:
     """The swept-sine mode: :func:`processing.sine_sweep.measure_sine` of ``sine_settings``."""
 
@@ -289,12 +305,12 @@ class SineMode:
         from rig.scene import load_scene
 
         self.check(scene, setup)
-        pacer = None
+        sinks, pacer = [], None
         if control.realtime:
             from daq.pacing import Pacer
 
             pacer = Pacer(1.0, sleep=control.abort.wait)  # ABOR wakes it
-            pacer.wait(0.0)
+            sinks.append(_SweepClock(pacer))
 
         def progress(n, frequency_hz, bench_s):  # after every point, kept or discarded
             if pacer is not None:
@@ -305,7 +321,6 @@ class SineMode:
         try:
             bench = load_scene(scene.to_dict(), bench_overrides(setup))
             settings = sine_settings(bench, setup)
-            sinks = []
             if control.path is not None:
                 from daq.sine_file import SineFileSink
 

@@ -134,6 +134,9 @@ def short_sweep(server):
         got["power_x"] = np.asarray(inst.query_binary_values(
             ":CALC4:DATA?", datatype="f", is_big_endian=True))
         got["errors"] = _errors(inst)
+        for feed in ("'XTIM:VOLT 1'", "'XFR:POW:RAT 4,1'", "'XFR:POW 2';:CALC4:UNIT:VOLT 'V2/HZ'"):
+            inst.write(f":CALC4:FEED {feed};:CALC4:DATA?")  # answered with an error only
+        got["trace_errors"] = _errors(inst)
     finally:
         inst.close()
         rm.close()
@@ -162,6 +165,14 @@ def test_coherence_and_power_traces_read_the_fundamentals(short_sweep):
     x = np.array([p.harmonics[1, 0] for p in pts])  # x's fundamental, peak [m]
     np.testing.assert_array_equal(short_sweep["power_x"],
                                   (np.abs(x) ** 2 / 2).astype(np.float32))
+
+
+def test_traces_a_sweep_cannot_give_answer_settings_conflict_naming_why(short_sweep):
+    errs = short_sweep["trace_errors"]
+    assert [int(e.split(",")[0]) for e in errs] == [-221] * 3, errs
+    for err, why in zip(errs, ["no time record", "input 4 (the source drive) is not measured",
+                               "no spectral density"]):
+        assert why in err, (why, err)
 
 
 def test_status_says_measuring_and_sweeping_until_opc(short_sweep):
