@@ -40,6 +40,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -53,10 +54,11 @@ from processing.spectra import (AVERAGING, WINDOWS, ChannelDataError, SettingsEr
                                 SpectralSettings, _readonly, auto_spectrum, cross_spectrum,
                                 segment_ffts)
 from rig import validation
-from rig.bench.response import BenchResponse
-from rig.bench.sampled import SampledResponse, sampled_response
 from rig.threads import single_threaded_blas
 from rig.errors import ConfigError
+
+if TYPE_CHECKING:  # rig.bench is imported on use: importing processing stays light
+    from rig.bench import BenchResponse, SampledResponse
 
 __all__ = ["AnalyzerSettings", "Analysis", "RunInfo", "ModelAtLines", "analyze",
            "band_limit_hz", "check_band", "model_at_lines", "incomplete_note", "paper_figures", "FIT_METHODS", "CHANNELS"]
@@ -500,6 +502,8 @@ def check_band(settings: AnalyzerSettings, antialias_passband_hz: float, rate_hz
 
 
 def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analysis:
+    from rig.bench.sampled import sampled_response
+
     s = settings if settings is not None else AnalyzerSettings()
     h = recording.header
     spectral = _checked_spectral(recording, s)

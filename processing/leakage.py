@@ -37,12 +37,15 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from processing.modal_model import InputSpectrum
 from processing.spectra import SettingsError, SpectralSettings, _readonly, window_autocorrelation
-from rig.bench.sampled import SampledResponse, sampled_response
+
+if TYPE_CHECKING:  # rig.bench is imported on use: importing processing stays light
+    from rig.bench import SampledResponse
 
 __all__ = ["ExpectedEstimate", "expected_estimate", "expected_h1", "expected_h1_taps",
            "impulse_expected_h1", "CHANNELS"]
@@ -183,6 +186,8 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
                             "noise sources (random, pink) only")
     acc = scene.accelerometer
     if bench is None:
+        from rig.bench.sampled import sampled_response
+
         bench = sampled_response(scene)
     tau = bench.tau_s
     n = settings.nperseg
