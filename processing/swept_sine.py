@@ -27,7 +27,8 @@ the bench's volts and on the noiseless ones: the stated bias (``h_t_bias``, ``th
 is the noiseless estimate minus the exact steady state at the point's frequency, exact for the
 linear chain (sweep lag, window averaging and the lead-in's transient together). Per point,
 ``settle_s`` is the sweep time since the previous point's instant (the first: since the start),
-``integrate_s`` its window, ``settle_bound`` the rule's first-order relative bias at the
+``integrate_s`` its window, ``t0_s`` the window's start less ``settle_s`` (so that, as in the
+stepped mode, ``t0_s + settle_s`` is the window's start), ``settle_bound`` the rule's first-order relative bias at the
 path's actual rate, ``rate / (2 pi d^2)`` (the same for a, x, y).
 
 Public API: :class:`SweptPlan`, :func:`swept_plan`, :func:`run_swept`.
@@ -248,13 +249,15 @@ def run_swept(plan: SweptPlan, acq, accepted: list, sinks=(), progress=None) -> 
                 coef, var, np.var(y, axis=1), sel.size,
                 chain.steady_state(fi)[1] * unit, noiseless[:, 0], chain, lever,
                 frequency_hz=fi, level_vrms=level, settle_s=t_c - t_prev,
-                integrate_s=sel.size / rate, cycles=k, t0_s=(buf.start + sel[0]) / rate,
+                integrate_s=sel.size / rate, cycles=k,
+                t0_s=(buf.start + sel[0]) / rate - (t_c - t_prev),
                 clipped=buf.clip[:, sel].sum(axis=1), saturated=buf.sat[:, sel].sum(axis=1),
                 settle_bound=np.full(3, plan.rule_bias[i]))
             t_prev = t_c
             accepted.append(res)
             rec = PointRecord(point=SinePoint(fi, level, 0, max(int(sel.size), 2), k),
-                              t0_s=res.t0_s, phase_cycles=float(buf.phi[sel[0]]),
+                              t0_s=res.t0_s + res.settle_s,
+                              phase_cycles=float(buf.phi[sel[0]]),
                               codes={c: w[sel] for c, w in buf.codes.items()}, volts=y,
                               clipped=dict(zip("axy", map(int, res.clipped))),
                               saturated=dict(zip("axy", map(int, res.saturated))))
