@@ -28,8 +28,8 @@ is the noiseless estimate minus the exact steady state at the point's frequency,
 linear chain (sweep lag, window averaging and the lead-in's transient together). Per point,
 ``settle_s`` is the sweep time since the previous point's instant (the first: since the start),
 ``integrate_s`` its window, ``t0_s`` the window's start less ``settle_s`` (so that, as in the
-stepped mode, ``t0_s + settle_s`` is the window's start), ``settle_bound`` the rule's first-order relative bias at the
-path's actual rate, ``rate / (2 pi d^2)`` (the same for a, x, y).
+stepped mode, ``t0_s + settle_s`` is the window's start), ``settle_bound`` the rule's
+first-order relative bias at the path's actual rate, ``rate / (2 pi d^2)`` (the same for a, x, y).
 
 Public API: :class:`SweptPlan`, :func:`swept_plan`, :func:`run_swept`.
 """
