@@ -256,7 +256,7 @@ class SineFileSink:
 
 
 def read_sine(path) -> dict:
-    """A sine run file's points as plain arrays: ``{"status", "points", "columns": {name:
+    """A sine run file's points as plain arrays: ``{"status", "points", "mode", "columns": {name:
     array}, "units": {name: unit}, "model_info", "settings", "scene_settings"}`` (the
     ``points_complete`` finished points only)."""
     from daq.repair import open_hdf5
@@ -272,6 +272,7 @@ def read_sine(path) -> dict:
         cols = {k: g[k][:n] for k in g if k not in ("point", "harmonic")}
         units = {k: str(g[k].attrs.get("units", "")) for k in cols}
         return {"status": e["status"][()].decode().strip("\x00 "), "points": n,
+                "mode": str(e.attrs.get("mode", "stepped")),
                 "columns": cols, "units": units, "harmonic": g["harmonic"][()],
                 "model_info": json.loads(e["model"].attrs["model_info_json"]),
                 "settings": json.loads(e["settings"].attrs["settings_json"]),
