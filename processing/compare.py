@@ -41,7 +41,8 @@ from types import MappingProxyType
 import numpy as np
 
 from processing.frf import MeasuredResponse
-from processing.spectra import ProcessingError, SpectralSettings, _readonly
+from processing.spectra import ProcessingError, SpectralSettings
+from rig.readonly import readonly
 
 __all__ = [
     "ModelError", "line_correlation", "expected_fraction_within", "fraction_standard_error",
@@ -464,8 +465,8 @@ def compare(measured: MeasuredResponse, model, *, expected=None,
     if not np.any(sel):
         raise ModelError(f"no finite measured lines in {fmin_hz} <= f <= {fmax_hz} Hz")
     idx = np.nonzero(sel)[0]
-    meas = dataclasses.replace(measured, freqs_hz=f_all[idx], h=_readonly(measured.h[idx]),
-                               coherence=_readonly(measured.coherence[idx]))
+    meas = dataclasses.replace(measured, freqs_hz=f_all[idx], h=readonly(measured.h[idx]),
+                               coherence=readonly(measured.coherence[idx]))
     mod = model_all[idx]
     exp_ = None if expected is None else np.asarray(expected, dtype=complex)[idx]
     for name, arr in (("model", mod), ("expected", exp_)):
@@ -486,7 +487,7 @@ def compare(measured: MeasuredResponse, model, *, expected=None,
     masks = {"away": away, **masks}
     for m in masks.values():
         m.setflags(write=False)
-    cmp = Comparison(meas, _readonly(mod), None if exp_ is None else _readonly(exp_), float(k),
+    cmp = Comparison(meas, readonly(mod), None if exp_ is None else readonly(exp_), float(k),
                      (), (), masks, df, settings)
     bands = tuple(_stats(name, m, cmp) for name, m in masks.items())
     eps = meas.relative_error

@@ -54,13 +54,13 @@ from processing.spectra import (
     SegmentFFTs,
     SettingsError,
     SpectralSettings,
-    _readonly,
     _require_cross,
     averaged_cross,
     coherence,
     segment_ffts,
 )
 from rig.linear import FrequencyResponse
+from rig.readonly import readonly
 
 
 
@@ -193,8 +193,8 @@ def frequency_response(ffts: SegmentFFTs, input, output, *,
         h[0] = np.nan  # the detrend removed the 0 Hz line: the ratio there is noise over noise
         g2[0] = np.nan
     u_in, u_out = ffts.units[input], ffts.units[output]
-    return MeasuredResponse(ffts.freqs_hz, _readonly(h), (output,), f"({u_out})/({u_in})",
-                            coherence=_readonly(g2), n_averages=ffts.n_segments,
+    return MeasuredResponse(ffts.freqs_hz, readonly(h), (output,), f"({u_out})/({u_in})",
+                            coherence=readonly(g2), n_averages=ffts.n_segments,
                             n_effective=ffts.n_effective, estimator=est, input=input,
                             output=output)
 

@@ -40,7 +40,8 @@ from processing.modal_model import (FINE_PER_LINE, KERNEL_TOL, MAX_FINE_GRID, Fi
                                     _WhiteLeakage, _direct, _input_terms, _pole, _pole_derivs,
                                     _poly_basis, _split)
 from processing.modal_solver import _Model, _real_stack, _varpro
-from processing.spectra import SpectralSettings, _readonly
+from processing.spectra import SpectralSettings
+from rig.readonly import readonly
 
 __all__ = ["FitError", "Mode", "ModalFit", "InputSpectrum", "fit_modes", "METHODS", "DOMAINS",
            "WEIGHTINGS", "MIN_LINES_PER_BANDWIDTH", "FINE_PER_LINE", "KERNEL_TOL"]
@@ -422,12 +423,12 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
                           residue_std=res_std, bandwidth_hz=bw, lines_per_bw=lpb,
                           leakage_limited=limited, reliable=reliable))
     fit = ModalFit(
-        modes=tuple(modes), residual_coeffs=_readonly(a_res), method=method, domain=domain,
+        modes=tuple(modes), residual_coeffs=readonly(a_res), method=method, domain=domain,
         weighting=weighting, band_hz=(lo, hi), f_centre_hz=fc, f_half_hz=fh,
-        freqs_hz=_readonly(f), data=_readonly(h), fitted=_readonly(fitted),
-        sigma=_readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
+        freqs_hz=readonly(f), data=readonly(h), fitted=readonly(fitted),
+        sigma=readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
         n_lines=int(f.size), n_params=n_par, dof=dof, chi2=chi2, reduced_chi2=chi2 / dof,
-        expected_reduced_chi2=expected_chi2, covariance=_readonly(cov), params=_readonly(params),
+        expected_reduced_chi2=expected_chi2, covariance=readonly(cov), params=readonly(params),
         fs=float(fs) if fs is not None else math.nan, resolution_hz=df, settings=settings,
         line_correlated=correlated, notes=(), input_spectrum=input_spectrum,
         iterations=n_iter)

@@ -22,6 +22,7 @@ from rig.blocks import AnalogBlock
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers import COUPLED_BENCH, integrate
 from rig.jit import njit
+from rig.readonly import readonly
 from rig.scene import Scene
 from rig.devices.source import SourceState, generate, start_source
 from rig.bench.model import COUPLED_METHODS, BenchModel
@@ -87,13 +88,8 @@ def start(model: BenchModel, seed=0) -> BenchState:
     if model.model == "nonlinear" and model.method not in COUPLED_METHODS:
         native = model.solver.init(model.chain, np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
     entropy = root.entropy if isinstance(root.entropy, int) else None
-    return BenchState(index=0, z=_readonly(z), source=src, rng_states=rngs, native=native,
+    return BenchState(index=0, z=readonly(z), source=src, rng_states=rngs, native=native,
                       seed_entropy=entropy)
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
 
 
 def _rng(state: dict) -> np.random.Generator:
@@ -119,9 +115,9 @@ def state_after(state: BenchState, n: int, z: np.ndarray, source: SourceState, g
     order; fresh snapshots) and a nonlinear integrator's ``native`` state (copied) and next
     step."""
     rng_states = {k: g.bit_generator.state for k, g in zip(SENSOR_STREAMS, generators)}
-    return BenchState(index=state.index + n, z=_readonly(z), source=source,
+    return BenchState(index=state.index + n, z=readonly(z), source=source,
                       rng_states=rng_states,
-                      native=None if native is None else _readonly(np.array(native)),
+                      native=None if native is None else readonly(np.array(native)),
                       h_next_s=float(h_next_s), seed_entropy=state.seed_entropy)
 
 

@@ -53,6 +53,7 @@ from rig.devices import multisine as _ms
 from rig.errors import ConfigError
 from rig.jit import njit
 from rig.params import param
+from rig.readonly import readonly
 
 SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine", "multisine")
 NOISE_TYPES = ("random", "burst-random", "pink")
@@ -405,14 +406,8 @@ def start_source(source: Source, seed) -> SourceState:
         history = standard_normals(rng, source.n_taps - 1)  # primes the FIR: stationary from t = 0
     elif source.type == "multisine":  # the key of its phases and grid (rig.devices.multisine)
         history = np.array([rng.integers(0, 2 ** 63 - 1)], dtype=np.int64)
-    return SourceState(index=0, rng_state=_copy_state(rng), history=_readonly(history),
-                       buffer=_readonly(np.empty(0)), offset=0)
-
-
-def _readonly(a):
-    if a is not None:
-        a.setflags(write=False)
-    return a
+    return SourceState(index=0, rng_state=_copy_state(rng), history=readonly(history),
+                       buffer=readonly(np.empty(0)), offset=0)
 
 
 def _noise(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, SourceState]:
@@ -437,7 +432,7 @@ def _noise(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, Sour
             y, history = _frame_pair(history, fresh, source._taps_spectrum_full)
         else:
             y, history = _frame_real(history, fresh, source._taps_spectrum)
-        buffer, history = _readonly(y), _readonly(history)
+        buffer, history = readonly(y), readonly(history)
         offset = 0
     if len(parts) == 1:
         out = parts[0].copy()
