@@ -496,7 +496,7 @@ def mark_interrupted(path: str | Path) -> int | None:
     with h5py.File(path, "r+") as f:
         if f.attrs.get("file_format") != FORMAT:
             return None
-        status, n = _status(f)
+        status, n = run_status(f)
         if status != "acquiring":
             return None
         entry = f["entry"]
@@ -534,7 +534,9 @@ def _s(v) -> str:
     return str(v)
 
 
-def _status(f) -> tuple[str, int]:
+def run_status(f) -> tuple[str, int]:
+    """(``entry/status`` without its padding, ``entry/records_complete``) of the open run file
+    ``f``: what a reader polling a growing file needs, without reading any data."""
     e = f["entry"]
     return _s(e["status"][()]).strip("\x00 "), int(e["records_complete"][()])
 
@@ -544,7 +546,7 @@ def run_info(path: str | Path) -> dict:
     path = Path(path)
     with open_run(path) as f:
         e = f["entry"]
-        status, n = _status(f)
+        status, n = run_status(f)
         data = e["data"]
         names = [data.attrs["signal"]] + [_s(s) for s in data.attrs.get("auxiliary_signals", [])]
         channels = []
@@ -601,7 +603,7 @@ def read_run(path: str | Path, records=None) -> Recording:
 
     with open_run(path) as f:
         e = f["entry"]
-        status, n = _status(f)
+        status, n = run_status(f)
         rows = slice(0, n)
         if records is not None:
             rows = np.unique(np.asarray(list(records), dtype=np.int64))

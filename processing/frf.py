@@ -50,11 +50,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from processing.choices import ESTIMATORS
+from processing.segments import require_cross
 from processing.spectra import (
     SegmentFFTs,
     SettingsError,
     SpectralSettings,
-    _require_cross,
     averaged_cross,
     coherence,
     segment_ffts,
@@ -175,7 +175,7 @@ def frequency_response(ffts: SegmentFFTs, input, output, *,
     est = str(estimator).lower()
     if est not in ESTIMATORS:
         raise SettingsError(f"estimator = {estimator!r} is invalid: expected one of {ESTIMATORS}")
-    _require_cross(ffts, "a frequency response")
+    require_cross(ffts, "a frequency response")
     gxx = averaged_cross(ffts, input, input)
     gyy = averaged_cross(ffts, output, output)
     gxy = averaged_cross(ffts, input, output)

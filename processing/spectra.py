@@ -23,7 +23,7 @@ import numpy as np
 
 from processing.choices import AVERAGING, WINDOWS
 from processing.errors import ChannelDataError, ProcessingError, SettingsError
-from processing.segments import SegmentFFTs, _require_cross, averaged_cross, segment_ffts
+from processing.segments import SegmentFFTs, require_cross, averaged_cross, segment_ffts
 from processing.spectral_settings import (DETRENDS, SpectralSettings, WindowInfo,
                                           window_autocorrelation)
 from rig.readonly import readonly
@@ -167,7 +167,7 @@ def cross_spectrum(ffts: SegmentFFTs, x, y, *, scaling: str = "density") -> Spec
         Under peak hold, where cross spectra are undefined.
     """
     _check_scaling(scaling)
-    _require_cross(ffts, "a cross spectrum")
+    require_cross(ffts, "a cross spectrum")
     g = averaged_cross(ffts, x, y).astype(np.complex128)
     info = ffts.settings.window_info
     if scaling == "spectrum":
@@ -185,7 +185,7 @@ def coherence(ffts: SegmentFFTs, x, y) -> np.ndarray:
     Lines where ``G_xx G_yy = 0`` give NaN. The estimate is biased up by about
     ``(1 - gamma^2)^2 / n_effective`` (so uncorrelated signals read about ``1 / n_effective``).
     """
-    _require_cross(ffts, "coherence")
+    require_cross(ffts, "coherence")
     gxx = averaged_cross(ffts, x, x, power_average=True)
     gyy = averaged_cross(ffts, y, y, power_average=True)
     gxy = averaged_cross(ffts, x, y, power_average=True)

@@ -48,9 +48,6 @@ ALLOWED: dict = {
     ('benchmarks.predictor', 'benchmarks._interleave', ''): _TO_NAME,
     ('benchmarks.scpi', 'benchmarks._interleave', ''): _TO_NAME,
     ('benchmarks.targets', 'benchmarks.work_precision', '_ivp_per_sample'): _TO_NAME,
-    ('daq.check', 'daq.repair', '_first_line'): _TO_NAME,
-    ('processing.follow', 'daq.hdf5', '_status'): _TO_NAME,
-    ('processing.frf', 'processing.spectra', '_require_cross'): _TO_NAME,
     ('processing.live_view', 'processing.live_view.stream', '_listening'): _TO_NAME,
     ('processing.live_view.blueprint', 'processing.live_view.drawing', '_bench_bounds'): _TO_NAME,
     ('processing.live_view.replay', 'processing.live_view.blueprint', '_following'): _TO_NAME,
@@ -79,7 +76,6 @@ ALLOWED: dict = {
     ('processing.modal', 'processing.modal_solver', '_varpro'): _TO_NAME,
     ('processing.modal_solver', 'processing.modal_model', '_pole_derivs'): _TO_NAME,
     ('processing.rotation', 'processing.modal', '_correlation_matrix'): _TO_NAME,
-    ('processing.spectra', 'processing.segments', '_require_cross'): _TO_NAME,
     ('rig.bench', 'rig.bench.estimates', '_kernel_theta'): _TO_NAME,
     ('rig.bench', 'rig.bench.response', '_as_linear'): _TO_NAME,
     ('rig.bench', 'rig.bench.run', '_spawn'): _TO_NAME,
@@ -91,7 +87,6 @@ ALLOWED: dict = {
     ('rig.bench.simulation', 'rig.bench.run', '_block_sizes'): _TO_NAME,
     ('rig.bench.simulation', 'rig.bench.run', '_source_blocks'): _TO_NAME,
     ('rig.bench.simulation', 'rig.bench.run', '_spawn'): _TO_NAME,
-    ('rig.solvers.etd4m', 'rig.solvers.etd3m', '_piece_integral'): _TO_NAME,
 }
 
 
