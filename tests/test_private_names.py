@@ -32,14 +32,7 @@ _TO_NAME = "shared before this test: to be made public with its contract, or mov
 ALLOWED: dict = {
     ('benchmarks.acquire', 'benchmarks._interleave', ''): _TO_NAME,
     ('benchmarks.acquire_lifted', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.acquire_lifted', 'rig.bench', '_spawn'): _TO_NAME,
-    ('benchmarks.acquire_nonlinear_parts', 'rig.bench.fused', '_MirrorLayout'): _TO_NAME,
-    ('benchmarks.acquire_nonlinear_parts', 'rig.bench.fused', '_nonlinear_kernel'): _TO_NAME,
-    ('benchmarks.acquire_nonlinear_parts', 'rig.bench.run', '_mirror_kinematics'): _TO_NAME,
     ('benchmarks.acquire_trees', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.coupled', 'rig.bench', '_as_linear'): _TO_NAME,
-    ('benchmarks.coupled', 'rig.bench', '_kernel_theta'): _TO_NAME,
-    ('benchmarks.coupled', 'rig.bench', '_spawn'): _TO_NAME,
     ('benchmarks.design_mc', 'benchmarks._interleave', ''): _TO_NAME,
     ('benchmarks.floors', 'benchmarks._interleave', ''): _TO_NAME,
     ('benchmarks.floors', 'rig.devices.source', '_design'): _TO_NAME,
@@ -76,17 +69,6 @@ ALLOWED: dict = {
     ('processing.modal', 'processing.modal_solver', '_varpro'): _TO_NAME,
     ('processing.modal_solver', 'processing.modal_model', '_pole_derivs'): _TO_NAME,
     ('processing.rotation', 'processing.modal', '_correlation_matrix'): _TO_NAME,
-    ('rig.bench', 'rig.bench.estimates', '_kernel_theta'): _TO_NAME,
-    ('rig.bench', 'rig.bench.response', '_as_linear'): _TO_NAME,
-    ('rig.bench', 'rig.bench.run', '_spawn'): _TO_NAME,
-    ('rig.bench.estimates', 'rig.bench.response', '_as_linear'): _TO_NAME,
-    ('rig.bench.estimates', 'rig.bench.run', '_spawn'): _TO_NAME,
-    ('rig.bench.simulation', 'rig.bench.estimates', '_model_info'): _TO_NAME,
-    ('rig.bench.simulation', 'rig.bench.response', '_calibrations'): _TO_NAME,
-    ('rig.bench.simulation', 'rig.bench.run', '_REL'): _TO_NAME,
-    ('rig.bench.simulation', 'rig.bench.run', '_block_sizes'): _TO_NAME,
-    ('rig.bench.simulation', 'rig.bench.run', '_source_blocks'): _TO_NAME,
-    ('rig.bench.simulation', 'rig.bench.run', '_spawn'): _TO_NAME,
 }
 
 

@@ -29,7 +29,8 @@ from rig.devices.source import NOISE_TYPES, Source
 from rig.bench.model import BenchModel, build_model
 
 
-def _calibrations(model: BenchModel) -> dict[str, Calibration]:
+def model_calibrations(model: BenchModel) -> dict[str, Calibration]:
+    """:func:`calibrations` from a built model's own sensors (what its run records)."""
     cal = {"a": model.accelerometer.calibration()}
     cal.update(model.lever.calibrations())
     return cal
@@ -143,7 +144,7 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
     drive's level computes them once (tests/rig/test_scene_memo.py).
     """
     model = build_model(scene) if scene.acquisition.model == "linear" else \
-        build_model(_as_linear(scene))
+        build_model(scene.with_acquisition(model="linear"))
     f = np.atleast_1d(np.asarray(freqs_hz, float))
     fs = model.fs_hz
     if np.any(~np.isfinite(f)) or np.any(f < 0) or np.any(f >= fs / 2):
@@ -184,7 +185,7 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
             arr[dc] = 0.0
     mirror_x = theta @ scene.mirror_weights()
     mirror_rot = theta[:, scene.mirror.body]
-    cal = _calibrations(model)
+    cal = model_calibrations(model)
     x = cal["x"].volts_per_unit * mirror_x
     y = cal["y"].volts_per_unit * mirror_rot
     a_eng = a / cal["a"].volts_per_unit
@@ -217,10 +218,6 @@ def _dc_ratios(scene: Scene, acc, cal) -> tuple[complex, complex, complex, compl
     return h_t_p, th2_p, h_t_p / gain, th2_p / gain
 
 
-def _as_linear(scene: Scene) -> Scene:
-    return scene.with_acquisition(model="linear")
-
-
 def _source_psd(source: Source, f: np.ndarray) -> np.ndarray:
     """One-sided PSD of the source [V^2/Hz] used for level estimates: the design PSD of the
     noise types (burst random scaled by its on-fraction), a flat band of the same power for the
@@ -241,7 +238,7 @@ def stationary_levels(scene: Scene, *, points: int = 100_001) -> dict:
     stage acceleration, stroke, angles, mirror translation and spot positions, from the
     source PSD and :func:`expected_response` (``sampled=False``) integrated over 0..fmax.
     For a sine source the rms of the steady-state line."""
-    model = build_model(_as_linear(scene))
+    model = build_model(scene.with_acquisition(model="linear"))
     src = model.source
     if src.type == "sine":
         f = np.array([src.frequency_hz])
@@ -277,7 +274,7 @@ def stationary_levels(scene: Scene, *, points: int = 100_001) -> dict:
 def signal_to_noise(scene: Scene, freqs_hz) -> dict[str, np.ndarray]:
     """Analytic signal-to-noise ratio of each channel [dB] at ``freqs_hz``: the channel's PSD
     under the scene's (noise-type) source over its sensor's white noise PSD."""
-    model = build_model(_as_linear(scene))
+    model = build_model(scene.with_acquisition(model="linear"))
     f = np.atleast_1d(np.asarray(freqs_hz, float))
     p = _source_psd(model.source, f)
     if p is None:
