@@ -45,8 +45,8 @@ from processing.spectra import ProcessingError, SpectralSettings
 from rig.readonly import readonly
 
 __all__ = [
-    "ModelError", "line_correlation", "expected_fraction_within", "fraction_standard_error",
-    "BandStats", "PeakBias", "Comparison", "compare",
+    "ModelError", "line_correlation", "correlation_matrix", "expected_fraction_within",
+    "fraction_standard_error", "BandStats", "PeakBias", "Comparison", "compare",
 ]
 
 class ModelError(ProcessingError, ValueError):
@@ -65,6 +65,13 @@ def line_correlation(settings: SpectralSettings, *, tol: float = 1e-6) -> np.nda
     c = rho**2
     big = np.nonzero(c > tol)[0]
     return c[: big[-1] + 1].copy() if big.size else np.ones(1)
+
+
+def correlation_matrix(lines: np.ndarray, corr: np.ndarray) -> np.ndarray:
+    """The correlation matrix ``R[i, j] = corr[|lines[i] - lines[j]|]`` (0 beyond the last lag)
+    of the errors at the line indices ``lines``, ``corr`` from :func:`line_correlation`."""
+    lag = np.abs(lines[:, None] - lines[None, :])
+    return np.where(lag < corr.size, corr[np.minimum(lag, corr.size - 1)], 0.0)
 
 
 def expected_fraction_within(k: float, n_effective: float) -> float:

@@ -13,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from processing.compare import line_correlation
+from processing.compare import correlation_matrix, line_correlation
 from processing.frf import MeasuredResponse
-from processing.modal import _correlation_matrix
 from processing.modal_model import FitError
 from processing.spectra import SpectralSettings
 from rig.readonly import readonly
@@ -114,7 +113,7 @@ def rotation_reading(theta2: MeasuredResponse, theta1, *, band_hz: tuple[float, 
     cmat = np.diag(srel**2)
     if settings is not None:
         lines = np.round(f / settings.resolution_hz).astype(int)
-        cmat = _correlation_matrix(lines, line_correlation(settings)) * np.outer(srel, srel)
+        cmat = correlation_matrix(lines, line_correlation(settings)) * np.outer(srel, srel)
     n = f.size
     std = math.sqrt(float(cmat.sum())) / n
     db = 20.0 / math.log(10.0)

@@ -41,21 +41,6 @@ ALLOWED: dict = {
     ('benchmarks.predictor', 'benchmarks._interleave', ''): _TO_NAME,
     ('benchmarks.scpi', 'benchmarks._interleave', ''): _TO_NAME,
     ('benchmarks.targets', 'benchmarks.work_precision', '_ivp_per_sample'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_DirectTerms'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_InputLeakage'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_LagInputLeakage'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_WhiteLeakage'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_direct'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_input_terms'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_pole'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_pole_derivs'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_poly_basis'): _TO_NAME,
-    ('processing.modal', 'processing.modal_model', '_split'): _TO_NAME,
-    ('processing.modal', 'processing.modal_solver', '_Model'): _TO_NAME,
-    ('processing.modal', 'processing.modal_solver', '_real_stack'): _TO_NAME,
-    ('processing.modal', 'processing.modal_solver', '_varpro'): _TO_NAME,
-    ('processing.modal_solver', 'processing.modal_model', '_pole_derivs'): _TO_NAME,
-    ('processing.rotation', 'processing.modal', '_correlation_matrix'): _TO_NAME,
 }
 
 
