@@ -35,7 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
+from benchmarks.interleave import interleaved, ratio_rows  # noqa: E402
 from daq.acquisition import acquire  # noqa: E402
 from daq.benches import BLOCK_S, rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink, read_run  # noqa: E402

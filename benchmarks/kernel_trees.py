@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from benchmarks._interleave import tree_pairs  # noqa: E402
+from benchmarks.interleave import tree_pairs  # noqa: E402
 
 HERE = Path(__file__).resolve().parent.parent
 

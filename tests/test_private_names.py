@@ -28,20 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("rig", "daq", "processing", "benchmarks")
 
 #: (importer, module, name) -> why it is still there; the list only shrinks
-_TO_NAME = "shared before this test: to be made public with its contract, or moved to its user"
-ALLOWED: dict = {
-    ('benchmarks.acquire', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.acquire_lifted', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.acquire_trees', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.design_mc', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.floors', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.floors', 'rig.devices.source', '_design'): _TO_NAME,
-    ('benchmarks.floors', 'rig.devices.source', '_real_spectrum'): _TO_NAME,
-    ('benchmarks.kernel_trees', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.predictor', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.scpi', 'benchmarks._interleave', ''): _TO_NAME,
-    ('benchmarks.targets', 'benchmarks.work_precision', '_ivp_per_sample'): _TO_NAME,
-}
+ALLOWED: dict = {}
 
 
 def _private(name: str) -> bool:

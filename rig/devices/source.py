@@ -236,21 +236,21 @@ class Source:
     @property
     def taps(self) -> np.ndarray:
         """The normalised FIR (``sum taps^2 = 1``), shape (n_taps,), read-only (noise types)."""
-        return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
-                       self.fs_hz)[0]
+        return noise_fir(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                         self.fs_hz)[0]
 
     @property
     def _taps_spectrum(self) -> np.ndarray:
         """rfft of the taps over one frame (the path of one real FFT a frame, made when first
         asked for)."""
-        return _real_spectrum(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+        return noise_fir_rfft(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
                               self.fs_hz)
 
     @property
     def _taps_spectrum_full(self) -> np.ndarray:
         """The complex FFT of the taps over one frame (both halves)."""
-        return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
-                       self.fs_hz)[1]
+        return noise_fir(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                         self.fs_hz)[1]
 
     def design_psd(self, freqs_hz) -> np.ndarray:
         """Design one-sided PSD of the DAC samples [V^2/Hz] for the noise types (random, pink;
@@ -311,7 +311,7 @@ def _amplitude(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
 
 
 @lru_cache(maxsize=8)
-def _design(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: float):
+def noise_fir(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: float):
     """(taps, the complex FFT of the taps over one frame) of the noise-shaping FIR (module
     docstring); cached by its parameters, both read-only."""
     n = 1 << int(math.ceil(math.log2(FILTER_SPAN_S * fs_hz)))
@@ -328,10 +328,10 @@ def _design(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: 
 
 
 @lru_cache(maxsize=8)
-def _real_spectrum(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
+def noise_fir_rfft(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
                    fs_hz: float) -> np.ndarray:
-    """rfft over one frame of :func:`_design`'s taps for these parameters, read-only (cached)."""
-    taps = _design(pink, fmin_hz, fmax_hz, shelf_hz, fs_hz)[0]
+    """rfft over one frame of :func:`noise_fir`'s taps for these parameters, read-only (cached)."""
+    taps = noise_fir(pink, fmin_hz, fmax_hz, shelf_hz, fs_hz)[0]
     spec = np.fft.rfft(taps, n=FRAME_FACTOR * taps.size)
     spec.setflags(write=False)
     return spec
