@@ -21,7 +21,7 @@ from rig.devices.source import generate, start_source
 from rig.bench.estimates import model_info_of
 from rig.bench.fused import advance_decimated, advance_decimated_nonlinear, lift, start_decimated
 from rig.bench.model import build_model
-from rig.bench.response import model_calibrations
+from rig.bench.response import calibrations
 from rig.bench.run import spawn_streams, advance, start
 
 _REL = 1e-9
@@ -205,7 +205,7 @@ class BenchSimulation:
 
     def calibrations(self) -> dict[str, Calibration]:
         """Per-channel calibrations (:func:`calibrations`)."""
-        return model_calibrations(self.model)
+        return calibrations(self.model.scene)
 
     def model_info(self, *, probe_s: float = 20.0) -> dict:
         """What runs, why, and how accurate it is (computed once, cached; JSON-ready).
