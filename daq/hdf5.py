@@ -538,7 +538,7 @@ def _s(v) -> str:
 
 def run_status(f) -> tuple[str, int]:
     """(the run's status without its padding, its finished records) of the open run file ``f``
-    (:data:`layout.STATUS`, :data:`layout.RECORDS_COMPLETE`): what a reader polling a growing
+    (:data:`daq.run_layout.STATUS`, ``RECORDS_COMPLETE``): what a reader polling a growing
     file needs, without reading any data."""
     return _s(f[layout.STATUS][()]).strip("\x00 "), int(f[layout.RECORDS_COMPLETE][()])
 
