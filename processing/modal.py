@@ -35,12 +35,13 @@ import numpy as np
 
 from processing.compare import line_correlation
 from processing.frf import MeasuredResponse
-from processing.modal_model import (FINE_PER_LINE, KERNEL_TOL, MAX_FINE_GRID, FitError,
-                                    InputSpectrum, _DirectTerms, _InputLeakage, _LagInputLeakage,
-                                    _WhiteLeakage, _direct, _input_terms, _pole, _pole_derivs,
-                                    _poly_basis, _split)
-from processing.modal_solver import _Model, _real_stack, _varpro
-from processing.spectra import SpectralSettings, _readonly
+from processing.modal_model import (FINE_PER_LINE, KERNEL_TOL, MAX_FINE_GRID, DirectTerms,
+                                    FitError, InputLeakage, InputSpectrum, LagInputLeakage,
+                                    WhiteLeakage, coloured_input_terms, direct_model, mode_pole,
+                                    mode_pole_derivs, poly_basis, unpack_params)
+from processing.modal_solver import LineModel, real_stack, varpro
+from processing.spectra import SpectralSettings
+from rig.readonly import readonly
 
 __all__ = ["FitError", "Mode", "ModalFit", "InputSpectrum", "fit_modes", "METHODS", "DOMAINS",
            "WEIGHTINGS", "MIN_LINES_PER_BANDWIDTH", "FINE_PER_LINE", "KERNEL_TOL"]
@@ -81,7 +82,7 @@ class Mode:
     @property
     def pole(self) -> complex:
         """Continuous pole ``p`` [rad/s]."""
-        return _pole(self.f_hz, self.q)
+        return mode_pole(self.f_hz, self.q)
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,22 +158,17 @@ class ModalFit:
     def response(self, freqs_hz) -> np.ndarray:
         """The fitted modal model ``H(f)`` (not the leakage-tapered one) at ``freqs_hz`` [Hz]."""
         f = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
-        h, _ = _direct(self.params, f, len(self.modes), self.residual_coeffs.size, self.domain,
-                       self.fs, self.f_centre_hz, self.f_half_hz, jac=False)
+        h, _ = direct_model(self.params, f, len(self.modes), self.residual_coeffs.size, self.domain,
+                            self.fs, self.f_centre_hz, self.f_half_hz, jac=False)
         return h
 
 
 # -- model evaluation ------------------------------------------------------------------------
 
 
-def _correlation_matrix(lines: np.ndarray, corr: np.ndarray) -> np.ndarray:
-    lag = np.abs(lines[:, None] - lines[None, :])
-    return np.where(lag < corr.size, corr[np.minimum(lag, corr.size - 1)], 0.0)
-
-
 def _correlate_lines(lines: np.ndarray, corr: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``R @ x`` for ``R = _correlation_matrix(lines, corr)`` without forming ``R``: ``lines``
-    ascending and distinct, ``corr`` (a few lags) from :func:`line_correlation`."""
+    """``R @ x`` for ``R`` of :func:`processing.compare.correlation_matrix` without forming it:
+    ``lines`` ascending and distinct, ``corr`` (a few lags) from :func:`line_correlation`."""
     out = corr[0] * x
     for d in range(1, corr.size):
         i = np.searchsorted(lines, lines + d)  # pairs (j, i) with lines[i] = lines[j] + d
@@ -344,31 +340,31 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
                    + [c * q / (math.pi * fr) for (fr, q), c in zip(fq, factors)])
 
     if method == "direct":
-        terms = _DirectTerms(f, domain, fs)
+        terms = DirectTerms(f, domain, fs)
     elif input_spectrum is None:
-        terms = _WhiteLeakage(settings, lines)
-    elif _input_terms(settings) is _LagInputLeakage:
-        terms = _LagInputLeakage(settings, lines, input_spectrum)
+        terms = WhiteLeakage(settings, lines)
+    elif coloured_input_terms(settings) is LagInputLeakage:
+        terms = LagInputLeakage(settings, lines, input_spectrum)
     else:  # a Q read off a leakage-broadened peak is about half the mode's (module notes)
-        terms = _InputLeakage(settings, lines, input_spectrum, _InputLeakage.fine_for(
+        terms = InputLeakage(settings, lines, input_spectrum, InputLeakage.fine_for(
             settings, slowest(starts, [2.0 if b else 1.0 for b in broadened])))
-    basis = _poly_basis(f, n_residual, fc, fh)
-    model = _Model(terms, basis, m, domain, fs)
+    basis = poly_basis(f, n_residual, fc, fh)
+    model = LineModel(terms, basis, m, domain, fs)
     span = hi - lo
     # A decay over a thousand records is indistinguishable from none: Q is bounded there.
     q_max = max(1e3 * math.pi * hi / df, 10.0 * max(q for _, q in starts))
-    theta, beta, n_iter, converged = _varpro(model, h, sigma, np.array(starts, float), lo, span,
-                                             q_max)
-    if isinstance(terms, _InputLeakage):
-        fine = _InputLeakage.fine_for(settings, slowest(theta))
+    theta, beta, n_iter, converged = varpro(model, h, sigma, np.array(starts, float), lo, span,
+                                            q_max)
+    if isinstance(terms, InputLeakage):
+        fine = InputLeakage.fine_for(settings, slowest(theta))
         if fine > terms.fine:  # the modes decay more slowly than the start said: once more, on
-            terms = _InputLeakage(settings, lines, input_spectrum, fine)  # the grid they need
-            model = _Model(terms, basis, m, domain, fs)
-            theta, beta, more, converged = _varpro(model, h, sigma, theta, lo, span, q_max)
+            terms = InputLeakage(settings, lines, input_spectrum, fine)  # the grid they need
+            model = LineModel(terms, basis, m, domain, fs)
+            theta, beta, more, converged = varpro(model, h, sigma, theta, lo, span, q_max)
             n_iter += more
     params = np.concatenate([theta.ravel(), beta])
     fitted, jac = model.full(params)
-    jw = _real_stack(jac / sigma[:, None])
+    jw = real_stack(jac / sigma[:, None])
     try:
         a_inv = np.linalg.inv(jw.T @ jw)
     except np.linalg.LinAlgError:
@@ -381,10 +377,10 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
         cov = a_inv @ (jw.T @ rj) @ a_inv * cov_factor
     else:
         cov = a_inv * cov_factor
-    r = _real_stack((fitted - h) / sigma)
+    r = real_stack((fitted - h) / sigma)
     chi2 = float(r @ r)
     dof = 2 * f.size - n_par
-    fq, c, a_res = _split(params, m, n_residual)
+    fq, c, a_res = unpack_params(params, m, n_residual)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     notes = []
     modes = []
@@ -392,7 +388,7 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
     input_txt = "white input" if input_spectrum is None else f"input: {input_spectrum.label}"
     for r_i in order:
         fr, q = (float(v) for v in fq[r_i])
-        p, dpf, dpq = _pole_derivs(fr, q)
+        p, dpf, dpq = mode_pole_derivs(fr, q)
         # Continuous-equivalent residue and its Jacobian w.r.t. (f, Q, Re c, Im c).
         if domain == "z":
             e = np.exp(-p / fs) * fs
@@ -422,25 +418,25 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
                           residue_std=res_std, bandwidth_hz=bw, lines_per_bw=lpb,
                           leakage_limited=limited, reliable=reliable))
     fit = ModalFit(
-        modes=tuple(modes), residual_coeffs=_readonly(a_res), method=method, domain=domain,
+        modes=tuple(modes), residual_coeffs=readonly(a_res), method=method, domain=domain,
         weighting=weighting, band_hz=(lo, hi), f_centre_hz=fc, f_half_hz=fh,
-        freqs_hz=_readonly(f), data=_readonly(h), fitted=_readonly(fitted),
-        sigma=_readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
+        freqs_hz=readonly(f), data=readonly(h), fitted=readonly(fitted),
+        sigma=readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
         n_lines=int(f.size), n_params=n_par, dof=dof, chi2=chi2, reduced_chi2=chi2 / dof,
-        expected_reduced_chi2=expected_chi2, covariance=_readonly(cov), params=_readonly(params),
+        expected_reduced_chi2=expected_chi2, covariance=readonly(cov), params=readonly(params),
         fs=float(fs) if fs is not None else math.nan, resolution_hz=df, settings=settings,
         line_correlated=correlated, notes=(), input_spectrum=input_spectrum,
         iterations=n_iter)
     if not converged:
         notes.append(f"least squares did not converge in {n_iter} iterations")
-    if isinstance(terms, _InputLeakage):
+    if isinstance(terms, InputLeakage):
         tau = slowest(fq)
         bound = terms.alias_bound(tau)
         if bound > 10 * KERNEL_TOL:
             notes.append(f"the coloured-input model's fine grid ({terms.fine} points per line, "
                          f"at most {MAX_FINE_GRID} around the circle) aliases the slowest fitted "
                          f"decay (tau = {tau:.3g} s) by up to {bound:.1e} (relative)")
-    if isinstance(terms, _LagInputLeakage) and terms.alias > 10 * KERNEL_TOL:
+    if isinstance(terms, LagInputLeakage) and terms.alias > 10 * KERNEL_TOL:
         notes.append(f"the input's correlation is not negligible at half the lag grid "
                      f"({terms.alias:.1e} of its peak): give input_spectrum.decay_s")
     if not fit.adequate:

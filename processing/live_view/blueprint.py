@@ -7,14 +7,15 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from processing.live_view.drawing import (BODE_BOUNDS, COHERENCE_BOUNDS, SIGNALS, VOLTS,
-                                           _bench_bounds, display_unit)
+                                           bench_bounds, display_unit)
 from processing.live_view.stream import TIMELINE
 
 SIGNAL_WINDOW_S = 20.0
 TRAIL_S = 2.0
 
 
-def _following(seconds: float) -> rrb.VisibleTimeRange:
+def trailing_range(seconds: float) -> rrb.VisibleTimeRange:
+    """A view's visible time range: the last ``seconds`` up to the time cursor."""
     return rrb.VisibleTimeRange(TIMELINE,
                                 start=rrb.TimeRangeBoundary.cursor_relative(seconds=-seconds),
                                 end=rrb.TimeRangeBoundary.cursor_relative())
@@ -31,7 +32,7 @@ def _series(entity: str, names, header) -> list:
         shown = rr.SeriesLines.from_fields(visible_series=[j == i for j in range(len(names))])
         views.append(rrb.TimeSeriesView(origin=entity, name=title, overrides={entity: shown},
                                         plot_legend=rrb.PlotLegend(visible=False),
-                                        time_ranges=_following(SIGNAL_WINDOW_S)))
+                                        time_ranges=trailing_range(SIGNAL_WINDOW_S)))
     return views
 
 
@@ -41,13 +42,13 @@ def acquisition_blueprint(view) -> rrb.Blueprint:
     signals in the middle, the analyzer on the right; the time panel follows the newest data."""
     h = view.header
     left = [rrb.Spatial2DView(origin="/bench", name="bench (side view, mm)",
-                              visual_bounds=_bench_bounds(view.drawing, True))]
+                              visual_bounds=bench_bounds(view.drawing, True))]
     if view.has_spot:
         hh = view.drawing.psd_half_mm * 1.25
         left.append(rrb.Spatial2DView(origin="/psd", name=f"PSD spot (last {TRAIL_S:g} s)",
                                       visual_bounds=rrb.VisualBounds2D(
                                           x_range=(-hh, hh), y_range=(-hh, 1.7 * hh)),
-                                      time_ranges=_following(TRAIL_S)))
+                                      time_ranges=trailing_range(TRAIL_S)))
     left.append(rrb.TextDocumentView(origin="/status", name="status"))
     middle = rrb.Tabs(rrb.Vertical(*_series(SIGNALS, view.names, h),
                                    name="signals (engineering units)"),

@@ -41,12 +41,12 @@ import rerun.blueprint as rrb
 
 from processing import bode_canvas as bc
 from processing.bench_geometry import MAGNIFICATION, MM, BenchDrawing, frame_indices, frame_step
-from processing.live_view.blueprint import _following
+from processing.live_view.blueprint import trailing_range
 from processing.live_view.drawing import (ANALYZER_WIDTH, BODE_BOUNDS, CHANNEL_COLORS, MARKS,
-                                          MEASURED, MODEL, PENDULUM, SIGNALS, _analyzer_panels,
-                                          _bench_bounds, _bench_layout, _bode_strips,
-                                          _chain_frames, _db, _log_bench_static,
-                                          _log_chain_style, _log_panel_static, display_unit,
+                                          MEASURED, MODEL, PENDULUM, SIGNALS, analyzer_panels,
+                                          bench_bounds, bench_layout, bode_strips,
+                                          chain_frames, gain_db, log_bench_static,
+                                          log_chain_style, log_panel_static, display_unit,
                                           legend_row)
 from processing.live_view.stream import TIMELINE, ViewerStream
 from processing.phase_display import phase_branch, wrap_to
@@ -109,7 +109,7 @@ def sine_blueprint(*, records: bool, units: dict, bench_bounds=None,
             views.append(rrb.TimeSeriesView(
                 origin=SIGNALS, name=f"{c} [{display_unit(units.get(c, ''))[1]}]",
                 overrides={SIGNALS: shown}, plot_legend=rrb.PlotLegend(visible=False),
-                time_ranges=_following(SIGNAL_TAIL_S)))
+                time_ranges=trailing_range(SIGNAL_TAIL_S)))
         cols.append(rrb.Vertical(*views, name="signals (engineering units)"))
         shares.append(0.8)
     cols.append(right)
@@ -176,8 +176,8 @@ class _Replay:
         resolved = self.bench.resolved(fmin, fmax)
         self.model_f = resolved.freqs_hz
         self.model = {"H_t": resolved.h_t, "Theta_2": resolved.theta_2}
-        measured_db = {k: _db(self.h[name]) for k, name, _ in RESPONSES}
-        self.panels = _analyzer_panels(self.model_f, {k: _db(v) for k, v in self.model.items()},
+        measured_db = {k: gain_db(self.h[name]) for k, name, _ in RESPONSES}
+        self.panels = analyzer_panels(self.model_f, {k: gain_db(v) for k, v in self.model.items()},
                                        measured_db,
                                        {k: phase_branch((self.model_f, v))
                                         for k, v in self.model.items()})
@@ -191,8 +191,8 @@ class _Replay:
             lo = gain.hi - step * math.ceil((gain.hi - lo) / step)
             self.panels[key] = (replace(gain, lo=lo, ticks=bc.ticks(lo, gain.hi, step)), phase)
         upd = self.panels["H_t"][0].units_per_decade
-        self.diff_db = {name: _db(self.h[name] / self.exact[name]) for _, name, _ in RESPONSES}
-        self.bias_db = {name: _db(self.biased[name] / self.exact[name])
+        self.diff_db = {name: gaingain_db(self.h[name] / self.exact[name]) for _, name, _ in RESPONSES}
+        self.bias_db = {name: gaingain_db(self.biased[name] / self.exact[name])
                         for _, name, _ in RESPONSES}
         sigma = {name: 20 / math.log(10) * self.c[f"{name}_rel_error"]
                  for _, name, _ in RESPONSES}
@@ -205,15 +205,15 @@ class _Replay:
         units = self.records["units"] if self.records else {}
         s = self.stream
         s.open(sine_blueprint(records=self.records is not None, units=units, bias=self.bias_name,
-                             bench_bounds=_bench_bounds(self.drawing, True)))
+                             bench_bounds=bench_bounds(self.drawing, True)))
         self._log_bench()
         self._log_analyzer()
 
     def _log_bench(self) -> None:
         s, d = self.stream, self.drawing
-        _log_bench_static(s, d, moving_stage=True, optics=self.has_spot)
-        _log_chain_style(s, len(d.lengths_mm))
-        lines, strips, marks, centre = _chain_frames(d, np.zeros((1, len(d.lengths_mm))))
+        log_bench_static(s, d, moving_stage=True, optics=self.has_spot)
+        log_chain_style(s, len(d.lengths_mm))
+        lines, strips, marks, centre = chain_frames(d, np.zeros((1, len(d.lengths_mm))))
         s.queue(PENDULUM, "strips", np.zeros(1), lines, strips)
         s.queue(MARKS, "points", np.zeros(1), marks)
         if self.records is not None:
@@ -229,16 +229,16 @@ class _Replay:
         for key, _, _ in RESPONSES:
             gain, phase = self.panels[key]
             base = f"/analyzer/{key}"
-            _log_panel_static(s, base, (gain, phase))
+            log_panel_static(s, base, (gain, phase))
             s.static(f"{base}/model", rr.LineStrips2D(
-                _bode_strips(gain, phase, self.model_f, self.model[key]), colors=MODEL,
+                bode_strips(gain, phase, self.model_f, self.model[key]), colors=MODEL,
                 radii=0.35, draw_order=10.0))
             pos, colors, texts = legend_row([("exact model", MODEL),
                                              (f"{self.d['mode']} sine", MEASURED),
                                              ("latest point", LATEST)])
             s.static(f"{base}/legend", rr.Points2D(pos, radii=1.6, colors=colors, labels=texts,
                                                    show_labels=True))
-        _log_panel_static(s, "/analyzer/difference", (self.diff,))
+        log_panel_static(s, "/analyzer/difference", (self.diff,))
         pos, colors, texts = legend_row([("H_t", CHANNEL_COLORS["x"]),
                                          ("Theta_2", CHANNEL_COLORS["y"]),
                                          (f"stated {self.bias_name}", BIAS)])
@@ -258,7 +258,7 @@ class _Replay:
         for key, name, c in RESPONSES:
             gain, phase = self.panels[key]
             f, h = self.f[: k + 1], self.h[name][: k + 1]
-            g_db = _db(h)
+            g_db = gaingain_db(h)
             p_deg = np.degrees(np.angle(h))
             shown = wrap_to(p_deg, phase.lo)
             extra = {"frequency_hz": f, "settling_bias_db": self.bias_db[name][: k + 1],
@@ -313,11 +313,11 @@ class _Replay:
             tr = np.zeros((idx.size, 3))
             tr[:, 0] = d.stage_magnification * MM * stage
             s.queue("/bench/stage", "translation", tf, tr)
-            lines, strips, marks, centre = _chain_frames(d, theta)
+            lines, strips, marks, centre = chain_frames(d, theta)
             s.queue(MARKS, "points", tf, marks)
             if self.has_spot:
                 spot = d.spot_mm(volts["x"][idx], volts["y"][idx])
-                lay = _bench_layout(d)
+                lay = bench_layout(d)
                 laser, psd = np.array(lay["laser"]), np.array(lay["psd"])
                 hit = psd + np.stack([np.zeros(idx.size), spot[:, 1] * d.magnification], -1)
                 beam = np.stack([np.broadcast_to(laser, centre.shape), centre, hit], axis=1)
@@ -342,9 +342,9 @@ class _Replay:
             h, ex, bi = self.h[name][k], self.exact[name][k], self.biased[name][k]
             e = float(c[f"{name}_rel_error"][k])
             dd, bb = h / ex, bi / ex
-            cells["measured"].append(f"{_db(h):.3f}, {math.degrees(np.angle(h)):.2f}")
-            cells["- exact"].append(f"{_db(dd):+.4f}, {math.degrees(np.angle(dd)):+.3f}")
-            cells[self.bias_name].append(f"{_db(bb):+.4f}, {math.degrees(np.angle(bb)):+.3f}")
+            cells["measured"].append(f"{gain_db(h):.3f}, {math.degrees(np.angle(h)):.2f}")
+            cells["- exact"].append(f"{gain_db(dd):+.4f}, {math.degrees(np.angle(dd)):+.3f}")
+            cells[self.bias_name].append(f"{gain_db(bb):+.4f}, {math.degrees(np.angle(bb)):+.3f}")
             cells["random error (1 sigma)"].append(f"{20 / math.log(10) * e:.4f}, "
                                                    f"{math.degrees(e):.3f}")
         lines += [f"| {row} | {' | '.join(v)} |" for row, v in cells.items()]

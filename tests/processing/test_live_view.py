@@ -438,7 +438,7 @@ def test_viewer_going_away_mid_run_warns_once_and_the_run_goes_on(tmp_path):
                               env=dict(os.environ, WGPU_BACKEND="vulkan", RUST_LOG="off"),
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        if not lv._listening("127.0.0.1", port, wait_s=30.0):
+        if not lv.stream._listening("127.0.0.1", port, wait_s=30.0):
             pytest.skip("the headless viewer did not start here")
 
         class KillViewer(Sink):
