@@ -191,8 +191,8 @@ class _Replay:
             lo = gain.hi - step * math.ceil((gain.hi - lo) / step)
             self.panels[key] = (replace(gain, lo=lo, ticks=bc.ticks(lo, gain.hi, step)), phase)
         upd = self.panels["H_t"][0].units_per_decade
-        self.diff_db = {name: gaingain_db(self.h[name] / self.exact[name]) for _, name, _ in RESPONSES}
-        self.bias_db = {name: gaingain_db(self.biased[name] / self.exact[name])
+        self.diff_db = {name: gain_db(self.h[name] / self.exact[name]) for _, name, _ in RESPONSES}
+        self.bias_db = {name: gain_db(self.biased[name] / self.exact[name])
                         for _, name, _ in RESPONSES}
         sigma = {name: 20 / math.log(10) * self.c[f"{name}_rel_error"]
                  for _, name, _ in RESPONSES}
@@ -258,7 +258,7 @@ class _Replay:
         for key, name, c in RESPONSES:
             gain, phase = self.panels[key]
             f, h = self.f[: k + 1], self.h[name][: k + 1]
-            g_db = gaingain_db(h)
+            g_db = gain_db(h)
             p_deg = np.degrees(np.angle(h))
             shown = wrap_to(p_deg, phase.lo)
             extra = {"frequency_hz": f, "settling_bias_db": self.bias_db[name][: k + 1],
