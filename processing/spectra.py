@@ -17,6 +17,7 @@ above (``from processing.spectra import SpectralSettings, segment_ffts``).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
