@@ -144,6 +144,14 @@ def check_extra_args(cmd: list, extra: list[str], env: dict) -> int:
                           env=env).returncode
 
 
+def test_workers() -> list[str]:
+    """The whole suite runs in one pytest process per core, up to four (pytest-xdist), each
+    test file in one process (``--dist loadfile``: a file's module fixtures are built once)."""
+    n = min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+            else os.cpu_count() or 1, 4)
+    return ["-n", str(n), "--dist", "loadfile"] if n > 1 else []
+
+
 def main(argv: list[str]) -> int:
     """Run a job: its commands in sequence, stopping at the first failure; extra args go to the
     job's last command (``daq analyze`` for the experiment, pytest for the tests)."""
@@ -171,6 +179,8 @@ def main(argv: list[str]) -> int:
         rc = check_extra_args(cmds[-1], argv[1:], env)
         if rc:
             return rc
+    if argv[0] == "test" and not argv[1:]:
+        cmds = [[*cmds[0], *test_workers()]]
     for i, cmd in enumerate(cmds):
         cmd = [str(c) for c in cmd] + (argv[1:] if i == len(cmds) - 1 else [])
         if len(cmds) > 1:
