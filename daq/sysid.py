@@ -33,7 +33,7 @@ import numpy as np
 from rig.output_files import atomic_output
 from rig.errors import ConfigError
 
-__all__ = ["write_sysid_file", "noise_floor_rms", "oracle_recording"]
+__all__ = ["write_sysid_file", "noise_floor_rms", "channel_noise_rms", "oracle_recording"]
 
 _NOISE_KEYS = ("accelerometer.noise_mps2_rthz", "psd.noise_m_rthz")
 
@@ -56,7 +56,13 @@ def oracle_recording(recording):
 
 def noise_floor_rms(recording) -> dict[str, float]:
     """Predicted rms of (measured - oracle) per channel, in engineering units (module docstring)."""
-    h = recording.header
+    return channel_noise_rms(recording.header, quantisations=2)
+
+
+def channel_noise_rms(h, *, quantisations: int = 1) -> dict[str, float]:
+    """Predicted rms of the noise of each channel a, x, y of a run's header ``h``, in engineering
+    units: its sensor's white noise through the anti-alias filter plus ``quantisations``
+    quantisations (one ADC's: 1; a difference of two quantised channels: 2)."""
     sc = h.scene
     aa = h.antialias
     f = np.linspace(0.0, aa.fs_hz / 2, 200_001)
@@ -65,9 +71,9 @@ def noise_floor_rms(recording) -> dict[str, float]:
                  "x": sc.lever.gain_vpm * sc.lever.noise_m_rthz,
                  "y": sc.lever.gain_vpm * sc.lever.noise_m_rthz}
     out = {}
-    for c in h.names:
+    for c in (c for c in h.names if c in density_v):
         ch = h.channel(c)
-        var_v = abs(density_v[c]) ** 2 * gain2 + 2 * ch.adc.lsb_v ** 2 / 12
+        var_v = abs(density_v[c]) ** 2 * gain2 + quantisations * ch.adc.lsb_v ** 2 / 12
         out[c] = math.sqrt(var_v) / abs(ch.volts_per_unit)
     return out
 
