@@ -87,7 +87,10 @@ def run_cmd(sweep_file, out_dir, workers, scheduler, dry_run, force):
         f"checking the runs' parameter sets: {k} of {n}", err=True))
     with contextlib.ExitStack() as stack:
         if scheduler is not None:
-            executor, slots = stack.enter_context(dask_executor(scheduler))
+            executor, slots, why = stack.enter_context(dask_executor(scheduler))
+            if why:
+                click.echo(f"warning: {why}: keeping {slots} run{'s' if slots != 1 else ''} in "
+                           "flight", err=True)
         else:
             slots, why = worker_limit(workers)
             if why:
