@@ -438,6 +438,24 @@ def test_signal_plots_span_their_data_with_labelled_ticks_on_both_sides_of_zero(
             assert round(h / step, 9) in HALF_HEIGHT_MANTISSAS
 
 
+def test_the_live_views_expected_estimate_is_drawn_per_line_over_its_bin(run):
+    """E[H1] on the analyzer screen: flat over each line's bin, vertical at its edges, never a
+    slope between lines (a value no line reads)."""
+    _, rrd = run
+    for key in ("H_t", "Theta_2"):
+        entity = f"/analyzer/{key}/expected"
+        strips = []
+        for ch in RrdReader(str(rrd)).stream().filter(content=entity,
+                                                      is_static=True).to_chunks():
+            if str(ch.entity_path) == entity:
+                for row in ch.to_record_batch().column("LineStrips2D:strips").to_pylist():
+                    strips += [np.asarray(s, float) for s in row]
+        assert strips and sum(len(s) for s in strips) > 100
+        for s in strips:
+            d = np.diff(s, axis=0)
+            assert np.all((d[:, 0] == 0) | (d[:, 1] == 0)), key
+
+
 def test_screenshot_renders_the_layout_to_a_png(run, tmp_path):
     out, _ = run
     try:
