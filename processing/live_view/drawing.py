@@ -53,15 +53,14 @@ def signal_ranges(header) -> dict[str, tuple[float, float]]:
     (:func:`display_unit`) and in ADC volts: :data:`SIGNAL_SIGMAS` times the channel's predicted
     standard deviation (the scene's stationary response to its source,
     :func:`rig.bench.response.stationary_levels`, with its sensor's noise,
-    :func:`daq.sysid.channel_noise_rms`), rounded up by :func:`half_height`. Empty where there is
+    :meth:`daq.records.Header.noise_rms`), rounded up by :func:`half_height`. Empty where there is
     no prediction (a source without a model PSD): those plots fit their data."""
-    from daq.sysid import channel_noise_rms
     from rig.bench.response import stationary_levels
     from rig.errors import RigError
 
     try:
         levels = stationary_levels(header.scene, points=20_001)
-        noise = channel_noise_rms(header)
+        noise = header.noise_rms()
     except (RigError, TypeError, ValueError, ArithmeticError):
         return {}
     out = {}
