@@ -30,8 +30,7 @@ from rig.solvers.etdab import ETDAB_ORDER
 from rig.linear import discretise
 from rig.scene import Scene
 from rig.devices.source import generate, start_source
-from rig.bench.model import BenchModel, build_model
-from rig.bench.response import _as_linear
+from rig.bench.model import BenchModel, build_model, linear_scene
 from rig.bench.run import _spawn, advance, stage_fine_kernel, start
 from rig.bench.selection import select_model
 
@@ -67,7 +66,7 @@ def _richardson_estimate(scene, model: BenchModel, v: np.ndarray, z0: np.ndarray
     fine = build_model(scene, method=ref.solver.name, substeps=ref.solver.substeps,
                        every=model.every, selection=model.selection)
     diff = (theta - _kernel_theta(fine, v, z0)) * ref.scale
-    lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
+    lin = _kernel_theta(build_model(linear_scene(scene)), v, z0)
     return {
         "max_abs_theta_rad": float(np.max(np.abs(diff))),
         "relative_rms_theta": _rel_rms(diff, theta),
@@ -213,7 +212,7 @@ def _model_info(model: BenchModel, *, probe_s: float, seed, probe_v=None) -> dic
         theta = _probe_theta(model, n, seed)
         scale = max(float(np.max(np.abs(theta))), 1e-300)
         # (1) input interpolation: linearised pendulum, interpolated input vs exact linear bench
-        lin_model = build_model(_as_linear(scene))
+        lin_model = build_model(linear_scene(scene))
         theta_exact = _probe_theta(lin_model, n, seed)
         m = model.oversample
         zs = np.zeros(model.n_states - 2 * scene.chain.n)

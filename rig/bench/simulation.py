@@ -20,7 +20,7 @@ from rig.devices.source import start_source
 from rig.bench.estimates import _model_info
 from rig.bench.fused import advance_decimated, advance_decimated_nonlinear, lift, start_decimated
 from rig.bench.model import build_model
-from rig.bench.response import _calibrations
+from rig.bench.response import calibrations
 from rig.bench.run import _REL, _block_sizes, _source_blocks, _spawn, advance, start
 
 
@@ -172,7 +172,7 @@ class BenchSimulation:
 
     def calibrations(self) -> dict[str, Calibration]:
         """Per-channel calibrations (:func:`calibrations`)."""
-        return _calibrations(self.model)
+        return calibrations(self.model.scene)
 
     def model_info(self, *, probe_s: float = 20.0) -> dict:
         """What runs, why, and how accurate it is (computed once, cached; JSON-ready).
