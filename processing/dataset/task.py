@@ -13,20 +13,15 @@ only KeyboardInterrupt propagates (after the temporary file is removed).
 from __future__ import annotations
 
 import os
-import secrets
 import sys
 import socket
 import time
 from pathlib import Path
 
-__all__ = ["run_task", "partial_name", "worker_init", "failure_text"]
+from rig.errors import ForceRequired
+from rig.output_files import atomic_output
 
-
-def partial_name(final: Path) -> Path:
-    """A temporary name beside ``final`` that no other writer uses (host, pid and a token)."""
-    host = socket.gethostname().replace(".", "-")
-    return final.with_name(f".{final.name}.{host}.{os.getpid()}.{secrets.token_hex(4)}.partial"
-                           f"{final.suffix}")
+__all__ = ["run_task", "worker_init", "failure_text"]
 
 
 _BUSY = False  # this worker is running a task (SIGINT interrupts it; an idle worker ignores it)
@@ -66,14 +61,6 @@ def worker_init() -> None:
         pass
 
 
-def _publish(tmp: Path, final: Path, replace: bool) -> None:
-    if replace:
-        os.replace(tmp, final)
-        return
-    os.link(tmp, final)  # FileExistsError if a finished file is there: never overwritten
-    tmp.unlink()
-
-
 def run_task(job: dict) -> dict:
     """Run one job (made by :func:`processing.dataset.runner.run_sweep`) and return its result.
 
@@ -89,12 +76,12 @@ def run_task(job: dict) -> dict:
     final = Path(job["runs_dir"]) / job["file"]
     out = {"index": job["index"], "status": "failed", "error": "", "file": job["file"],
            "sha256": "", "model": "", "wall_s": 0.0, "host": socket.gethostname()}
-    tmp = partial_name(final)
     try:
-        out["model"] = _run(job, tmp)
-        try:
-            _publish(tmp, final, bool(job.get("replace")))
-        except FileExistsError:
+        try:  # a hard link publishes it: a finished file is never overwritten without replace
+            with atomic_output(final, force=bool(job.get("replace")), suffix=".partial.h5",
+                               reserve=False) as tmp:
+                out["model"] = _run(job, tmp)
+        except ForceRequired:
             # finished meanwhile by another worker of an earlier, killed sweep: keep that one
             # if it is this run, valid
             chk = check_run_file(final, spec_hash=job["spec_hash"])
@@ -110,8 +97,6 @@ def run_task(job: dict) -> dict:
         out["error"] = failure_text(exc)[:500]
     finally:
         _BUSY = False
-        if tmp.exists():
-            tmp.unlink()
         out["wall_s"] = time.perf_counter() - t0
         out["cpu_s"] = time.process_time() - c0
     return out
