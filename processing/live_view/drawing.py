@@ -4,6 +4,8 @@ analyzer's panels on a drawn log-frequency axis (:mod:`processing.bode_canvas`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -26,6 +28,53 @@ DISPLAY_UNITS = {"m": (1e6, "\u00b5m"), "rad": (1e6, "\u00b5rad")}
 def display_unit(unit: str) -> tuple[float, str]:
     """(factor, unit) in which a channel of ``unit`` is plotted (:data:`DISPLAY_UNITS`)."""
     return DISPLAY_UNITS.get(unit, (1.0, unit))
+
+
+#: A signal plot's half-height, in predicted standard deviations of its channel (signal and
+#: noise): a stationary Gaussian signal exceeds 4 sigma in about 6e-5 of its samples.
+SIGNAL_SIGMAS = 4.0
+#: What a signal plot's half-height is rounded up to, times a power of ten. The plots label
+#: their values every power of ten, hide labels closer than 20 px and fade them below 30 px: a
+#: plot from -5 to 5 (x 10^k), 165 px high at 1280x720, is labelled "0" alone. From -3.4 to 3.4
+#: it has seven labels 24 px apart, and the 0.4 left above and below the outer ones keeps them
+#: clear of the plot's edges (and of the time axis's labels).
+HALF_HEIGHT_MANTISSAS = (1.4, 2.4, 3.4, 14.0)
+
+
+def half_height(value: float) -> float:
+    """The smallest ``m x 10^k`` >= ``value`` > 0, m in :data:`HALF_HEIGHT_MANTISSAS`."""
+    k = math.floor(math.log10(value))
+    return next(m * 10.0**k for m in HALF_HEIGHT_MANTISSAS
+                if value <= m * 10.0**k * (1 + 1e-12))
+
+
+def signal_ranges(header) -> dict[str, tuple[float, float]]:
+    """Per channel (a, x, y) the half-heights of its plots, in display units
+    (:func:`display_unit`) and in ADC volts: :data:`SIGNAL_SIGMAS` times the channel's predicted
+    standard deviation (the scene's stationary response to its source,
+    :func:`rig.bench.response.stationary_levels`, with its sensor's noise,
+    :meth:`daq.records.Header.noise_rms`), rounded up by :func:`half_height`. Empty where there is
+    no prediction (a source without a model PSD): those plots fit their data."""
+    from rig.bench.response import stationary_levels
+    from rig.errors import RigError
+
+    try:
+        levels = stationary_levels(header.scene, points=20_001)
+        noise = header.noise_rms()
+    except (RigError, TypeError, ValueError, ArithmeticError):
+        return {}
+    out = {}
+    for c in header.names:
+        if f"{c}_v" not in levels or c not in noise:
+            continue
+        ch = header.channel(c)
+        per = abs(ch.volts_per_unit)
+        sigma = math.hypot(levels[f"{c}_v"] / per, noise[c])  # engineering units
+        if not (math.isfinite(sigma) and sigma > 0):
+            continue
+        out[c] = (half_height(SIGNAL_SIGMAS * sigma * display_unit(ch.unit)[0]),
+                  half_height(SIGNAL_SIGMAS * sigma * per))
+    return out
 
 _FRAME_COLOR = (150, 150, 150)
 _BODY_COLORS = [(255, 170, 40), (255, 90, 40), (230, 60, 120), (160, 90, 230)]

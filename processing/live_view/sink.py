@@ -12,6 +12,7 @@ from daq.sinks import Sink
 from processing.bench_geometry import (MAGNIFICATION, MM, BenchDrawing, StagePosition,
                                        frame_indices, frame_step)
 from processing.errors import ProcessingError, SettingsError
+from processing.line_steps import line_steps
 from processing.live_view.blueprint import acquisition_blueprint
 from processing.live_view.drawing import (CHANNEL_COLORS, EXPECTED, MARKS, MEASURED, MODEL,
                                           PENDULUM, SIGNALS, VOLTS, analyzer_panels, bench_layout,
@@ -140,8 +141,9 @@ class LiveView(Sink):
                                                       draw_order=30.0))
             legend = [("model (exact)", MODEL), ("measured (average)", MEASURED)]
             if key in self.expected:
-                s.static(f"{base}/expected", rr.LineStrips2D(
-                    bode_strips(gain, phase, f, self.expected[key]), colors=EXPECTED,
+                s.static(f"{base}/expected", rr.LineStrips2D(  # per line, over its bin
+                    bode_strips(gain, phase, *line_steps(f, self.expected[key])),
+                    colors=EXPECTED,
                     radii=0.8, draw_order=20.0))
                 legend.insert(1, ("E[H1] (expected)", EXPECTED))
             pos, colors, texts = legend_row(legend)
