@@ -83,10 +83,9 @@ def accuracy_lines(sweep) -> list[str]:
 def figure(path, scene, sweep, recording):
     """The FFT measurement and the sweep over the exact model (the README's figure)."""
     from matplotlib.figure import Figure
-    from matplotlib.ticker import FuncFormatter, NullFormatter
 
     import processing
-    from processing.plots import phase_curve
+    from processing.plots import decade_axis, label_gain_phase, phase_curve
     from processing.sine import DB
 
     a = processing.analyze(recording)
@@ -130,16 +129,11 @@ def figure(path, scene, sweep, recording):
         ax_z.set_ylabel(f"gain |{what}| [dB]")
         ax_z.set_xlabel("frequency [Hz]")
         ax_z.grid(True, alpha=0.3)
-        ax_g.set_title(f"{what} per stage acceleration")
-        ax_g.set_ylabel(f"gain |{what}| [dB re 1 {unit}]")
-        ax_p.set_ylabel(f"phase of {what} [deg]")
-        ax_p.set_ylim(-190, 190)
-        ax_p.set_yticks([-180, -90, 0, 90, 180])
+        label_gain_phase(ax_g, ax_p, what, unit)
         ax_p.set_xlabel("frequency [Hz]")
         for ax in (ax_g, ax_p):
             ax.grid(True, which="both", alpha=0.3)
-            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-            ax.xaxis.set_minor_formatter(NullFormatter())
+            decade_axis(ax)
         ax_g.set_xlim(0.1, 10)
         if col == 0:
             h_, l_ = ax_g.get_legend_handles_labels()

@@ -60,6 +60,16 @@ def decade_axis(ax) -> None:
     ax.xaxis.set_minor_formatter(NullFormatter())
 
 
+def label_gain_phase(ax_g, ax_p, what: str, unit: str) -> None:
+    """Title and label a gain axis ``ax_g`` [dB re 1 ``unit``] and a phase axis ``ax_p`` [deg,
+    ticks every 90] of ``what`` per stage acceleration."""
+    ax_g.set_title(f"{what} per stage acceleration")
+    ax_g.set_ylabel(f"gain |{what}| [dB re 1 {unit}]")
+    ax_p.set_ylabel(f"phase of {what} [deg]")
+    ax_p.set_ylim(-190, 190)
+    ax_p.set_yticks([-180, -90, 0, 90, 180])
+
+
 def phase_curve(f, h, phase: str = "wrapped",
                 lo: float = -180.0) -> tuple[np.ndarray, np.ndarray]:
     """``(f, phase [deg])`` ready to draw as a line: ``"wrapped"`` to (lo, lo + 360] with a NaN

@@ -100,7 +100,7 @@ def sine_bode_figure(sweep, scene, *, title: str = ""):
     from matplotlib.ticker import FuncFormatter
 
     import rig
-    from processing.plots import decade_axis, phase_curve
+    from processing.plots import decade_axis, label_gain_phase, phase_curve
 
     fm = _model_grid(sweep, scene)
     model = rig.expected_response(scene, fm, sampled=True)
@@ -131,11 +131,7 @@ def sine_bode_figure(sweep, scene, *, title: str = ""):
         ax_e.axhline(0.0, color="0.5", lw=0.6)
         lim = max(0.12, float(np.nanmax(np.abs(diff))) * 1.15 if diff.size else 0.12)
         ax_e.set_ylim(-lim, lim)
-        ax_g.set_title(f"{what} per stage acceleration")
-        ax_g.set_ylabel(f"gain |{what}| [dB re 1 {unit}]")
-        ax_p.set_ylabel(f"phase of {what} [deg]")
-        ax_p.set_ylim(-190, 190)
-        ax_p.set_yticks([-180, -90, 0, 90, 180])
+        label_gain_phase(ax_g, ax_p, what, unit)
         ax_e.set_ylabel("measured - exact [dB]")
         ax_e.set_xlabel("frequency [Hz]")
         for ax in (ax_g, ax_p, ax_e):

@@ -25,8 +25,9 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+from test_layers import PACKAGES, project_modules  # the same walk as the layer check
+
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("rig", "daq", "processing", "benchmarks")
 
 #: (importer, module, name) -> why it is still there; the list only shrinks
 ALLOWED: dict = {}
@@ -34,18 +35,6 @@ ALLOWED: dict = {}
 
 def _private(name: str) -> bool:
     return name.startswith("_") and not name.startswith("__")
-
-
-def project_modules(root: Path) -> dict[str, Path]:
-    """Dotted module name -> source file, for every module of the project's packages."""
-    mods = {}
-    for pkg in PACKAGES:
-        for path in sorted((root / pkg).rglob("*.py")):
-            parts = path.relative_to(root).with_suffix("").parts
-            if parts[-1] == "__init__":
-                parts = parts[:-1]
-            mods[".".join(parts)] = path
-    return mods
 
 
 def _absolute(name: str, path: Path, node: ast.ImportFrom) -> str:

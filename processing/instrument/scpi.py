@@ -184,8 +184,9 @@ def _unit_factor(unit: str, units: dict[str, float]) -> float:
     raise ScpiError(-131, f"unit {unit} is invalid here: expected {valid} (with an SI prefix)")
 
 
-def split_params(text: str) -> list[Param]:
-    """Parameters separated by commas outside quotes (-102 for an unterminated string)."""
+def split_quoted(text: str, sep: str) -> tuple[list[str], bool]:
+    """``text`` split at ``sep`` outside ``'...'`` and ``"..."`` strings, each piece stripped
+    (the last one too, possibly empty); and whether every string is terminated."""
     out, cur, quote = [], [], None
     for ch in text:
         if quote:
@@ -195,16 +196,22 @@ def split_params(text: str) -> list[Param]:
         elif ch in "'\"":
             quote = ch
             cur.append(ch)
-        elif ch == ",":
+        elif ch == sep:
             out.append("".join(cur).strip())
             cur = []
         else:
             cur.append(ch)
-    if quote:
+    out.append("".join(cur).strip())
+    return out, quote is None
+
+
+def split_params(text: str) -> list[Param]:
+    """Parameters separated by commas outside quotes (-102 for an unterminated string)."""
+    out, terminated = split_quoted(text, ",")
+    if not terminated:
         raise ScpiError(-102, "unterminated string")
-    last = "".join(cur).strip()
-    if out or last:
-        out.append(last)
+    if out == [""]:
+        return []
     if any(p == "" for p in out):
         raise ScpiError(-103, "empty parameter between commas")
     return [Param(p) for p in out]
@@ -360,21 +367,8 @@ class Engine:
 
 def _split_units(line: str, engine: Engine):
     """Units separated by ``;`` outside quotes; ``None`` for an empty unit (ignored)."""
-    cur, quote = [], None
-    for ch in line:
-        if quote:
-            cur.append(ch)
-            if ch == quote:
-                quote = None
-        elif ch in "'\"":
-            quote = ch
-            cur.append(ch)
-        elif ch == ";":
-            yield "".join(cur).strip() or None
-            cur = []
-        else:
-            cur.append(ch)
-    if quote:
+    units, terminated = split_quoted(line, ";")
+    for unit in units if terminated else units[:-1]:
+        yield unit or None
+    if not terminated:
         engine.error(ScpiError(-102, "unterminated string"))
-        return
-    yield "".join(cur).strip() or None

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from faults import record_fault
+from tmpfs import mounted
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = ["--scene", "ishizaki2009", "--records", "3", "--duration", "5", "--rate", "100",
@@ -444,20 +445,8 @@ def test_force_with_a_smaller_sweep_removes_the_run_files_it_does_not_list(tmp_p
 @pytest.fixture
 def small_disk(tmp_path):
     """A real 6 MiB file system (tmpfs), unmounted afterwards."""
-    import shutil
-
-    d = tmp_path / "disk"
-    d.mkdir()
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        pytest.skip("a small tmpfs needs root and mount(8) to test a full disk for real")
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=6m", "tmpfs", str(d)],
-                         capture_output=True, text=True)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here ({res.stderr.strip()})")
-    try:
+    with mounted(tmp_path / "disk", "6m") as d:
         yield d
-    finally:
-        subprocess.run(["umount", "-l", str(d)], capture_output=True)
 
 
 def test_a_full_disk_mid_sweep_gives_one_line_per_failed_run_and_no_temporary_file(

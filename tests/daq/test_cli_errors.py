@@ -4,7 +4,6 @@ saturated) ends with a WARNING and exit status 3 unless ``--allow-over-budget``.
 subprocesses."""
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -12,6 +11,7 @@ import sys
 import pytest
 
 from faults import record_fault, record_inputs
+from tmpfs import mounted
 
 SHORT = ["--scene", "ishizaki2009", "--records", "2", "--duration", "5", "--rate", "100",
          "--set", "acquisition.settle_s=5", "--seed", "1"]
@@ -69,15 +69,7 @@ def test_a_failure_is_one_line_and_exit_status_1(run_file, tmp_path, args, conta
 @pytest.fixture
 def full_disk(tmp_path):
     """A real 4 MiB tmpfs, filled to the last byte by another file."""
-    d = tmp_path / "disk"
-    d.mkdir()
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        pytest.skip("a small tmpfs needs root and mount(8) to test a full disk for real")
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4m", "tmpfs", str(d)],
-                         capture_output=True, text=True)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here ({res.stderr.strip()})")
-    try:
+    with mounted(tmp_path / "disk", "4m") as d:
         (d / "old.csv").write_text("an earlier output\n")
         with open(d / "filler", "wb", buffering=0) as fh:
             try:
@@ -86,8 +78,6 @@ def full_disk(tmp_path):
             except OSError:
                 pass
         yield d
-    finally:
-        subprocess.run(["umount", "-l", str(d)], capture_output=True)
 
 
 def test_a_full_disk_is_one_line_for_model_and_analyze_and_loses_nothing(run_file, full_disk,

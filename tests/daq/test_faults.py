@@ -20,6 +20,7 @@ import pytest
 from daq.check import check_file
 from daq.hdf5 import read_run
 from faults import record_fault
+from tmpfs import mounted
 
 LONG = ["--scene", "ishizaki2009", "--duration", "5", "--rate", "100",
         "--set", "acquisition.settle_s=5", "--set", "acquisition.model=linear", "--seed", "4"]
@@ -159,19 +160,9 @@ def test_a_corrupt_file_left_by_a_killed_writer_is_named_without_a_hang(tmp_path
 @pytest.fixture
 def small_disk(tmp_path):
     """A real 48 MiB file system (tmpfs), unmounted afterwards."""
-    d = tmp_path / "disk"
-    d.mkdir()
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        pytest.skip("a small tmpfs needs root and mount(8) to test a full disk for real")
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(d)],
-                         capture_output=True, text=True)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here ({res.stderr.strip()}): the full disk is "
-                    "tested on a real small file system only")
-    try:
+    with mounted(tmp_path / "disk", "48m",
+                 why=": the full disk is tested on a real small file system only") as d:
         yield d
-    finally:
-        subprocess.run(["umount", "-l", str(d)], capture_output=True)
 
 
 def test_a_full_disk_ends_the_run_with_one_line_naming_the_partial_file(small_disk, tmp_path):

@@ -13,11 +13,11 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 import pytest
+from virtual_analyzer import errors, serving, session
 
 pyvisa = pytest.importorskip("pyvisa")
 
@@ -35,47 +35,20 @@ EQUIVALENT = ["acquisition.rate_hz=32.0", "acquisition.simulation_rate_hz=1024.0
               "source.fmin_hz=0.0", "source.fmax_hz=12.5"]
 
 
-def _errors(inst) -> list[str]:
-    out = []
-    for _ in range(40):
-        e = inst.query("SYST:ERR?")
-        if e.startswith("0,"):
-            return out
-        out.append(e)
-    raise AssertionError(f"the error queue does not empty: {out}")
-
-
 @pytest.fixture(scope="module")
 def server():
     from processing.instrument.analyzer35670a import Analyzer35670A
-    from processing.instrument.server import ScpiServer
     from rig.scene import load_scene
 
-    inst = Analyzer35670A(load_scene(SCENE), seed=SEED)
-    srv = ScpiServer(inst, "127.0.0.1", 0)
-    t = threading.Thread(target=srv.serve_forever, daemon=True)
-    t.start()
-    try:
+    with serving(Analyzer35670A(load_scene(SCENE), seed=SEED)) as srv:
         yield srv
-    finally:
-        inst.abort()
-        srv.stop()
-        t.join(10)
-        srv.close()
-        assert not t.is_alive()
 
 
 @pytest.fixture
 def visa(server):
-    rm = pyvisa.ResourceManager("@py")
-    inst = rm.open_resource(server.resource, read_termination="\n", write_termination="\n",
-                            timeout=TIMEOUT_MS)
-    inst.write("*RST;*CLS")
-    try:
+    with session(server.resource, TIMEOUT_MS) as inst:
+        inst.write("*RST;*CLS")
         yield inst
-    finally:
-        inst.close()
-        rm.close()
 
 
 # -- the numbers ------------------------------------------------------------------------------
@@ -88,10 +61,7 @@ def paper_measurement(server):
     import processing
     import rig
 
-    rm = pyvisa.ResourceManager("@py")
-    inst = rm.open_resource(server.resource, read_termination="\n", write_termination="\n",
-                            timeout=TIMEOUT_MS)
-    try:
+    with session(server.resource, TIMEOUT_MS) as inst:
         inst.write("*RST;*CLS")
         inst.write(":INST:SEL FFT;:SOUR:FUNC RAND;:SOUR:VOLT 0.1 VRMS;:OUTP ON")
         inst.write(":FREQ:SPAN 12.5 HZ;RES 800;:WIND HANN")
@@ -110,10 +80,7 @@ def paper_measurement(server):
             inst.write(f"FORM:DATA {fmt}")
             got[fmt] = [inst.query_binary_values(f"CALC{n}:DATA?", datatype=dt,
                                                  is_big_endian=True) for n in (1, 2)]
-        got["errors"] = _errors(inst)
-    finally:
-        inst.close()
-        rm.close()
+        got["errors"] = errors(inst)
     mem = daq.MemorySink()
     daq.acquire(rig.load_scene(SCENE, EQUIVALENT), seed=SEED, sinks=[mem])
     got["analysis"] = processing.analyze(
@@ -177,7 +144,7 @@ def test_long_short_forms_case_units_suffixes_and_header_paths(visa):
     assert q("*IDN?").split(",")[1] == "35670A"
     assert "emulated" in q("*IDN?").split(",")[3]
     assert q("*OPT?") == '"AY6"'
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_unknown_and_invalid_commands_answer_real_scpi_errors_in_order(visa):
@@ -194,7 +161,7 @@ def test_unknown_and_invalid_commands_answer_real_scpi_errors_in_order(visa):
     visa.write("*IDN? 1")
     visa.write(":SOUR:FUNC RAND;:SOUR:VOLT 0.1 VPK")  # a noise source has no peak level
     visa.write(":AVER OFF;:INIT")  # one average: no coherence
-    errs = _errors(visa)
+    errs = errors(visa)
     codes = [int(e.split(",")[0]) for e in errs]
     assert codes == [-113, -114, -221, -222, -221, -221, -224, -109, -131, -221, -108, -221,
                      -221], errs
@@ -209,7 +176,7 @@ def test_unknown_and_invalid_commands_answer_real_scpi_errors_in_order(visa):
 def test_error_queue_is_bounded_and_reports_its_overflow(visa):
     for _ in range(8):
         visa.write(";".join(["NOPE"] * 5))
-    errs = _errors(visa)
+    errs = errors(visa)
     assert len(errs) == 30
     assert errs[-1].startswith("-350,") and errs[0].startswith("-113,")
 
@@ -218,7 +185,7 @@ def test_malformed_binary_and_overlong_lines_leave_the_connection_alive(visa):
     visa.write_raw(b"\x00\xff\xfeGARBAGE\x01\n")
     visa.write_raw(b"FREQ:SPAN " + b"9" * 70_000 + b"\n")
     visa.write_raw(b"CALC1:FEED 'unterminated\n")
-    codes = [int(e.split(",")[0]) for e in _errors(visa)]
+    codes = [int(e.split(",")[0]) for e in errors(visa)]
     assert codes == [-101, -363, -102]
     assert visa.query("*IDN?").startswith("Agilent Technologies,35670A")
 
@@ -236,7 +203,7 @@ def test_status_follows_the_measurement_and_overload_flags_follow_the_range(visa
     assert int(visa.query("STAT:QUES:COND?")) & 1
     visa.write(":VOLT1:RANG 0;:INIT;*WAI")
     assert visa.query("STAT:DEV:COND?") == "0"
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_autorange_finds_the_smallest_range_that_holds_the_signal(visa):
@@ -254,7 +221,7 @@ def test_autorange_finds_the_smallest_range_that_holds_the_signal(visa):
     assert visa.query(":VOLT1:RANG:AUTO?;:VOLT2:RANG:AUTO?") == "0;1"
     # 1 V rms = 1.41 V peak = +3.01 dBVpk, rounded up; -7 dBVrms = -3.99 dBVpk
     assert visa.query(":VOLT3:RANG 1 VRMS;:VOLT3:RANG?;:VOLT3:RANG -7 DBVRMS;RANG?") == "4;-3"
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_init_while_measuring_is_ignored_and_abort_ends_the_measurement(visa):
@@ -264,18 +231,14 @@ def test_init_while_measuring_is_ignored_and_abort_ends_the_measurement(visa):
     visa.write(":ABOR")
     assert visa.query("*OPC?") == "1"
     assert time.perf_counter() - t0 < 10.0
-    assert [int(e.split(",")[0]) for e in _errors(visa)] == [-213]
+    assert [int(e.split(",")[0]) for e in errors(visa)] == [-213]
 
 
 def test_a_client_that_does_not_read_its_answers_is_dropped_and_the_next_served():
     from processing.instrument.analyzer35670a import Analyzer35670A
-    from processing.instrument.server import ScpiServer
     from rig.scene import load_scene
 
-    srv = ScpiServer(Analyzer35670A(load_scene(SCENE)), "127.0.0.1", 0, send_timeout_s=1.0)
-    t = threading.Thread(target=srv.serve_forever, daemon=True)
-    t.start()
-    try:
+    with serving(Analyzer35670A(load_scene(SCENE)), send_timeout_s=1.0) as srv:
         with socket.create_connection(srv.address, timeout=10) as s:
             s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
             line = b";".join([b"*IDN?"] * 10_000) + b"\n"  # 60 kB asking 660 kB
@@ -285,32 +248,18 @@ def test_a_client_that_does_not_read_its_answers_is_dropped_and_the_next_served(
             except OSError:
                 pass  # the server already dropped this client
             time.sleep(2.0)
-            rm = pyvisa.ResourceManager("@py")
-            inst = rm.open_resource(srv.resource, read_termination="\n",
-                                    write_termination="\n", timeout=10_000)
-            assert "35670A" in inst.query("*IDN?")
-            inst.close()
-            rm.close()
-    finally:
-        srv.stop()
-        t.join(10)
-        srv.close()
+            with session(srv.resource, 10_000) as inst:
+                assert "35670A" in inst.query("*IDN?")
 
 
 def test_a_client_that_leaves_mid_measurement_leaves_the_server_serving(server):
     with socket.create_connection(server.address, timeout=10) as s:
         s.sendall(b"*RST;:FREQ:RES 100;:AVER:COUN 3;:OUTP ON;:INIT;*OPC?\n")
-    rm = pyvisa.ResourceManager("@py")
-    inst = rm.open_resource(server.resource, read_termination="\n", write_termination="\n",
-                            timeout=TIMEOUT_MS)
-    try:
+    with session(server.resource, TIMEOUT_MS) as inst:
         assert inst.query("*OPC?") == "1"
         assert int(inst.query("CALC1:DATA:HEAD:POIN?")) == 101
         assert len(inst.query_ascii_values("CALC1:DATA?")) == 101
-        assert _errors(inst) == []
-    finally:
-        inst.close()
-        rm.close()
+        assert errors(inst) == []
 
 
 def test_time_trace_of_the_drive_has_the_time_record_and_the_source_level(visa):
@@ -324,7 +273,7 @@ def test_time_trace_of_the_drive_has_the_time_record_and_the_source_level(visa):
     assert v.size == t.size == 1024 and t[1] == 1 / 32
     # rms of 32 s of 12.5 Hz band-limited noise: relative scatter ~ 1 / (2 sqrt(B T)) = 2.5 %
     assert abs(np.sqrt(np.mean(v**2)) / 0.2 - 1) < 0.15
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_formats_units_and_byte_order_describe_one_trace(visa):
@@ -354,7 +303,7 @@ def test_formats_units_and_byte_order_describe_one_trace(visa):
     first = visa.query(":CALC1:DATA?").split(",")[1]
     assert len(first.lstrip("+-").split("E")[0].replace(".", "")) == 6
     assert visa.query(":FORM?") == "ASC,6"
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_source_off_measures_noise_spectra_without_a_model_comparison(visa):
@@ -362,7 +311,7 @@ def test_source_off_measures_noise_spectra_without_a_model_comparison(visa):
     visa.write("FORM REAL,64")
     p = np.asarray(visa.query_binary_values("CALC1:DATA?", datatype="d", is_big_endian=True))
     assert p.size == 101 and np.all(np.isfinite(p[1:]))
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_pymeasure_instrument_on_the_socket_reads_identity_status_and_a_trace(server):
@@ -422,12 +371,8 @@ def _serve(*extra):
 def test_daq_serve_prints_the_resource_and_stops_in_one_line_on_a_signal(sig, code, name):
     p, resource = _serve()
     try:
-        rm = pyvisa.ResourceManager("@py")
-        inst = rm.open_resource(resource, read_termination="\n", write_termination="\n",
-                                timeout=20_000)
-        assert "35670A" in inst.query("*IDN?")
-        inst.close()
-        rm.close()
+        with session(resource, 20_000) as inst:
+            assert "35670A" in inst.query("*IDN?")
         p.send_signal(sig)
         _, err = p.communicate(timeout=STOP_WAIT_S)
     finally:
@@ -465,16 +410,12 @@ def test_daq_serve_out_keeps_each_measurements_run_file_whose_analysis_is_the_tr
 
     p, resource = _serve("--out", str(tmp_path), "-q")
     try:
-        rm = pyvisa.ResourceManager("@py")
-        inst = rm.open_resource(resource, read_termination="\n", write_termination="\n",
-                                timeout=TIMEOUT_MS)
-        inst.write(":FREQ:RES 200;:AVER:COUN 3;:OUTP ON;:CALC1:FEED 'XFR:POW:RAT 3,1'")
-        inst.write(":CALC1:FORM IMAG;:INIT;*WAI;:FORM REAL,64")
-        im = np.asarray(inst.query_binary_values(":CALC1:DATA?", datatype="d",
-                                                 is_big_endian=True))
-        assert _errors(inst) == []
-        inst.close()
-        rm.close()
+        with session(resource, TIMEOUT_MS) as inst:
+            inst.write(":FREQ:RES 200;:AVER:COUN 3;:OUTP ON;:CALC1:FEED 'XFR:POW:RAT 3,1'")
+            inst.write(":CALC1:FORM IMAG;:INIT;*WAI;:FORM REAL,64")
+            im = np.asarray(inst.query_binary_values(":CALC1:DATA?", datatype="d",
+                                                     is_big_endian=True))
+            assert errors(inst) == []
         p.send_signal(signal.SIGINT)
         p.communicate(timeout=STOP_WAIT_S)
     finally:

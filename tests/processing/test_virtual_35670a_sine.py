@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import math
 import shlex
-import threading
 
 import numpy as np
 import pytest
+from virtual_analyzer import errors, serving, session
 
 pyvisa = pytest.importorskip("pyvisa")
 
@@ -34,18 +34,8 @@ TRACES = (":CALC1:FEED 'XFR:POW:RAT 2,1';:CALC1:FORM REAL;:CALC2:FEED 'XFR:POW:R
           ":CALC4:FEED 'XFR:POW:RAT 3,1';:CALC4:FORM IMAG")
 
 
-def _errors(inst) -> list[str]:
-    out = []
-    for _ in range(40):
-        e = inst.query("SYST:ERR?")
-        if e.startswith("0,"):
-            return out
-        out.append(e)
-    raise AssertionError(f"the error queue does not empty: {out}")
-
-
 def _codes(inst) -> list[int]:
-    return [int(e.split(",")[0]) for e in _errors(inst)]
+    return [int(e.split(",")[0]) for e in errors(inst)]
 
 
 def _real64(inst, query) -> np.ndarray:
@@ -63,7 +53,6 @@ def _library(seed, **changes):
 def server(tmp_path_factory):
     from processing.instrument.analyzer35670a import Analyzer35670A
     from processing.instrument.measurement import equivalent_commands
-    from processing.instrument.server import ScpiServer
     from rig.scene import load_scene
 
     scene = load_scene(SCENE)
@@ -72,31 +61,16 @@ def server(tmp_path_factory):
                           log=logs.append,  # what `daq serve` prints and how it says the same
                           describe=lambda setup, s: equivalent_commands(SCENE, [], s, setup,
                                                                         scene))
-    srv = ScpiServer(inst, "127.0.0.1", 0)
-    srv.logs = logs
-    t = threading.Thread(target=srv.serve_forever, daemon=True)
-    t.start()
-    try:
+    with serving(inst) as srv:
+        srv.logs = logs
         yield srv
-    finally:
-        inst.abort()
-        srv.stop()
-        t.join(10)
-        srv.close()
-        assert not t.is_alive()
 
 
 @pytest.fixture
 def visa(server):
-    rm = pyvisa.ResourceManager("@py")
-    inst = rm.open_resource(server.resource, read_termination="\n", write_termination="\n",
-                            timeout=TIMEOUT_MS)
-    inst.write("*RST;*CLS")
-    try:
+    with session(server.resource, TIMEOUT_MS) as inst:
+        inst.write("*RST;*CLS")
         yield inst
-    finally:
-        inst.close()
-        rm.close()
 
 
 def _sweep(inst, server, *lines) -> dict:
@@ -121,10 +95,7 @@ def _sweep(inst, server, *lines) -> dict:
 
 @pytest.fixture(scope="module")
 def short_sweep(server):
-    rm = pyvisa.ResourceManager("@py")
-    inst = rm.open_resource(server.resource, read_termination="\n", write_termination="\n",
-                            timeout=TIMEOUT_MS)
-    try:
+    with session(server.resource, TIMEOUT_MS) as inst:
         got = _sweep(inst, server, SWEEP)
         # the coherence-like trace and the power of x's fundamental, in ASCII and REAL,32
         inst.write(":FORM:DATA ASC;:CALC3:FEED 'XFR:POW:COH 2,1';:CALC3:FORM MLIN")
@@ -133,13 +104,10 @@ def short_sweep(server):
                    ":CALC4:UNIT:VOLT 'V2'")
         got["power_x"] = np.asarray(inst.query_binary_values(
             ":CALC4:DATA?", datatype="f", is_big_endian=True))
-        got["errors"] = _errors(inst)
+        got["errors"] = errors(inst)
         for feed in ("'XTIM:VOLT 1'", "'XFR:POW:RAT 4,1'", "'XFR:POW 2';:CALC4:UNIT:VOLT 'V2/HZ'"):
             inst.write(f":CALC4:FEED {feed};:CALC4:DATA?")  # answered with an error only
-        got["trace_errors"] = _errors(inst)
-    finally:
-        inst.close()
-        rm.close()
+        got["trace_errors"] = errors(inst)
     got["sweep"] = _library(got["seed"])
     return got
 
@@ -187,7 +155,7 @@ def test_overload_flags_follow_the_sweeps_points(visa):
     assert visa.query(":INIT;*OPC?") == "1"
     assert visa.query(":STAT:DEV:COND?;:STAT:QUES:COND?") == "2;1"  # input 2 overloaded
     assert visa.query(":VOLT2:RANG 0;:INIT;*OPC?;:STAT:DEV:COND?") == "1;0"
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_kept_file_and_printed_daq_sine_command_hold_the_same_numbers(short_sweep, server,
@@ -222,7 +190,7 @@ def test_auto_resolution_and_autolevel_drive_the_librarys_as_documented(visa, se
                ":FREQ:RES:AUTO ON;AUTO:MCH 40 PCT;MIN 5 PNT/SWP",
                ":SOUR:VOLT:AUTO ON;REF 3E-4 EU;REF:TOL 2 DB;CHAN INP3",
                ":SOUR:VOLT 0.1;:SOUR:VOLT:LIM 1 VRMS;:OUTP ON")
-    assert _errors(visa) == []
+    assert errors(visa) == []
     # 40 % of change: 20 log10(1.4) dB and asin(0.4); 2 dB: 1 - 10^(-2/20) of y's 0.3 mrad
     sweep = _library(g["seed"], settle_s=10.0, integrate_cycles=10,
                      auto_resolution=(20 * math.log10(1.4), math.degrees(math.asin(0.4))),
@@ -261,7 +229,7 @@ def test_each_query_answers_its_setting_and_rst_returns_the_preset(visa):
     assert visa.query(":INST:SEL?") == "FFT"
     visa.write(":INST:SEL SINE")
     assert dict(zip(PRESET, visa.query(";".join(PRESET)).split(";"))) == PRESET
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_out_of_range_values_answer_data_out_of_range_and_keep_the_setting(visa):
@@ -272,7 +240,7 @@ def test_out_of_range_values_answer_data_out_of_range_and_keep_the_setting(visa)
            ":SOUR:VOLT:LIM 6 VRMS", ":SOUR:VOLT:LIM 0"]
     for line in bad:
         visa.write(line)
-    errs = _errors(visa)
+    errs = errors(visa)
     assert [int(e.split(",")[0]) for e in errs] == [-222] * len(bad), errs
     assert "stop 60000 Hz: expected 0.015625 .. 51200 Hz" in errs[1]
     assert dict(zip(PRESET, visa.query(";".join(PRESET)).split(";"))) == PRESET
@@ -291,7 +259,7 @@ def test_settings_the_bench_cannot_carry_answer_settings_conflict_naming_why(vis
     visa.write(":SWE:STIM 1;:FREQ:STAR 5;STOP 4;:INIT")
     visa.write(":FREQ:STAR 1;:SOUR:VOLT 2 VRMS;:INIT")  # above the 2 Vpk autolevel limit
     visa.write(":SOUR:VOLT 0.1;:VOLT2:RANG:AUTO ON;:INIT")
-    errs = _errors(visa)
+    errs = errors(visa)
     assert [int(e.split(",")[0]) for e in errs] == [-221] * 12, errs
     for err, why in zip(errs, ["manual sweep", "input 4 is the source drive", "SLEW",
                                "LIM:INP", "FREQ:SPAN:FULL", "OUTP ON", "below 50 Hz",
@@ -306,7 +274,7 @@ def test_abort_ends_a_long_sweep(visa, server):
     visa.write(":INIT;:ABOR")
     assert visa.query("*OPC?") == "1"
     assert server.logs[-1] == f"measurement {server.instrument.measurements} aborted"
-    assert _errors(visa) == []
+    assert errors(visa) == []
 
 
 def test_switching_back_to_fft_measures_there_and_each_mode_keeps_its_frequencies(visa):
