@@ -4,13 +4,20 @@ SCPI tests (imported by test modules: pytest puts this directory on sys.path).
 :func:`serving` runs a :class:`processing.instrument.server.ScpiServer` in a daemon thread and
 always stops, joins and closes it; :func:`session` opens a pyvisa-py socket session with the
 line terminations a lab script sets, bounded by ``timeout_ms`` per read, and always closes it;
-:func:`errors` empties ``SYST:ERR?``.
+:func:`errors` empties ``SYST:ERR?``. The fixture :func:`visa` (a reset session to the
+test module's ``server`` fixture) is made visible by ``tests/processing/conftest.py``.
 """
 
 from __future__ import annotations
 
 import threading
 from contextlib import contextmanager
+
+import pytest
+
+#: Every VISA read is bounded by this; the first measurement of a fresh checkout also compiles
+#: the bench's numba kernels (tens of seconds on a loaded machine).
+TIMEOUT_MS = 300_000
 
 
 @contextmanager
@@ -56,3 +63,11 @@ def errors(inst) -> list[str]:
             return out
         out.append(e)
     raise AssertionError(f"the error queue does not empty: {out}")
+
+
+@pytest.fixture
+def visa(server):
+    """A session to the module's ``server``, reset with ``*RST;*CLS``."""
+    with session(server.resource, TIMEOUT_MS) as inst:
+        inst.write("*RST;*CLS")
+        yield inst

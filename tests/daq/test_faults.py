@@ -6,7 +6,6 @@ file and what it holds; the preflight refuses a run that cannot fit, before simu
 case the finished records are bit-identical to a run of as many records with the same seed."""
 
 import json
-import os
 import shutil
 import signal
 import subprocess

@@ -11,11 +11,10 @@ from pathlib import Path
 
 import pytest
 
+from cli_runs import FAST, daq, fast_run
 from daq.cli.errors import EXIT_CODES
 
 ROOT = Path(__file__).resolve().parents[2]
-FAST = ["--records", "2", "--duration", "10", "--rate", "100", "--seed", "1",
-        "--set", "acquisition.settle_s=5", "--set", "acquisition.model=linear", "-q"]
 #: an exception class name as Python prints it (FooError, KeyboardInterrupt, ...)
 CLASS_NAME = re.compile(r"\b[A-Z][A-Za-z]*(Error|Exception|Interrupt|Warning)\b")
 SWEEP = """seed = 1
@@ -25,11 +24,6 @@ set = ["acquisition.records=2", "acquisition.record_s=10", "acquisition.settle_s
 [grid]
 "pendulum.q1" = [300.0]
 """
-
-
-def daq(*args, cwd, timeout=180):
-    return subprocess.run([sys.executable, "-m", "daq.cli", *map(str, args)], cwd=cwd,
-                          capture_output=True, text=True, timeout=timeout)
 
 
 def one_line_error(res, code=1):
@@ -43,10 +37,7 @@ def one_line_error(res, code=1):
 
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
-    d = tmp_path_factory.mktemp("run")
-    res = daq("acquire", "ishizaki2009", *FAST, "--out", "run.h5", cwd=d, timeout=300)
-    assert res.returncode == 0, res.stderr
-    return d / "run.h5"
+    return fast_run(tmp_path_factory.mktemp("run"))
 
 
 # -- validated before any work ---------------------------------------------------------------

@@ -5,34 +5,23 @@ Real CLI in subprocesses, each bounded in time."""
 
 import csv
 import re
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from cli_runs import daq, fast_run
 from rig.describe import mirror_response
 from rig.scene import load_scene
 
-FAST = ["--records", "2", "--duration", "10", "--rate", "100", "--seed", "1",
-        "--set", "acquisition.settle_s=5", "--set", "acquisition.model=linear", "-q"]
 ROOT = Path(__file__).resolve().parents[2]
 MAGIC = {".png": b"\x89PNG\r\n\x1a\n", ".pdf": b"%PDF-", ".svg": b"<?xml"}
 
 
-def daq(*args, cwd, timeout=180):
-    return subprocess.run([sys.executable, "-m", "daq.cli", *map(str, args)], cwd=cwd,
-                          capture_output=True, text=True, timeout=timeout)
-
-
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
-    d = tmp_path_factory.mktemp("run")
-    res = daq("acquire", "ishizaki2009", *FAST, "--out", "run.h5", cwd=d, timeout=300)
-    assert res.returncode == 0, res.stderr
-    return d / "run.h5"
+    return fast_run(tmp_path_factory.mktemp("run"))
 
 
 def _columns(path):

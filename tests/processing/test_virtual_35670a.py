@@ -17,14 +17,11 @@ import time
 
 import numpy as np
 import pytest
-from virtual_analyzer import errors, serving, session
+from virtual_analyzer import TIMEOUT_MS, errors, serving, session
 
 pyvisa = pytest.importorskip("pyvisa")
 
 SCENE = "ishizaki2009"
-#: Every VISA read is bounded by this; the first measurement of a fresh checkout also compiles
-#: the bench's numba kernels (tens of seconds on a loaded machine).
-TIMEOUT_MS = 300_000
 SEED = 2009
 #: The bench and analyzer settings a 12.5 Hz, 800-line, 30-average set-up makes (README,
 #: "Virtual instrument"): 32 Hz sampling, 64 s time records, the DAC at 1024 Hz.
@@ -42,13 +39,6 @@ def server():
 
     with serving(Analyzer35670A(load_scene(SCENE), seed=SEED)) as srv:
         yield srv
-
-
-@pytest.fixture
-def visa(server):
-    with session(server.resource, TIMEOUT_MS) as inst:
-        inst.write("*RST;*CLS")
-        yield inst
 
 
 # -- the numbers ------------------------------------------------------------------------------

@@ -14,13 +14,11 @@ import shlex
 
 import numpy as np
 import pytest
-from virtual_analyzer import errors, serving, session
+from virtual_analyzer import TIMEOUT_MS, errors, serving, session
 
 pyvisa = pytest.importorskip("pyvisa")
 
 SCENE = "ishizaki2009"
-#: Every VISA read is bounded by this; a fresh checkout also compiles the bench's kernels.
-TIMEOUT_MS = 300_000
 SEED = 32
 #: Five log-spaced points across the 2.48 Hz mode, each settled 20 s and read over 20 cycles.
 SWEEP = (":FREQ:STAR 2.4 HZ;STOP 2.56 HZ;RES 5 PNT/SWP;:SWE:SPAC LOG;DIR UP;STIM 20 S;"
@@ -64,13 +62,6 @@ def server(tmp_path_factory):
     with serving(inst) as srv:
         srv.logs = logs
         yield srv
-
-
-@pytest.fixture
-def visa(server):
-    with session(server.resource, TIMEOUT_MS) as inst:
-        inst.write("*RST;*CLS")
-        yield inst
 
 
 def _sweep(inst, server, *lines) -> dict:
