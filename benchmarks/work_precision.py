@@ -605,7 +605,10 @@ def _target_notes(entries, duration, *, target_err, target_wall, our):
     return notes
 
 
-def _mode_start(chain, k, amplitude):
+def mode_start(chain, k, amplitude):
+    """State along the k-th (ascending frequency) damped mode, z0 = v + conj(v) with v scaled so
+    that the angles' amplitude |2 v_theta| peaks at ``amplitude`` [rad], and that mode's left
+    eigenvector w (w . z(t) = e^{lambda t} exactly for the linear model), and lambda [1/s]."""
     a, _ = chain.state_space()
     lam, vec = np.linalg.eig(a)
     left = np.linalg.inv(vec)
@@ -627,7 +630,7 @@ def scene_free_decay(ctx: _Ctx) -> SceneResult:
     """Free decay of the preset along its 2.48 Hz mode (module docstring)."""
     duration = 3000.0 if ctx.mode == "full" else 300.0
     chain = load_scene("ishizaki2009").chain
-    z0, w, _ = _mode_start(chain, 1, 1e-3)
+    z0, w, _ = mode_start(chain, 1, 1e-3)
     q_model = chain.modes()[1][1]
     out_dt = 0.01
     ctx.progress("free-decay: reference (DOP853, fixed 5 ms and 2.5 ms)")
@@ -1087,4 +1090,4 @@ def run_benchmarks(scenes=SCENES, *, mode: str = "quick", repeats: int | None = 
 
 __all__ = ["Entry", "SceneResult", "BenchmarkReport", "run_benchmarks", "rel_rms_error",
            "paper_input", "degenerate_chain", "rhs_cost", "compile_times", "machine_info",
-           "SCENES", "MODES", "DEGENERATE"]
+           "mode_start", "SCENES", "MODES", "DEGENERATE"]

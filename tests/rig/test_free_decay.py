@@ -4,26 +4,13 @@ case: Q1 ~ 530 over thousands of seconds; the integrator must not change Q)."""
 import numpy as np
 import pytest
 
+from benchmarks.work_precision import mode_start
 from rig.solvers import SOLVERS
 from rig.simulate import simulate
 
 from chains import paper_pendulum
 
 AMPLITUDE_RAD = 1e-6  # nonlinearity ~ theta^2 ~ 1e-12 relative
-
-
-def mode_start(chain, k):
-    """State along the k-th (ascending frequency) damped mode, z0 = v + conj(v) with v scaled so
-    that the angles' amplitude |2 v_theta| peaks at AMPLITUDE_RAD, and that mode's left
-    eigenvector w (w . z(t) = e^{lambda t} exactly for the linear model)."""
-    a, _ = chain.state_space()
-    lam, vec = np.linalg.eig(a)
-    left = np.linalg.inv(vec)
-    up = np.flatnonzero(lam.imag > 0)
-    i = up[np.argsort(lam[up].imag)][k]
-    scale = AMPLITUDE_RAD / (2 * np.abs(vec[: chain.n, i]).max())
-    z0 = 2 * (vec[:, i] * scale).real
-    return z0, left[i] / scale, lam[i]
 
 
 def fitted_q(tr, w):
@@ -60,7 +47,7 @@ def test_free_decay_keeps_the_modal_q(chain, mode, method, kw, duration):
     rtol/100: dQ = |Q - Q_ref| 2^p/(2^p - 1), or |Q - Q_ref|), doubled for the asymptotic
     assumption, plus 1e-10 for nonlinearity and round-off; and it must be below 1e-6.
     (atol = 1e-60 keeps dop853's control relative while the mode decays by e^-44 .. e^-79.)"""
-    z0, w, lam = mode_start(chain, mode)
+    z0, w, lam = mode_start(chain, mode, AMPLITUDE_RAD)
     run = dict(theta0=z0[:2], omega0=z0[2:], method=method, output_dt_s=0.05,
                estimate_error=False)
     q_run, lam_run = fitted_q(simulate(chain, duration, **run, **kw), w)
