@@ -32,7 +32,7 @@ import numpy as np
 
 from daq import run_layout as layout
 from daq.channels import Channel
-from daq.hdf5 import READABLE_FORMAT_VERSIONS
+from daq.hdf5 import READABLE_FORMAT_VERSIONS, attr_text
 from daq.records import STATUSES
 from daq.repair import UnreadableFile, first_line, open_hdf5
 from rig.output_files import not_a_file
@@ -180,10 +180,10 @@ class _Checker:
                          + exc.reason)
             return
         with f:
-            fmt = _text(f.attrs.get("file_format", ""))
+            fmt = attr_text(f.attrs.get("file_format", ""))
             self.kind = _KINDS.get(fmt, "hdf5")
             if "file_format_version" in f.attrs:
-                self.version = _text(f.attrs["file_format_version"])
+                self.version = attr_text(f.attrs["file_format_version"])
             if self.kind == "hdf5" and "trajectory" in f:  # trajectory files before 1.1
                 self.kind = "trajectory"
             skip = set()
@@ -242,7 +242,7 @@ class _Checker:
             self.problem("invalid", f"not a whole run file: missing {', '.join(missing)}")
             return set()
         e = f[layout.ENTRY]
-        status = _text(f[layout.STATUS][()]).strip("\x00 ")
+        status = attr_text(f[layout.STATUS][()]).strip("\x00 ")
         n, planned = int(f[layout.RECORDS_COMPLETE][()]), int(f[layout.RECORDS_PLANNED][()])
         self.n, self.planned = n, planned
         if status not in STATUSES:
@@ -254,13 +254,13 @@ class _Checker:
         if status == "complete" and n != planned:
             self.problem("invalid", f"status complete but {n} of {planned} records written")
         if status != "complete":
-            msg = _text(f[layout.MESSAGE][()]).strip("\x00 ") if layout.MESSAGE in f else ""
+            msg = attr_text(f[layout.MESSAGE][()]).strip("\x00 ") if layout.MESSAGE in f else ""
             self.notes.append(f"incomplete ({status}): {n} of {planned} records"
                               + (f" ({msg})" if msg else ""))
 
         data = f[layout.DATA]
-        names = [_text(data.attrs["signal"])] + [_text(s) for s in
-                                                  data.attrs.get("auxiliary_signals", [])]
+        names = [attr_text(data.attrs["signal"])] + [attr_text(s) for s in
+                                                     data.attrs.get("auxiliary_signals", [])]
         for c in names:
             if c not in data:
                 self.problem("invalid", f"channel {c!r} named by {layout.DATA}@signal is "
@@ -321,7 +321,7 @@ class _Checker:
             self.problem("invalid", f"not a whole sine run file: missing {', '.join(missing)}")
             return
         e = f["entry"]
-        status = _text(e["status"][()]).strip("\x00 ")
+        status = attr_text(e["status"][()]).strip("\x00 ")
         n = int(e["points_complete"][()])
         self.run_status = status if status in STATUSES else None
         if status not in STATUSES:
@@ -369,13 +369,13 @@ class _Checker:
         from rig.scene import scene_from_settings
 
         try:
-            settings = json.loads(_text(f[layout.SCENE_SETTINGS][()]))
+            settings = json.loads(attr_text(f[layout.SCENE_SETTINGS][()]))
         except ValueError as exc:
             self.problem("invalid", f"{layout.SCENE_SETTINGS} is not JSON ({exc})")
             return
         try:
             scene = scene_from_settings(settings,
-                                        origin=_text(f[layout.SCENE].attrs.get("source", "")))
+                                        origin=attr_text(f[layout.SCENE].attrs.get("source", "")))
             plan = RecordPlan.from_acquisition(scene.acquisition)
         except (RigError, KeyError, TypeError, ValueError) as exc:
             self.problem("invalid", f"the stored scene does not rebuild: {first_line(exc)}")
@@ -421,14 +421,6 @@ def _ranges(ks) -> str:
             start = prev = k
     out.append(f"{start}" if start == prev else f"{start}-{prev}")
     return ", ".join(out)
-
-
-def _text(v) -> str:
-    if isinstance(v, bytes):
-        return v.decode("utf-8", "replace")
-    if isinstance(v, np.ndarray) and v.shape == ():
-        return _text(v[()])
-    return str(v)
 
 
 def check_ok_or_raise(path: str | Path) -> FileCheck:

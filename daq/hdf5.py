@@ -528,11 +528,13 @@ def open_run(path: str | Path):
         f.close()
 
 
-def _s(v) -> str:
+def attr_text(v) -> str:
+    """An HDF5 attribute or scalar dataset value as text: bytes decoded as UTF-8 (bad bytes
+    replaced), a 0-d array unwrapped, anything else through ``str``."""
     if isinstance(v, bytes):
         return v.decode("utf-8", "replace")
     if isinstance(v, np.ndarray) and v.shape == ():
-        return _s(v[()])
+        return attr_text(v[()])
     return str(v)
 
 
@@ -540,7 +542,7 @@ def run_status(f) -> tuple[str, int]:
     """(the run's status without its padding, its finished records) of the open run file ``f``
     (:data:`daq.run_layout.STATUS`, ``RECORDS_COMPLETE``): what a reader polling a growing
     file needs, without reading any data."""
-    return _s(f[layout.STATUS][()]).strip("\x00 "), int(f[layout.RECORDS_COMPLETE][()])
+    return attr_text(f[layout.STATUS][()]).strip("\x00 "), int(f[layout.RECORDS_COMPLETE][()])
 
 
 def run_info(path: str | Path) -> dict:
@@ -550,11 +552,12 @@ def run_info(path: str | Path) -> dict:
         e = f[layout.ENTRY]
         status, n = run_status(f)
         data = f[layout.DATA]
-        names = [data.attrs["signal"]] + [_s(s) for s in data.attrs.get("auxiliary_signals", [])]
+        names = [data.attrs["signal"]] + [attr_text(s) for s in
+                                          data.attrs.get("auxiliary_signals", [])]
         channels = []
         for c in names:
             a = dict(data[c].attrs)
-            channels.append({k: (_s(v) if isinstance(v, (bytes, str)) else
+            channels.append({k: (attr_text(v) if isinstance(v, (bytes, str)) else
                                  (v.item() if isinstance(v, np.generic) else v))
                              for k, v in a.items()
                              if k not in ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")})
@@ -567,28 +570,28 @@ def run_info(path: str | Path) -> dict:
         info = {
             "path": str(path),
             "file_bytes": path.stat().st_size,
-            "file_format": _s(f.attrs["file_format"]),
-            "file_format_version": _s(f.attrs["file_format_version"]),
-            "software_version": _s(e.attrs["software_version"]),
-            "start_time": _s(e.attrs["start_time"]),
-            "scene": _s(scene.attrs["name"]),
-            "scene_source": _s(scene.attrs["source"]),
+            "file_format": attr_text(f.attrs["file_format"]),
+            "file_format_version": attr_text(f.attrs["file_format_version"]),
+            "software_version": attr_text(e.attrs["software_version"]),
+            "start_time": attr_text(e.attrs["start_time"]),
+            "scene": attr_text(scene.attrs["name"]),
+            "scene_source": attr_text(scene.attrs["source"]),
             "seed": int(e.attrs["seed"]),
             "status": status,
             "complete": status == "complete",
             "records_complete": n,
             "records_planned": int(f[layout.RECORDS_PLANNED][()]),
-            "message": _s(f[layout.MESSAGE][()]).strip("\x00 "),
+            "message": attr_text(f[layout.MESSAGE][()]).strip("\x00 "),
             "acquisition": {k: (v.item() if isinstance(v, np.generic) else v)
                             for k, v in f[layout.ACQUISITION].attrs.items()
                             if k != "NX_class"},
-            "antialias": {k: (v.item() if isinstance(v, np.generic) else _s(v))
+            "antialias": {k: (v.item() if isinstance(v, np.generic) else attr_text(v))
                           for k, v in f[layout.ANTIALIAS].attrs.items()
                           if k not in ("NX_class", "sos", "description")},
             "channels": channels,
             "clip_counts": {c: [int(x) for x in counts[:, i]] for i, c in enumerate(names)},
             "saturation_counts": {c: [int(x) for x in sat[:, i]] for i, c in enumerate(names)},
-            "model_info": json.loads(_s(model.attrs["model_info_json"])),
+            "model_info": json.loads(attr_text(model.attrs["model_info_json"])),
             "truth": sorted(k for k, ds in f[layout.TRUTH].items() if ds.ndim >= 2)
             if layout.TRUTH in f else [],
             "responses": sorted(k[:-5] for k in model if k.endswith("_real")),
@@ -615,18 +618,19 @@ def read_run(path: str | Path, records=None) -> Recording:
                 raise ConfigError(f"records {rows.tolist()} outside the {n} finished records "
                                   f"(0..{n - 1})")
             rows = rows if rows.size else slice(0, 0)
-        settings = json.loads(_s(f[layout.SCENE_SETTINGS][()]))
-        scene = scene_from_settings(settings, origin=_s(f[layout.SCENE].attrs["source"]))
+        settings = json.loads(attr_text(f[layout.SCENE_SETTINGS][()]))
+        scene = scene_from_settings(settings, origin=attr_text(f[layout.SCENE].attrs["source"]))
         plan = RecordPlan.from_acquisition(scene.acquisition)
         data = f[layout.DATA]
-        names = [_s(data.attrs["signal"])] + [_s(s) for s in data.attrs["auxiliary_signals"]]
+        names = [attr_text(data.attrs["signal"])] + [attr_text(s) for s in
+                                                     data.attrs["auxiliary_signals"]]
         channels = tuple(Channel.from_attrs(c, data[c].attrs) for c in names)
         ag = f[layout.ANTIALIAS]
         a = ag.attrs
         sos = np.array(ag["sos"][()] if "sos" in ag else a["sos"], dtype=float)  # 1.1 / 1.0
         sos.setflags(write=False)
         aa = AntiAliasFilter(fs_hz=float(a["fs_hz"]), rate_hz=float(a["rate_hz"]),
-                             kind=_s(a["kind"]), passband_hz=float(a["passband_hz"]),
+                             kind=attr_text(a["kind"]), passband_hz=float(a["passband_hz"]),
                              stopband_hz=float(a["stopband_hz"]), ripple_db=float(a["ripple_db"]),
                              attenuation_db=float(a["attenuation_db"]), order=int(a["order"]),
                              sos=sos)
@@ -640,22 +644,23 @@ def read_run(path: str | Path, records=None) -> Recording:
                 shape = ds.shape[2:]
                 dims = tuple((list(ds.dims[2 + i].keys()) or [f"{k}_dim{i}"])[0]
                              for i in range(len(shape)))
-                truth_fields.append(TruthField(k, _s(ds.attrs.get("units", "")),
-                                               _s(ds.attrs.get("long_name", k)), shape, dims))
+                truth_fields.append(TruthField(k, attr_text(ds.attrs.get("units", "")),
+                                               attr_text(ds.attrs.get("long_name", k)), shape,
+                                               dims))
                 truth[k] = ds[rows]
         m = f[layout.MODEL]
         values = {k[:-5]: m[k][()] + 1j * m[k[:-5] + "_imag"][()] for k in m
                   if k.endswith("_real")}
         response = ModelResponse(
             freqs_hz=m[layout.FREQUENCY][()], values=values,
-            units={k: _s(m[k + "_real"].attrs.get("units", "")) for k in values},
-            long_names={k: _s(m[k + "_real"].attrs.get("long_name", k))[len("real part of "):]
-                        for k in values})
+            units={k: attr_text(m[k + "_real"].attrs.get("units", "")) for k in values},
+            long_names={k: attr_text(m[k + "_real"].attrs.get("long_name", k))
+                        [len("real part of "):] for k in values})
         header = Header(scene=scene, seed=int(e.attrs["seed"]), plan=plan, channels=channels,
                         antialias=aa, truth=tuple(truth_fields),
-                        model_info=json.loads(_s(m.attrs["model_info_json"])),
-                        response=response, software_version=_s(e.attrs["software_version"]),
-                        start_time=_s(e.attrs["start_time"]))
+                        model_info=json.loads(attr_text(m.attrs["model_info_json"])),
+                        response=response, software_version=attr_text(e.attrs["software_version"]),
+                        start_time=attr_text(e.attrs["start_time"]))
         codes = {c: data[c][rows] for c in names}
         clipped = {c: f[layout.CLIPPING][c][rows].astype(bool) for c in names}
         saturated = ({c: f[layout.SATURATION][c][rows].astype(bool) for c in names}

@@ -72,20 +72,15 @@ def _time_left(landed: list[tuple[float, int]], planned: int) -> float | None:
 def _writer_alive(path: Path) -> bool:
     """Whether a writer holds the run file's lock (daq.hdf5.Hdf5Sink takes a shared one)."""
     try:
-        import fcntl
+        import fcntl  # noqa: F401  (only to know that locks exist)
     except ImportError:  # pragma: no cover - not POSIX: assume it is
         return True
+    from daq.hdf5 import writer_alive
+
     try:
-        fh = open(path, "rb")
+        return writer_alive(path)
     except OSError:  # gone meanwhile
         return False
-    with fh:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return True
-        fcntl.flock(fh, fcntl.LOCK_UN)
-    return False
 
 
 def _estimate(recording, settings) -> FollowUpdate:
