@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import (UFF_SUFFIXES, figure_path, force_option, suffix_path,
+from daq.cli.common import (UFF_SUFFIXES, force_option, plot_option, suffix_path,
                             verified_records)
 from processing.choices import AVERAGING, ESTIMATORS, WINDOWS
 from rig.output_files import check_writable
@@ -33,10 +33,7 @@ from rig.output_files import check_writable
               help="Overlap of consecutive FFTs within a record, 0 <= F < 1.")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the measured H_t and Theta_2 (0.1-10 Hz) as CSV.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              callback=figure_path,
-              help="Write the measured Bode diagrams over the model (like Figs. 9, 10); the "
-                   "format follows the extension: .png, .pdf or .svg.")
+@plot_option("the measured Bode diagrams over the model (like Figs. 9, 10)")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the Markdown report.")
 @click.option("--spectra", "spectra_path", type=click.Path(dir_okay=False, path_type=Path),

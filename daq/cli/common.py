@@ -216,3 +216,12 @@ def note_cold_kernels() -> None:
 #: How long the first compilation takes (BENCHMARKS.md "First run": ~1 min on a loaded 2-core
 #: host, a fresh NUMBA_CACHE_DIR, one acquisition).
 COMPILE_TEXT = "a minute"
+
+
+def plot_option(what: str):
+    """The ``--plot PATH`` option (parameter ``plot_path``): write ``what`` as a figure whose
+    format follows the extension (checked by :func:`figure_path` before any work)."""
+    return click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
+                        callback=figure_path,
+                        help=f"Write {what}; the format follows the extension: .png, .pdf or "
+                             ".svg.")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import figure_path, force_option
+from daq.cli.common import force_option, plot_option
 from rig.output_files import atomic_output, check_writable
 
 
@@ -39,10 +39,7 @@ def _write_text(path: Path, text: str, force: bool) -> None:
               help="Write the designed scene (TOML that daq acquire takes).")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the design report (markdown).")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              callback=figure_path,
-              help="Write the design's responses against its targets (.png, .pdf or .svg: the "
-                   "format follows the extension).")
+@plot_option("the design's responses against its targets")
 @click.option("--tradeoffs", "tradeoffs_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the trade-off sweeps (alpha, f2/f1, sigma^2) and policy (i) against "
                    "(ii) into this directory: tradeoffs.png, tradeoffs_*.csv, policies.png, "

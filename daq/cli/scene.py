@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from daq.cli.common import figure_path, fmt, force_option, set_option
+from daq.cli.common import fmt, force_option, plot_option, set_option
 from daq.cli.live import viewer_stream
 from rig.output_files import check_writable
 
@@ -87,10 +87,7 @@ def _format_summary(s: dict, indent: int = 0) -> str:
 @set_option
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the Bode data as CSV.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              callback=figure_path,
-              help="Write gain/phase diagrams like the paper's Figs. 9 and 10; the format "
-                   "follows the extension: .png, .pdf or .svg.")
+@plot_option("gain/phase diagrams like the paper's Figs. 9 and 10")
 @click.option("--fmin", default=0.1, show_default=True, type=float, help="Lowest frequency [Hz].")
 @click.option("--fmax", default=10.0, show_default=True, type=float, help="Highest frequency [Hz].")
 @click.option("--points", default=1000, show_default=True, type=click.IntRange(min=2),
