@@ -89,6 +89,12 @@ def check_value(where: str, key: Key, value: Any) -> Any:
             raise ConfigError(f"{where} = {shown(v)} is invalid: expected a finite number")
         return float(v)
 
+    def chosen(v):
+        if key.choices and v not in key.choices:
+            raise ConfigError(f"{where} = {shown(v)} is invalid: expected one of "
+                              f"{', '.join(map(str, key.choices))}")
+        return v
+
     if key.type == "float":
         return number(value, "a number")
     if key.type == "bool":
@@ -98,17 +104,11 @@ def check_value(where: str, key: Key, value: Any) -> Any:
     if key.type == "int":
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(f"{where} = {shown(value)} is invalid: expected an integer")
-        if key.choices and value not in key.choices:
-            raise ConfigError(f"{where} = {shown(value)} is invalid: expected one of "
-                              f"{', '.join(map(str, key.choices))}")
-        return value
+        return chosen(value)
     if key.type == "str":
         if not isinstance(value, str):
             raise ConfigError(f"{where} = {shown(value)} is invalid: expected a string")
-        if key.choices and value not in key.choices:
-            raise ConfigError(f"{where} = {shown(value)} is invalid: expected one of "
-                              f"{', '.join(key.choices)}")
-        return value
+        return chosen(value)
     if key.type == "floats":
         if isinstance(value, list):
             if not value:
