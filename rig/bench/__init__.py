@@ -24,8 +24,9 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
 ``auto`` (default)
     The cheapest model that meets ``acquisition.error_budget`` (:func:`select_model`).
 
-Error estimates: :func:`model_info` (:mod:`rig.bench.estimates`). Measured accuracies, costs and
-levels for the defaults: docs/bench_model.md; the sensors' levels: docs/devices.md.
+Error estimates: :func:`model_info` (:mod:`rig.bench.estimates`, a :class:`ModelInfo`). Measured
+accuracies, costs and levels for the defaults: docs/bench_model.md; the sensors' levels:
+docs/devices.md.
 
 Rooms
 -----
@@ -48,11 +49,12 @@ from rig.bench.response import (BenchResponse, _as_linear, calibrations, expecte
                                 signal_to_noise, stationary_levels)
 from rig.bench.estimates import _kernel_theta, linear_method, model_info, model_seed
 from rig.bench.fused import fused_model_info
+from rig.model_info import ModelInfo
 from rig.bench.simulation import BenchSimulation
 
 __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
-           "model_info", "linear_method", "fused_model_info", "select_model",
+           "model_info", "ModelInfo", "linear_method", "fused_model_info", "select_model",
            "predict_linearisation_error", "MODELS", "NONLINEAR_METHODS", "STREAMS"]
 
 
