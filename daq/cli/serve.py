@@ -40,8 +40,9 @@ def serve(scene_name, overrides, seed, address, realtime, out_dir, quiet):
     """Serve SCENE's bench as a virtual 35670A on a raw SCPI socket until SIGINT or SIGTERM.
 
     Point VISA at the printed resource (TCPIP::HOST::PORT::SOCKET, '\\n' terminations). Each
-    INIT is an acquisition and an analysis of this project; the equivalent 'daq acquire' and
-    'daq analyze' commands are printed for every measurement.
+    INIT is an acquisition and an analysis of this project (in INST:SEL SINE a stepped-sine
+    sweep); the equivalent 'daq acquire' and 'daq analyze' (or 'daq sine') commands are printed
+    for every measurement.
     """
     import secrets
     import signal

@@ -8,8 +8,9 @@ import any of ``daq``, and nothing else in ``processing`` imports it. Its module
 - :mod:`.scpi`: the SCPI 1999 / IEEE 488.2 engine (parser, command table, error queue),
   independent of the transport;
 - :mod:`.blocks`: ASCII and IEEE 488.2 definite-length binary trace data;
-- :mod:`.measurement`: the measurement modes (FFT: ``daq.acquire`` + ``processing.analyze``)
-  and the instrument's span/lines semantics on the bench;
+- :mod:`.measurement_mode`: what a measurement mode is; :mod:`.measurement`: the modes (FFT:
+  ``daq.acquire`` + ``processing.analyze``) and the instrument's span/lines semantics on the
+  bench; :mod:`.sine_mode`: the swept sine (``processing.sine_sweep.measure_sine``);
 - :mod:`.traces`: trace feeds and formats; :mod:`.status`: the status registers;
 - :mod:`.analyzer35670a`: the instrument (state, measurement thread); :mod:`.commands`: its
   command table;

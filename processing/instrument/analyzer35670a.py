@@ -9,16 +9,18 @@ instrument's range is ``-222``; an unknown header ``-113``.
 
 ``INIT`` starts a measurement on a worker thread (one at a time: another ``INIT`` meanwhile is
 ``-213,"Init ignored"``); ``*OPC?`` and ``*WAI`` wait for it (in slices of 0.1 s, so a signal
-still reaches the caller), ``ABOR`` ends it at the next bench block. The measurement is the
-mode's ``run`` (FFT: ``daq.acquire`` + ``processing.analyze``), with the ``n``-th measurement
-since the start seeded ``seed + n``. ``realtime`` paces it to the wall clock like the bench
+still reaches the caller), ``ABOR`` ends it at the next bench block or sweep point. The
+measurement is the mode's ``run`` (FFT: ``daq.acquire`` + ``processing.analyze``; SINE:
+``processing.sine_sweep.measure_sine``), with the ``n``-th measurement since the start seeded
+``seed + n``; selecting another mode drops the last measurement's traces. ``realtime`` paces it to the wall clock like the bench
 (``daq.pacing``); ``out_dir`` keeps each measurement's run file. The status registers follow
 the measurement (:mod:`processing.instrument.status`).
 
 *RST presets the emulator's defaults, which differ from the instrument's where the bench needs
 it: span 12.5 Hz (the instrument's 102.4 kHz is beyond the bench), 800 lines, Hann, RMS
 averaging of 10 averages switched on, source random 0.1 V rms with its output off, ranges and
-transducer units from the scene.
+transducer units from the scene; the swept-sine settings of
+:class:`processing.instrument.sine_mode.SineSetup`.
 """
 
 from __future__ import annotations
@@ -31,21 +33,17 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
-from daq.sinks import Sink
 from processing.instrument import blocks
-from processing.instrument.measurement import LINES, MODES, FftSetup, ModeConflict, baseband_span
+from processing.instrument.measurement import LINES, MODES, FftSetup, baseband_span
+from processing.instrument.measurement_mode import Aborted, ModeConflict, RunControl
 from processing.instrument.scpi import Command, CommandTable, Engine, ErrorQueue, ScpiError
-from processing.instrument.status import (OPER_AVERAGING, OPER_MEASURING, OPER_SETTLING,
-                                          QUES_VOLTAGE, Status)
+from processing.instrument.sine_mode import SineSetup
+from processing.instrument.status import OPER_MEASURING, QUES_VOLTAGE, Status
 from processing.instrument.traces import Feed, parse_feed, trace_data, x_data
 
 __all__ = ["Analyzer35670A", "Aborted"]
 
 DEFAULT_TRACES = ("XFR:POW 1", "XFR:POW 2", "XFR:POW:RAT 2,1", "XFR:POW:COH 2,1")
-
-
-class Aborted(Exception):
-    """``ABOR`` (or a server shutdown) ended the measurement."""
 
 
 @dataclass(frozen=True)
@@ -64,17 +62,6 @@ class TraceSetup:
     feed: Feed
     form: str = "MLOG"
     volt_unit: str = "V2"
-
-
-class _AbortSink(Sink):
-    """A critical sink that ends the run at the next block once ``event`` is set."""
-
-    def __init__(self, event: threading.Event):
-        self.event = event
-
-    def block(self, block):
-        if self.event.is_set():
-            raise Aborted("measurement aborted")
 
 
 class Analyzer35670A:
@@ -99,7 +86,7 @@ class Analyzer35670A:
         self._worker = None
         self._opc_pending = False
         self.measurements = 0
-        self.result = None
+        self.result, self.mode = None, "FFT"
         self.reset()
 
     # -- the outside ------------------------------------------------------------------------
@@ -147,9 +134,10 @@ class Analyzer35670A:
     def reset(self) -> None:
         """The preset state (*RST, SYST:PRES; see the module docstring)."""
         acq = self.scene.acquisition
-        self.mode = "FFT"
+        self.select("FFT")
         self.setup = FftSetup(ranges_v=(float(acq.range_a_v), float(acq.range_x_v),
                                         float(acq.range_y_v)))
+        self.sine = SineSetup()
         self.aver_on, self.aver_type, self.aver_tcon = True, "RMS", "NORM"
         self.inputs = {n: InputSetup(xdcr=n != 4) for n in range(1, 5)}
         self.traces = {n: TraceSetup(parse_feed(DEFAULT_TRACES[n - 1])) for n in range(1, 5)}
@@ -161,6 +149,15 @@ class Analyzer35670A:
     def update(self, **changes) -> None:
         self.setup = dataclasses.replace(self.setup, **changes)
 
+    def update_sine(self, **changes) -> None:
+        self.sine = dataclasses.replace(self.sine, **changes)
+
+    def select(self, mode: str) -> None:
+        """``INST:SEL``: another mode drops the last measurement's traces."""
+        if mode != self.mode:
+            self.result = None
+        self.mode = mode
+
     def update_source(self, **changes) -> None:
         self.update(source=dataclasses.replace(self.setup.source, **changes))
 
@@ -170,7 +167,12 @@ class Analyzer35670A:
     def update_trace(self, n: int, **changes) -> None:
         self.traces[n] = dataclasses.replace(self.traces[n], **changes)
 
-    def _effective_setup(self) -> FftSetup:
+    def _effective_setup(self):
+        if self.mode == "SINE":  # the source and the inputs are the instrument's, shared
+            src = self.setup.source
+            return dataclasses.replace(self.sine, level_vrms=src.level_vrms, output=src.enabled,
+                                       ranges_v=self.setup.ranges_v,
+                                       autorange=self.setup.autorange)
         avg = "exponential" if self.aver_tcon == "EXP" else {
             "RMS": "rms", "VECT": "vector"}.get(self.aver_type)
         if avg is None:
@@ -203,48 +205,42 @@ class Analyzer35670A:
         self.measurements += 1
         self._abort.clear()
         self._idle.clear()
-        self.status.oper.set_condition(OPER_MEASURING | OPER_SETTLING)
+        with self.status.lock:
+            self.status.oper.set_condition(OPER_MEASURING)
         self._worker = threading.Thread(target=self._measure, args=(mode, setup, seed),
                                         name="35670A measurement", daemon=True)
         self._worker.start()
 
-    def _sinks(self, n: int) -> list:
-        sinks = [_AbortSink(self._abort)]
-        if self.realtime:
-            from daq.pacing import Pacer, PacingSink
+    def _run_path(self, n: int):
+        """Where measurement ``n`` keeps its run file (``out_dir``), or None."""
+        if self.out_dir is None:
+            return None
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        path = self.out_dir / f"measurement_{n:04d}.h5"
+        k = n
+        while path.exists():
+            k += 1000
+            path = self.out_dir / f"measurement_{k:04d}.h5"
+        return path
 
-            sinks.append(PacingSink(Pacer(1.0)))
-        if self.out_dir is not None:
-            from daq.hdf5 import Hdf5Sink
-
-            self.out_dir.mkdir(parents=True, exist_ok=True)
-            path = self.out_dir / f"measurement_{n:04d}.h5"
-            k = n
-            while path.exists():
-                k += 1000
-                path = self.out_dir / f"measurement_{k:04d}.h5"
-            sinks.insert(0, Hdf5Sink(path))
-        return sinks
-
-    def _progress(self, settle_s: float):
-        def progress(done_s, total_s):
-            bits = OPER_MEASURING | (OPER_SETTLING if done_s < settle_s else OPER_AVERAGING)
-            with self.status.lock:
-                self.status.oper.set_condition(bits)
-        return progress
+    def _oper(self, bits: int) -> None:
+        with self.status.lock:
+            self.status.oper.set_condition(bits)
 
     def _measure(self, mode, setup, seed) -> None:
         n = self.measurements
-        settle = float(self.scene.acquisition.settle_s)
         try:
-            result = mode.run(self.scene, setup, seed=seed, sinks=self._sinks(n),
-                              progress=self._progress(settle))
+            control = RunControl(abort=self._abort, realtime=self.realtime,
+                                 path=self._run_path(n), oper=self._oper)
+            result = mode.run(self.scene, setup, seed=seed, control=control)
             self.result = result
-            self._overloads(result)
-            if result.setup.ranges_v != setup.ranges_v:  # autoranged
+            over = mode.overloads(result)
+            with self.status.lock:
+                self.status.dev.set_condition(over)
+                self.status.ques.set_condition(QUES_VOLTAGE if over else 0)
+            if mode.name == "FFT" and result.setup.ranges_v != setup.ranges_v:  # autoranged
                 self.update(ranges_v=result.setup.ranges_v)
-            self.log(f"measurement {n} done (seed {seed}): {setup.averages} averages, "
-                     f"{setup.lines} lines, span {setup.span_hz:g} Hz")
+            self.log(f"measurement {n} done (seed {seed}): {mode.summary(result)}")
             if self.describe is not None:
                 self.log("the same with daq:\n" + self.describe(result.setup, seed))
         except Aborted:
@@ -262,17 +258,6 @@ class Analyzer35670A:
                 self._opc_pending = False
                 self.status.event(1)
             self._idle.set()
-
-    def _overloads(self, result) -> None:
-        rec = result.recording
-        over = 0
-        for i, name in enumerate(("a", "x", "y")):
-            k = rec.header.names.index(name)
-            if rec.clip_counts()[:, k].any() or rec.saturation_counts()[:, k].any():
-                over |= 1 << i
-        with self.status.lock:
-            self.status.dev.set_condition(over)
-            self.status.ques.set_condition(QUES_VOLTAGE if over else 0)
 
     # -- trace data -------------------------------------------------------------------------
 

@@ -3,15 +3,19 @@
 :func:`table` builds the :class:`processing.instrument.scpi.Command` list of one
 :class:`processing.instrument.analyzer35670a.Analyzer35670A`. Headers are written as in the
 programmer's reference (upper case = short form, ``[...]`` optional, ``#`` a numeric suffix);
-README's "Virtual instrument" section lists them with the errors the emulator answers.
+README's "Virtual instrument" section lists them with the errors the emulator answers. The
+frequency commands (``FREQ:STAR``, ``STOP``, ``SPAN``, ``CENT``, ``RES``) set the selected
+mode's: the FFT span and lines, or the swept sine's band and points
+(:mod:`processing.instrument.sine_mode`, whose settings the swept-sine rows set).
 """
 
 from __future__ import annotations
 
 import math
 
-from processing.instrument.measurement import ModeConflict
+from processing.instrument.measurement_mode import ModeConflict
 from processing.instrument.scpi import Command, ScpiError
+from processing.instrument.sine_mode import planned_points
 from processing.instrument.traces import FORMS, VOLT_UNITS, parse_feed
 
 __all__ = ["table"]
@@ -64,7 +68,7 @@ def _flag(on_set, on_query):
 def table(a) -> list[Command]:
     """The commands of the instrument ``a`` (an ``Analyzer35670A``)."""
     return [*_common(a), *_system(a), *_measure(a), *_source(a), *_inputs(a), *_frequency(a),
-            *_averaging(a), *_formats(a), *_traces(a)]
+            *_sweep(a), *_autolevel(a), *_averaging(a), *_formats(a), *_traces(a)]
 
 
 # -- IEEE 488.2 common commands, SYSTem, STATus ----------------------------------------------
@@ -160,8 +164,9 @@ def _system(a):
 def _select(a, p):
     mode = _one(p).choice(_MODES)
     if mode not in a.modes:
-        raise ScpiError(-221, f"INST:SEL {mode}: the {mode} mode is not emulated yet (FFT is)")
-    a.mode = mode
+        raise ScpiError(-221, f"INST:SEL {mode}: the {mode} mode is not emulated yet "
+                        f"({' and '.join(a.modes)} are)")
+    a.select(mode)
 
 
 def _continuous(a, on):
@@ -197,7 +202,7 @@ def _level(a, p):
     v = par.number({"": 1.0, "V": 1.0, "VRMS": 1.0, "VPK": 1.0})
     _in_range("source level", v, 0.0, 5.0, " V")
     if unit.endswith("VPK"):
-        if a.setup.source.function not in ("sine", "periodic-chirp"):
+        if a.mode != "SINE" and a.setup.source.function not in ("sine", "periodic-chirp"):
             raise ScpiError(-221, "a peak level of a noise source is not defined: give VRMS")
         v = v / math.sqrt(2.0)
     a.update_source(level_vrms=v)
@@ -356,23 +361,47 @@ def _center(a, p):
                         f"span's center is span / 2 ({a.setup.span_hz / 2:g} Hz now)")
 
 
+def _by_mode(a, fft, sine):
+    """A handler that is ``sine`` in the swept-sine mode and ``fft`` otherwise."""
+    return lambda s, p: (sine if a.mode == "SINE" else fft)(s, p)
+
+
 def _frequency(a):
     f = "[SENSe]:FREQuency"
+    sw = lambda: a.sine  # noqa: E731
 
-    def q(fn):
-        return lambda s, p: (_none(p), _nr(fn()))[1]
+    def q(fft, sine):
+        return _by_mode(a, lambda s, p: (_none(p), _nr(fft()))[1],
+                        lambda s, p: (_none(p), _nr(sine()))[1])
+
+    def full(s, p):
+        _none(p)
+        if a.mode == "SINE":
+            raise ScpiError(-221, "FREQ:SPAN:FULL is not valid in the swept-sine mode (the "
+                            "reference's): set FREQ:STAR and FREQ:STOP")
+        a.update(span_hz=a.check_span(102400.0))
 
     return [
-        Command(f"{f}:SPAN", set=lambda s, p: _span(a, p), query=q(lambda: a.setup.span_hz)),
-        Command(f"{f}:SPAN:FULL", set=lambda s, p: (_none(p), a.update(
-            span_hz=a.check_span(102400.0)))[1]),
-        Command(f"{f}:STOP", set=lambda s, p: _span(a, p), query=q(lambda: a.setup.span_hz)),
-        Command(f"{f}:STARt", set=lambda s, p: _start(a, p), query=q(lambda: 0.0)),
-        Command(f"{f}:CENTer", set=lambda s, p: _center(a, p),
-                query=q(lambda: a.setup.span_hz / 2)),
-        Command(f"{f}:RESolution", set=lambda s, p: a.update(lines=a.lines_for(
+        Command(f"{f}:SPAN", set=_by_mode(a, lambda s, p: _span(a, p),
+                                          lambda s, p: _sine_span(a, p)),
+                query=q(lambda: a.setup.span_hz, lambda: sw().stop_hz - sw().start_hz)),
+        Command(f"{f}:SPAN:FULL", set=full),
+        Command(f"{f}:STOP", set=_by_mode(a, lambda s, p: _span(a, p),
+                                          lambda s, p: _sine_band(a, p, stop=True)),
+                query=q(lambda: a.setup.span_hz, lambda: sw().stop_hz)),
+        Command(f"{f}:STARt", set=_by_mode(a, lambda s, p: _start(a, p),
+                                           lambda s, p: _sine_band(a, p, stop=False)),
+                query=q(lambda: 0.0, lambda: sw().start_hz)),
+        Command(f"{f}:CENTer", set=_by_mode(a, lambda s, p: _center(a, p),
+                                            lambda s, p: _sine_center(a, p)),
+                query=q(lambda: a.setup.span_hz / 2,
+                        lambda: (sw().start_hz + sw().stop_hz) / 2)),
+        Command(f"{f}:RESolution",
+                set=_by_mode(a, lambda s, p: a.update(lines=a.lines_for(
                     _in_range("lines", _one(p).number(), 1, math.inf))),
-                query=lambda s, p: (_none(p), str(a.setup.lines))[1]),
+                    lambda s, p: a.update_sine(resolution=_resolution(p))),
+                query=_by_mode(a, lambda s, p: (_none(p), str(a.setup.lines))[1],
+                               lambda s, p: (_none(p), _nr(sw().resolution[0]))[1])),
         Command("[SENSe]:WINDow#[:TYPE]",
                 set=lambda s, p: a.update(window=_one(p).choice(_windows())),
                 query=lambda s, p: (_none(p), _code(_windows(), a.setup.window))[1]),
@@ -385,6 +414,174 @@ def _frequency(a):
 
 def _windows():
     return WINDOWS
+
+
+# -- swept sine: [SENSe:]FREQuency, [SENSe:]SWEep (INST:SEL SINE) ----------------------------
+
+#: The swept sine's frequency limits [Hz] (the reference: 15.625 mHz .. 51.2 kHz).
+SINE_HZ = (0.015625, 51200.0)
+RESOLUTION_UNITS = ("PNT/SWP", "PNT/DEC", "PNT/OCT", "HZ", "PCT")
+
+
+def _value_unit(par, units: tuple, default: str, special=None) -> tuple[float, str]:
+    """A number and the one of ``units`` it was sent in (none: ``default``); an SI prefix
+    scales it (``MS``: milliseconds)."""
+    text = par.text.strip().upper()
+    unit = next((u for u in sorted(units, key=len, reverse=True) if text.endswith(u)), "")
+    value = par.number({u: 1.0 for u in ("", *units)}, special=special)
+    return value, unit or default
+
+
+def _sine_band(a, p, *, stop: bool):
+    f = _in_range("stop" if stop else "start", _one(p).number(
+        _hz(), special={"MIN": SINE_HZ[0], "MAX": SINE_HZ[1]}), *SINE_HZ, " Hz")
+    a.update_sine(**{"stop_hz" if stop else "start_hz": f})
+
+
+def _sine_around(a, center: float, span: float):
+    lo, hi = center - span / 2, center + span / 2
+    if lo < SINE_HZ[0] or hi > SINE_HZ[1]:
+        raise ScpiError(-222, f"a span of {span:g} Hz around {center:g} Hz runs from {lo:g} to "
+                        f"{hi:g} Hz: expected {SINE_HZ[0]:g} .. {SINE_HZ[1]:g} Hz")
+    a.update_sine(start_hz=lo, stop_hz=hi)
+
+
+def _sine_span(a, p):  # the center stays (FREQ:SPAN:LINK CENT, the preset's)
+    span = _in_range("span", _one(p).number(_hz()), *SINE_HZ, " Hz")
+    _sine_around(a, (a.sine.start_hz + a.sine.stop_hz) / 2, span)
+
+
+def _sine_center(a, p):
+    _sine_around(a, _one(p).number(_hz()), a.sine.stop_hz - a.sine.start_hz)
+
+
+def _resolution(p) -> tuple:
+    v, unit = _value_unit(_one(p), RESOLUTION_UNITS, "PNT/SWP")
+    return _in_range("resolution", v, *SINE_HZ, f" {unit}"), unit
+
+
+def _settle(p) -> tuple:
+    v, unit = _value_unit(_one(p), ("S", "CYCLE"), "S")
+    return _in_range("settle time", v, 0.0, 9.9e37, f" {unit}"), unit
+
+
+def _dwell(p) -> tuple:
+    v, unit = _value_unit(_one(p), ("S", "CYCLE"), "S")
+    if unit == "CYCLE":  # the reference: less than one cycle is one cycle
+        return _in_range("integration time", max(v, 1.0), 1.0, 234.0, " CYCLE"), unit
+    return _in_range("integration time", v, 250e-6, 32768.0, " S"), unit
+
+
+def _sweep_mode(a, p):
+    if _one(p).choice({"AUTO": "AUTO", "MANual": "MAN"}) == "MAN":
+        raise ScpiError(-221, "manual sweep (SWE:MODE MAN, FREQ:MAN) is not emulated: the "
+                        "sweep runs FREQ:STAR .. FREQ:STOP")
+
+
+def _sweep(a):
+    f, w = "[SENSe]:FREQuency:RESolution:AUTO", "[SENSe]:SWEep"
+    sw = lambda: a.sine  # noqa: E731
+
+    def q(fn):
+        return lambda s, p: (_none(p), fn())[1]
+
+    def choice(field, options):
+        return dict(set=lambda s, p: a.update_sine(**{field: _one(p).choice(options)}),
+                    query=q(lambda: getattr(sw(), field)))
+
+    return [
+        Command(f, **_flag(lambda s, v: a.update_sine(auto_resolution=v),
+                           lambda s: sw().auto_resolution)),
+        Command(f"{f}:MCHange", set=lambda s, p: a.update_sine(max_change_pct=_in_range(
+                    "maximum change", _one(p).number({"": 1.0, "PCT": 1.0}), 0.00391, 100.0,
+                    " %")),
+                query=q(lambda: _nr(sw().max_change_pct))),
+        Command(f"{f}:MINimum", set=lambda s, p: a.update_sine(auto_minimum=_resolution(p)),
+                query=q(lambda: _nr(sw().auto_minimum[0]))),
+        Command(f"{w}:DIRection", **choice("direction", {"UP": "UP", "DOWN": "DOWN"})),
+        Command(f"{w}:SPACing", **choice("spacing", {"LINear": "LIN", "LOGarithmic": "LOG"})),
+        Command(f"{w}:MODE", set=lambda s, p: _sweep_mode(a, p), query=q(lambda: "AUTO")),
+        Command(f"{w}:STIMe", set=lambda s, p: a.update_sine(settle=_settle(p)),
+                query=q(lambda: _nr(sw().settle[0]))),
+        Command(f"{w}:DWELl", set=lambda s, p: a.update_sine(dwell=_dwell(p)),
+                query=q(lambda: _nr(sw().dwell[0]))),
+    ]
+
+
+# -- SOURce:VOLTage autolevel (swept sine) ---------------------------------------------------
+
+REFERENCE_UNITS = ("DBVRMS", "VPK", "DBVPK", "V", "DBV", "EU", "DBEU", "VRMS")
+
+
+def _reference(p) -> tuple:
+    v, unit = _value_unit(_one(p), REFERENCE_UNITS, "VPK")
+    if unit in ("EU", "DBEU"):
+        if not (math.isfinite(v) and (v > 0 or unit == "DBEU")):
+            raise ScpiError(-222, f"reference {v:g} {unit}: expected an amplitude > 0")
+        return v, unit
+    lin = {"VPK": v / math.sqrt(2.0), "V": v / math.sqrt(2.0), "VRMS": v}.get(unit)
+    db = 20.0 * math.log10(lin) if lin is not None and lin > 0 else (
+        -math.inf if lin is not None else v - (_RMS_TO_PEAK_DB if unit == "DBVPK" else 0.0))
+    _in_range(f"reference {v:g} {unit} =", db, -69.276, 31.66, " dBVrms")
+    return v, unit
+
+
+def _reference_channel(a, p):
+    n = int(_one(p).choice({f"INPut{k}": str(k) for k in range(1, 5)}))
+    if n == 4:
+        raise ScpiError(-221, "input 4 is the source drive: autolevel holds input 1, 2 or 3")
+    a.update_sine(reference_input=n)
+
+
+def _limit(a, p):
+    par = _one(p)
+    unit = "".join(ch for ch in par.text.upper() if ch.isalpha() and ch != "E")
+    v = par.number({"": 1.0, "V": 1.0, "VRMS": 1.0, "VPK": 1.0, "DBV": 1.0, "DBVRMS": 1.0,
+                    "DBVPK": 1.0})
+    vrms = {"VPK": v / math.sqrt(2.0), "DBV": 10 ** (v / 20), "DBVRMS": 10 ** (v / 20),
+            "DBVPK": 10 ** (v / 20) / math.sqrt(2.0)}.get(unit, v)
+    if not (math.isfinite(vrms) and 0 < vrms <= 5.0):
+        raise ScpiError(-222, f"autolevel limit {par.text}: expected 0 < limit <= 5 V rms")
+    a.update_sine(limit_vrms=vrms)
+
+
+def _not_emulated(what):
+    def handler(s, p):
+        raise ScpiError(-221, what)
+    return handler
+
+
+def _slew(p):
+    if _one(p).number({"": 1.0, "V/S": 1.0, "VPK/S": 1.0, "VRMS/S": 1.0}) != 0.0:
+        raise ScpiError(-221, "a source ramp (SOUR:VOLT:SLEW) is not emulated: the level steps "
+                        "at once (0 only)")
+
+
+def _autolevel(a):
+    v = "SOURce:VOLTage"
+    sw = lambda: a.sine  # noqa: E731
+
+    def q(fn):
+        return lambda s, p: (_none(p), fn())[1]
+
+    lim_inp = _not_emulated("autolevel holds only the reference input: a limit on the other "
+                            "inputs (SOUR:VOLT:LIM:INP) is not emulated")
+    return [
+        Command(f"{v}[:LEVel]:AUTO", **_flag(lambda s, on: a.update_sine(auto_level=on),
+                                             lambda s: sw().auto_level)),
+        Command(f"{v}[:LEVel]:REFerence", set=lambda s, p: a.update_sine(reference=_reference(p)),
+                query=q(lambda: _nr(sw().reference[0]))),
+        Command(f"{v}[:LEVel]:REFerence:CHANnel", set=lambda s, p: _reference_channel(a, p),
+                query=q(lambda: f"INP{sw().reference_input}")),
+        Command(f"{v}[:LEVel]:REFerence:TOLerance",
+                set=lambda s, p: a.update_sine(tolerance_db=_in_range(
+                    "tolerance", _one(p).number({"": 1.0, "DB": 1.0}), 0.1, 20.0, " dB")),
+                query=q(lambda: _nr(sw().tolerance_db))),
+        Command(f"{v}:LIMit[:AMPLitude]", set=lambda s, p: _limit(a, p),
+                query=q(lambda: _nr(sw().limit_vrms))),
+        Command(f"{v}:LIMit:INPut", set=lim_inp, query=lim_inp),
+        Command(f"{v}:SLEW", set=lambda s, p: _slew(p), query=q(lambda: "0")),
+    ]
 
 
 # -- [SENSe:]AVERage -------------------------------------------------------------------------
@@ -476,6 +673,16 @@ def _volt_unit(a, n, p):
 
 def _points(a, n):
     t = a.traces[n].feed
+    if a.mode == "SINE":
+        if a.result is not None:
+            return str(len(a.trace_values(n, x=True)))
+        try:
+            planned = planned_points(a.sine)
+        except ModeConflict as exc:
+            raise ScpiError(-221, str(exc)) from None
+        if planned is None:
+            raise ScpiError(-230, "with auto resolution the points are known after the sweep")
+        return str(planned)
     s = a.result.setup if a.result is not None else a.setup
     return str(s.nperseg if t.kind == "time" else s.lines + 1)
 

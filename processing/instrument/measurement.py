@@ -1,13 +1,9 @@
 """The analyzer's measurement modes: what ``INIT`` runs, as an acquisition and an analysis of
 this project (``daq.acquire`` into a ``daq.MemorySink``, then ``processing.analyze``).
 
-A mode is a :class:`MeasurementMode`: ``check(scene, setup)`` refuses what the bench cannot
-carry (a :class:`ModeConflict` sentence, answered as ``-221,"Settings conflict"``), and
-``run(scene, setup, seed=..., sinks=..., progress=...)`` measures and returns a result that the
-traces read (:mod:`processing.instrument.traces`: ``freqs_hz``, ``frf(out, in)``, ``cross``,
-``time_record``, ``volts_per_unit``; a feed a mode cannot give raises :class:`ModeConflict`).
-:data:`MODES` maps ``INST:SEL`` names to modes; the FFT mode is :class:`FftMode`. Another mode
-(swept sine) plugs in by adding its entry, with its setup and the commands that set it.
+A mode is a :class:`processing.instrument.measurement_mode.MeasurementMode` (``check``,
+``run``, ``summary``, ``overloads``). :data:`MODES` maps ``INST:SEL`` names to modes: FFT is
+:class:`FftMode`, SINE the swept sine (:mod:`processing.instrument.sine_mode`).
 
 FFT mode (the 35670A's semantics, SPEC section 6): a baseband span ``102.4 kHz / 2^k`` with
 ``lines`` in 100 .. 1600 gives the time record ``lines / span`` and the sample rate
@@ -30,9 +26,15 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
+
+from daq.sinks import Sink
+from processing.instrument.measurement_mode import (Aborted, MeasurementMode, ModeConflict,
+                                                    RunControl)
+from processing.instrument.sine_mode import SineMode, SineSetup
+from processing.instrument.sine_mode import equivalent_commands as sine_commands
+from processing.instrument.status import OPER_AVERAGING, OPER_MEASURING, OPER_SETTLING
 
 __all__ = ["FftSetup", "SourceSetup", "ModeConflict", "MeasurementMode", "FftMode", "FftResult",
            "MODES", "baseband_span", "SPANS_HZ", "LINES", "bench_overrides",
@@ -48,10 +50,6 @@ RANGES_DBVPK = (-51, 27)
 MAX_RANGING = 10
 #: Input channels 1..4 -> the run's channel names (4: the source drive, a truth field).
 CHANNELS = {1: "a", 2: "x", 3: "y", 4: "source_v"}
-
-
-class ModeConflict(Exception):
-    """What the emulated bench cannot do with these settings (one sentence)."""
 
 
 def baseband_span(requested_hz: float) -> float:
@@ -159,25 +157,18 @@ def analyzer_settings(setup: FftSetup):
                             fmax_hz=min(10.0, setup.span_hz), fit_methods=())
 
 
-def equivalent_commands(scene_arg: str, base_overrides, seed: int, setup: FftSetup,
-                        scene) -> str:
-    """The ``daq acquire`` + ``daq analyze`` command lines that measure the same numbers."""
+def equivalent_commands(scene_arg: str, base_overrides, seed: int, setup, scene) -> str:
+    """The ``daq`` command lines that measure the same numbers as ``setup``: ``daq acquire`` +
+    ``daq analyze`` for an :class:`FftSetup`, ``daq sine`` for a swept-sine
+    :class:`processing.instrument.sine_mode.SineSetup`."""
+    if isinstance(setup, SineSetup):
+        return sine_commands(scene_arg, base_overrides, seed, setup, scene)
     sets = " ".join(f"--set {o}" for o in [*base_overrides, *bench_overrides(scene, setup)])
     a = analyzer_settings(setup)
     opts = (f"--lines {a.lines} --span {a.span_hz!r} --window {a.window} --averaging "
             f"{a.averaging} --overlap {a.overlap!r} --fmin {a.fmin_hz!r} --fmax {a.fmax_hz!r}")
     return (f"daq acquire {scene_arg} --seed {seed} {sets} --out run.h5\n"
             f"daq analyze run.h5 {opts}")
-
-
-class MeasurementMode(Protocol):
-    """An ``INST:SEL`` mode: ``check`` raises :class:`ModeConflict`; ``run`` measures."""
-
-    name: str
-
-    def check(self, scene, setup) -> None: ...
-
-    def run(self, scene, setup, *, seed: int, sinks=(), progress=None): ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -255,6 +246,11 @@ class FftResult:
         n = self.setup.nperseg
         return np.asarray(v[-1, v.shape[1] - n:], dtype=float)
 
+    @property
+    def times_s(self) -> np.ndarray:
+        """The time record's sample times [s]."""
+        return np.arange(self.setup.nperseg) / self.setup.rate_hz
+
 
 class FftMode:
     """The FFT mode: ``daq.acquire`` of the bench this setup makes, then ``processing.analyze``."""
@@ -267,7 +263,8 @@ class FftMode:
             raise ModeConflict(f"{setup.averages} average: coherence and the error bands need "
                                "at least 2 (AVER ON; AVER:COUN >= 2)")
 
-    def run(self, scene, setup: FftSetup, *, seed: int, sinks=(), progress=None) -> FftResult:
+    def run(self, scene, setup: FftSetup, *, seed: int,
+            control: RunControl = RunControl()) -> FftResult:
         from daq.acquisition import acquire
         from daq.sinks import MemorySink
         from processing.analyzer import analyze
@@ -279,6 +276,13 @@ class FftMode:
             bench_scene = load_scene(scene.to_dict(), bench_overrides(scene, setup))
         except RigError as exc:
             raise ModeConflict(str(exc)) from None
+        sinks = _sinks(control)
+        settle_s = float(scene.acquisition.settle_s)
+
+        def progress(done_s, total_s):
+            control.oper(OPER_MEASURING | (OPER_SETTLING if done_s < settle_s
+                                           else OPER_AVERAGING))
+
         for _ in range(MAX_RANGING):
             mem = MemorySink()
             acquire(bench_scene, seed=seed, sinks=[*sinks, mem], progress=progress)
@@ -292,6 +296,47 @@ class FftMode:
             analysis = analyze(mem.recording, analyzer_settings(setup),
                                source="SCPI measurement")
         return FftResult(setup, mem.recording, analysis, seed)
+
+    @staticmethod
+    def summary(result: FftResult) -> str:
+        s = result.setup
+        return f"{s.averages} averages, {s.lines} lines, span {s.span_hz:g} Hz"
+
+    @staticmethod
+    def overloads(result: FftResult) -> int:
+        """Inputs 1..3 that clipped or saturated (bit ``2^(n-1)``)."""
+        rec = result.recording
+        over = 0
+        for i, name in enumerate(("a", "x", "y")):
+            k = rec.header.names.index(name)
+            if rec.clip_counts()[:, k].any() or rec.saturation_counts()[:, k].any():
+                over |= 1 << i
+        return over
+
+
+class _AbortSink(Sink):
+    """A critical sink that ends the run at the next block once ``event`` is set."""
+
+    def __init__(self, event):
+        self.event = event
+
+    def block(self, block):
+        if self.event.is_set():
+            raise Aborted("measurement aborted")
+
+
+def _sinks(control: RunControl) -> list:
+    """The acquisition's sinks: abort, pacing (``realtime``), the run file (``path``)."""
+    sinks = [_AbortSink(control.abort)]
+    if control.realtime:
+        from daq.pacing import Pacer, PacingSink
+
+        sinks.append(PacingSink(Pacer(1.0)))
+    if control.path is not None:
+        from daq.hdf5 import Hdf5Sink
+
+        sinks.insert(0, Hdf5Sink(control.path))
+    return sinks
 
 
 def _autoranged(recording, setup: FftSetup) -> tuple:
@@ -314,4 +359,4 @@ def _autoranged(recording, setup: FftSetup) -> tuple:
 
 
 #: INST:SEL name -> mode (an absent name is a settings conflict: not emulated yet).
-MODES = {"FFT": FftMode()}
+MODES = {"FFT": FftMode(), "SINE": SineMode()}

@@ -5,7 +5,8 @@ register pairs (``STAT:OPER``, ``STAT:QUES``, ``STAT:DEV``: ``:COND?``, ``[:EVEN
 Bits the emulator sets (its own assignment where the instrument's is not documented here):
 
 - ``STAT:OPER``: 16 measuring (from ``INIT`` to the end of the measurement), 256 averaging
-  (while records are averaged, after the bench's settling), 2 settling;
+  (while records are averaged, after the bench's settling), 2 settling, 8 sweeping (a
+  swept-sine measurement, its first point to its last);
 - ``STAT:QUES``: 1 voltage: an input overloaded in the last measurement;
 - ``STAT:DEV``: 1, 2, 4, 8: input 1..4 overloaded (ADC clipping or sensor saturation) in the last
   measurement;
@@ -20,10 +21,10 @@ from __future__ import annotations
 
 import threading
 
-__all__ = ["Register", "Status", "OPER_SETTLING", "OPER_MEASURING", "OPER_AVERAGING",
-           "QUES_VOLTAGE"]
+__all__ = ["Register", "Status", "OPER_SETTLING", "OPER_SWEEPING", "OPER_MEASURING",
+           "OPER_AVERAGING", "QUES_VOLTAGE"]
 
-OPER_SETTLING, OPER_MEASURING, OPER_AVERAGING = 2, 16, 256
+OPER_SETTLING, OPER_SWEEPING, OPER_MEASURING, OPER_AVERAGING = 2, 8, 16, 256
 QUES_VOLTAGE = 1
 
 

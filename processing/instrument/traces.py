@@ -15,7 +15,9 @@ default) its data are in engineering units (m/s^2, m, rad), else in volts; the r
 ``XFR:POW:RAT 2,1`` in engineering units is the analysis's H_t [m per m/s^2] and ``3,1`` its
 Theta_2. Formats: MLOG (dB: 10 log10 of powers, 20 log10 of amplitudes and ratios), MLIN
 (magnitude), PHAS (wrapped), UPH (unwrapped; degrees or radians by ``CALC:UNIT:ANGL``), REAL,
-IMAG. Frequency traces have ``lines + 1`` points (0 .. span), time traces ``2.56 lines``.
+IMAG. Frequency traces have ``lines + 1`` points (0 .. span), time traces ``2.56 lines``. In
+the swept-sine mode the traces are at the sweep's points (ascending frequency) and read the
+fundamentals (:class:`processing.instrument.sine_mode.SineResult`).
 """
 
 from __future__ import annotations
@@ -122,5 +124,5 @@ def trace_data(result, feed: Feed, form: str, *, volt_unit: str = "V2", eu=None,
 def x_data(result, feed: Feed) -> np.ndarray:
     """``CALC:X:DATA?``: the lines [Hz] or, for a time trace, the sample times [s]."""
     if feed.kind == "time":
-        return np.arange(result.setup.nperseg) / result.setup.rate_hz
+        return np.asarray(result.times_s, dtype=float)
     return np.asarray(result.freqs_hz, dtype=float)
