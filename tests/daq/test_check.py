@@ -98,7 +98,7 @@ def test_a_corrupt_record_is_named_and_analyze_refuses_or_leaves_it_out(sound, t
     _flip_chunk(p, "entry/data/x", 1)
     res = daq("check", p, cwd=tmp_path)
     assert res.returncode == 1
-    assert res.stdout.strip() == (f"{p}: BAD run, corrupt, 2 of 3 records verify, format 1.1; "
+    assert res.stdout.strip() == (f"{p}: BAD run, corrupt, 2 of 3 records verify, format 1.2; "
                                   "entry/data/x: record 1 fails the checksum (corrupt data)")
     res = daq("inspect", p, cwd=tmp_path)
     assert res.returncode == 1 and "Traceback" not in res.stderr
@@ -218,7 +218,7 @@ def test_other_files_are_results_and_only_a_missing_path_raises(sound, tmp_path)
     res = daq("check", tmp_path / "missing.h5", cwd=tmp_path)
     assert res.returncode == 2 and "does not exist" in res.stderr and "Traceback" not in res.stderr
     res = daq("check", sound / "run.h5", text, cwd=tmp_path)
-    assert res.returncode == 1 and res.stdout.splitlines()[0].endswith("format 1.1")
+    assert res.returncode == 1 and res.stdout.splitlines()[0].endswith("format 1.2")
 
 
 def test_damage_anywhere_is_never_reported_sound_with_wrong_data(sound, tmp_path):
