@@ -61,7 +61,7 @@ def main(argv=None):
                                      f"source.level_vrms={args.level}"])
     models = {"etdab": rb.build_model(sc, method="etdab"),
               "lawson4": rb.build_model(sc, method="lawson4"),
-              "linear": rb.build_model(rb._as_linear(sc))}
+              "linear": rb.build_model(rb.linear_scene(sc))}
     fs = models["etdab"].fs_hz
     n = int(RUN_S * fs)
     _, children = rb._spawn(2009)

@@ -291,8 +291,7 @@ class _RigBench:
     def expected_response(self, freqs_hz) -> dict:
         exact = rb.expected_response(self._scene, freqs_hz, sampled=True)
         cont = rb.expected_response(self._scene, freqs_hz, sampled=False)
-        out = {k: v for k, v in _as_dict(exact).items()
-               if isinstance(v, np.ndarray) and v.ndim == 1 and k != "freqs_hz"}
+        out = {k: v for k, v in _as_dict(exact).items() if k in self.units}
         out["h_t_pendulum_continuous"] = cont.h_t_pendulum
         out["theta_2_pendulum_continuous"] = cont.theta_2_pendulum
         return out

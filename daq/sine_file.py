@@ -24,7 +24,8 @@ status "interrupted"). Layout (format :data:`FORMAT`, version :data:`FORMAT_VERS
       settings/           NXcollection @settings_json (the sweep's settings)
       scene/              NXcollection: settings_json (the resolved scene)
 
-Public API: :class:`SineFileSink`, :func:`read_sine`, :func:`sine_info`, :data:`FORMAT`.
+Public API: :class:`SineFileSink`, :func:`read_sine`, :func:`read_sine_records`,
+:func:`is_sine_file`, :func:`sine_info`, :data:`FORMAT`.
 """
 
 from __future__ import annotations
@@ -295,3 +296,49 @@ def sine_info(path) -> dict:
             "fmax_hz": float(f_hz.max()) if f_hz.size else None,
             "bench_s_accepted_points": bench, "records_kept": kept,
             "model": d["model_info"], "settings": d["settings"]}
+
+
+def read_sine_records(path, *, tail=None) -> dict | None:
+    """The kept ADC records of a sine run file's finished points, in volts, or None when the
+    file keeps none: ``{"volts": {channel: [(samples,) array per point]}, "samples": (points,)
+    whole samples of each point, "volts_per_unit": {channel: V per unit}, "units": {channel:
+    engineering unit}}``. ``tail(k)`` is how many samples to read from the end of point k
+    (default: all of it); volts are ``code * scale_factor + add_offset`` (the codes' own
+    attributes)."""
+    from daq.repair import open_hdf5
+
+    f, _ = open_hdf5(path)
+    with f:
+        e = f["entry"]
+        if "records" not in e:
+            return None
+        n = int(e["points_complete"][()])
+        r = e["records"]
+        n = min(n, r["first_sample"].shape[0], r["samples"].shape[0])
+        first, samples = r["first_sample"][:n], r["samples"][:n]
+        out = {"volts": {}, "samples": samples, "volts_per_unit": {}, "units": {}}
+        for name in sorted(k for k in r if k.startswith("codes_")):
+            ds, c = r[name], name[len("codes_"):]
+            lsb, offset = float(ds.attrs["scale_factor"]), float(ds.attrs["add_offset"])
+            parts = []
+            for k in range(n):
+                m = int(samples[k]) if tail is None else min(int(samples[k]), int(tail(k)))
+                end = int(first[k] + samples[k])
+                parts.append(ds[end - m:end].astype(np.float64) * lsb + offset)
+            out["volts"][c] = parts
+            out["volts_per_unit"][c] = float(ds.attrs["volts_per_unit"])
+            out["units"][c] = str(ds.attrs.get("engineering_unit", ""))
+        return out
+
+
+def is_sine_file(path) -> bool:
+    """True when ``path`` is an HDF5 file of this format (False for any other file, and for one
+    that does not open: the run file's reader then says why)."""
+    from daq.repair import open_hdf5
+
+    try:
+        f, _ = open_hdf5(path)
+    except (ConfigError, OSError):
+        return False
+    with f:
+        return str(f.attrs.get("file_format", "")) == FORMAT

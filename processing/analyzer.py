@@ -35,10 +35,12 @@ Measured figures of the paper's run: docs/analyzer-notes.md.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -48,13 +50,15 @@ from processing.leakage import CHANNELS, ExpectedEstimate, expected_estimate
 from processing.modal import FitError, ModalFit, fit_modes
 from processing.rotation import RotationReading, rotation_reading
 from processing.report import analysis_report, analysis_summary
-from processing.sampled_bench import SampledBench
 from processing.spectra import (AVERAGING, WINDOWS, ChannelDataError, SettingsError,
                                 SpectralSettings, _readonly, auto_spectrum, cross_spectrum,
                                 segment_ffts)
 from rig import validation
 from rig.threads import single_threaded_blas
 from rig.errors import ConfigError
+
+if TYPE_CHECKING:  # rig.bench is imported on use: importing processing stays light
+    from rig.bench import BenchResponse, SampledResponse
 
 __all__ = ["AnalyzerSettings", "Analysis", "RunInfo", "ModelAtLines", "analyze",
            "band_limit_hz", "check_band", "model_at_lines", "incomplete_note", "paper_figures", "FIT_METHODS", "CHANNELS"]
@@ -368,6 +372,9 @@ class Analysis:
     highpass_at_fmin : (dB, deg) of the whole chain against the pendulum alone at ``fmin_hz``;
         (NaN, NaN) for ``fmin_hz`` = 0, where the high-pass passes nothing and the ratio is
         undefined.
+    bench : rig.bench.SampledResponse, the exact sampled response of the run's bench that this
+        analysis evaluated (built once: E[H1], the coherence budget, the comparisons off the
+        lines and the figures' model curves all use it).
     notes : tuple of str: what the reader must know (incomplete run, clipping, skipped parts).
     coherence_budget : processing.coherence_model.CoherenceBudget or None (with E[H1]): the
         expected coherence with the optical lever's second-order geometry, the noise floors and
@@ -392,6 +399,7 @@ class Analysis:
     exact_modes: tuple
     antiresonances_hz: Mapping
     highpass_at_fmin: tuple
+    bench: SampledResponse
     notes: tuple
     coherence_budget: object = None
     coherence_dips: tuple = ()
@@ -406,6 +414,13 @@ class Analysis:
         f = self.freqs_hz
         return (f >= self.settings.fmin_hz) & (f <= self.settings.fmax_hz) \
             & np.isfinite(self.h_t.h) & np.isfinite(self.theta_2.h)
+
+    @functools.cached_property
+    def model_curves(self) -> BenchResponse:
+        """The exact whole-chain model over the display band on a grid that draws its modes and
+        anti-resonances (:meth:`rig.bench.SampledResponse.resolved`, stage-1 curves included):
+        what the figures show. Computed on first use, then kept."""
+        return self.bench.resolved(self.settings.fmin_hz, self.settings.fmax_hz)
 
     def report(self) -> str:
         """The Markdown report (:func:`processing.report.analysis_report`)."""
@@ -487,7 +502,45 @@ def check_band(settings: AnalyzerSettings, antialias_passband_hz: float, rate_hz
 
 
 def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analysis:
+    from rig.bench.sampled import sampled_response
+
     s = settings if settings is not None else AnalyzerSettings()
+    h = recording.header
+    spectral = _checked_spectral(recording, s)
+    notes, clipped = _run_notes(recording, s)
+    spectra, h_t, theta_2 = _measured(recording, spectral, s)
+    lines = spectral.freqs_hz
+    model = model_at_lines(h, lines)
+    scene = h.scene
+    exact, anti = _exact_features(scene)
+    bench = sampled_response(scene)  # the one evaluator of this analysis
+    expected, budget, dips = _expected(h, spectral, s, bench, h_t, theta_2, exact, anti, notes)
+    comparisons = _comparisons(h_t, theta_2, model, bench, lines, expected, exact, anti,
+                               spectral, s)
+    fits, checks = _fits(h_t, theta_2, model, expected, exact, spectral, s, notes)
+    rotation = None
+    try:
+        rotation = _rotation(scene, h_t, theta_2, model, spectral, s.rotation_band_hz)
+    except (ConfigError, FitError) as exc:
+        notes.append(f"no rotation-isolation reading: {exc}")
+    plan = h.plan
+    run = RunInfo(source=str(source), scene=scene.name, seed=int(h.seed),
+                  status=str(recording.status), records=int(recording.records),
+                  records_planned=int(plan.records), record_s=float(plan.record_s),
+                  rate_hz=float(plan.rate_hz), clipped=MappingProxyType(clipped))
+    return Analysis(settings=s, spectral=spectral, run=run, scene=scene,
+                    spectra=MappingProxyType(spectra),
+                    h_t=h_t, theta_2=theta_2, model=model, expected=expected,
+                    comparisons=MappingProxyType(comparisons), fits=MappingProxyType(fits),
+                    fit_checks=MappingProxyType(checks), rotation=rotation, exact_modes=exact,
+                    antiresonances_hz=MappingProxyType(anti),
+                    highpass_at_fmin=_highpass_at(bench, s.fmin_hz), notes=tuple(notes),
+                    coherence_budget=budget, coherence_dips=dips, bench=bench)
+
+
+def _checked_spectral(recording, s: AnalyzerSettings) -> SpectralSettings:
+    """The run's spectral settings, after the checks that the run can be analysed with ``s``
+    (band, channels, at least one record, at least two averages)."""
     h = recording.header
     plan = h.plan
     check_band(s, h.antialias.passband_hz, plan.rate_hz)
@@ -505,6 +558,15 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
         raise SettingsError(f"{n_rec} record x {per_record} FFT = 1 average: coherence and error "
                             "bands need at least 2; use a shorter time record (e.g. nperseg = "
                             f"{plan.samples // 2} with overlap 0.5)")
+    return spectral
+
+
+def _run_notes(recording, s: AnalyzerSettings) -> tuple[list, dict]:
+    """The notes on the run itself (averaging, incomplete, clipped, saturated) and the clipped
+    samples per channel."""
+    h = recording.header
+    plan = h.plan
+    n_rec = recording.records
     notes = []
     if s.averaging == "vector":
         notes.append("vector averaging of an asynchronous random source averages the spectra "
@@ -523,32 +585,45 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
         notes.append("samples whose sensor saturated (" + ", ".join(
             f"{c} {int(v)}" for c, v in zip(h.names, sats) if v) + "; the accelerometer over its "
             "range or the spot off the PSD): the ratios are not those of a linear system there")
+    return notes, clipped
 
+
+def _measured(recording, spectral: SpectralSettings, s: AnalyzerSettings):
+    """``(spectra, h_t, theta_2)`` from one shared set of segment FFTs of ``a, x, y``."""
+    h = recording.header
     units = {c: h.channel(c).unit for c in CHANNELS}
     ffts = segment_ffts({c: recording.values(c) for c in CHANNELS}, spectral, units=units)
     spectra = {c: auto_spectrum(ffts, c) for c in CHANNELS}
     spectra.update(ax=cross_spectrum(ffts, "a", "x"), ay=cross_spectrum(ffts, "a", "y"))
     h_t = frequency_response(ffts, "a", "x", estimator=s.estimator)
     theta_2 = frequency_response(ffts, "a", "y", estimator=s.estimator)
-    lines = spectral.freqs_hz
+    return spectra, h_t, theta_2
 
-    model = model_at_lines(h, lines)
-    scene = h.scene
+
+def _exact_features(scene) -> tuple[tuple, dict]:
+    """The pendulum's modes ``((f_hz, Q), ...)`` and the anti-resonances [Hz] of ``x``, ``y``."""
     chain = scene.chain
     f_modes, q_modes = chain.modes()
     exact = tuple((float(fm), float(qm)) for fm, qm in zip(f_modes, q_modes))
     anti = {"x": tuple(float(v) for v in chain.antiresonances_hz(scene.mirror_weights())),
             "y": tuple(float(v) for v in chain.antiresonances_hz(np.eye(chain.n)[
                 scene.mirror.body]))}
-    bench = SampledBench(scene)
-    if s.fmin_hz > 0:
-        r_min = bench(np.array([s.fmin_hz]))
-        hp_min = r_min["h_t"][0] / r_min["h_t_pendulum"][0]
-        highpass_at_fmin = (float(_DB * np.log(abs(hp_min))),
-                            float(np.degrees(np.angle(hp_min))))
-    else:  # the high-pass passes nothing at 0 Hz: the ratio is 0/0 there, no number
-        highpass_at_fmin = (math.nan, math.nan)
+    return exact, anti
 
+
+def _highpass_at(bench: SampledResponse, fmin_hz: float) -> tuple[float, float]:
+    """(dB, deg) of the whole chain against the pendulum alone at ``fmin_hz``; (NaN, NaN) at
+    0 Hz, where the high-pass passes nothing and the ratio is 0/0."""
+    if not fmin_hz > 0:
+        return (math.nan, math.nan)
+    r = bench(np.array([fmin_hz]))
+    hp = r.h_t[0] / r.h_t_pendulum[0]
+    return (float(_DB * np.log(abs(hp))), float(np.degrees(np.angle(hp))))
+
+
+def _expected(h, spectral, s, bench, h_t, theta_2, exact, anti, notes):
+    """``(expected, budget, dips)``: E[H1] (H1 only), the coherence budget and its named dips
+    (any estimator: the coherence does not depend on it); what is skipped goes to ``notes``."""
     expected = None
     if s.estimator != "h1":
         notes.append(f"estimator {s.estimator.upper()}: E[H1] and the leakage bias model H1 and "
@@ -559,7 +634,6 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
                                          fmax_hz=s.fmax_hz)
         except SettingsError as exc:
             notes.append(f"no expected estimate: {exc}")
-    budget, dips = None, ()
     grid = expected  # the coherence does not depend on the estimator: its FFT length and notch
     if grid is None and s.estimator != "h1":
         try:
@@ -567,16 +641,21 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
                                      fmax_hz=s.fmax_hz)
         except SettingsError:
             grid = None
-    if grid is not None:
-        from processing.coherence_model import coherence_budget, named_dips
+    if grid is None:
+        return expected, None, ()
+    from processing.coherence_model import coherence_budget, named_dips
 
-        budget = coherence_budget(h, spectral, bench, n_fft=grid.n_fft,
-                                  n_averages=h_t.n_effective)
-        dips = tuple(named_dips(budget, {"x": h_t.coherence, "y": theta_2.coherence},
-                                modes_hz=[fm for fm, _ in exact], antiresonances_hz=anti,
-                                input_notch_db=grid.input_notch_db, fmin_hz=s.fmin_hz,
-                                fmax_hz=s.fmax_hz))
+    budget = coherence_budget(h, spectral, bench, n_fft=grid.n_fft, n_averages=h_t.n_effective)
+    dips = tuple(named_dips(budget, {"x": h_t.coherence, "y": theta_2.coherence},
+                            modes_hz=[fm for fm, _ in exact], antiresonances_hz=anti,
+                            input_notch_db=grid.input_notch_db, fmin_hz=s.fmin_hz,
+                            fmax_hz=s.fmax_hz))
+    return expected, budget, dips
 
+
+def _comparisons(h_t, theta_2, model, bench, lines, expected, exact, anti, spectral, s) -> dict:
+    """The measured ratios against the model (at the lines: ``model``'s values, elsewhere
+    ``bench``'s) over the display band (:func:`processing.compare.compare`)."""
     def model_fn(name):
         stored = getattr(model, name)
 
@@ -584,26 +663,30 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
             f = np.asarray(f, float)
             if f.shape == lines.shape and np.array_equal(f, lines):
                 return stored
-            return bench(f)[name]
+            return getattr(bench(f), name)
         return fn
 
-    cmp_kw = dict(resonances=exact, settings=spectral, fmin_hz=s.fmin_hz, fmax_hz=s.fmax_hz,
-                  k=s.k)
-    comparisons = {
+    kw = dict(resonances=exact, settings=spectral, fmin_hz=s.fmin_hz, fmax_hz=s.fmax_hz, k=s.k)
+    return {
         _LABEL_T: compare(h_t, model_fn("h_t"), antiresonances_hz=anti["x"],
-                          expected=None if expected is None else expected.h_t, **cmp_kw),
+                          expected=None if expected is None else expected.h_t, **kw),
         _LABEL_R: compare(theta_2, model_fn("theta_2"), antiresonances_hz=anti["y"],
-                          expected=None if expected is None else expected.theta_2, **cmp_kw),
+                          expected=None if expected is None else expected.theta_2, **kw),
     }
 
+
+def _fits(h_t, theta_2, model, expected, exact, spectral, s, notes) -> tuple[dict, dict]:
+    """The modal fits ``{label: ModalFit}`` of Theta_2 and H_t by each of ``s.fit_methods`` and
+    the same fits of E[H1]; what is not fitted goes to ``notes``."""
     fits, checks = {}, {}
-    hp = model.highpass
     names = {"leakage": "leakage-aware", "direct": "direct"}
+    hp = model.highpass
     if h_t.n_effective <= 2.0:
         notes.append(f"n_eff = {h_t.n_effective:.3g} averages: too few for coherence-weighted "
                      "modal fits (their covariance needs n_eff > 2); not fitted")
+        return fits, checks
     spectrum = None if expected is None else expected.input_spectrum
-    if "leakage" in s.fit_methods and spectrum is None and h_t.n_effective > 2.0:
+    if "leakage" in s.fit_methods and spectrum is None:
         notes.append("leakage-aware fits assume a white input (no expected estimate, hence no "
                      "input spectrum): their Q is biased where the input is notched")
     for label, frf, e, band in (
@@ -611,8 +694,6 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
              s.theta2_fit_band_hz),
             ("H_t", h_t, None if expected is None else expected.h_t, s.ht_fit_band_hz)):
         modes = [fm for fm, _ in exact if band[0] < fm < band[1]]
-        if h_t.n_effective <= 2.0:
-            continue
         if not modes:
             notes.append(f"no mode of the model in {label}'s fit band {band[0]:g}-{band[1]:g} Hz: "
                          "not fitted")
@@ -629,24 +710,7 @@ def _analyze(recording, settings: AnalyzerSettings | None, source: str) -> Analy
             fits[key] = fit
             if check is not None:
                 checks[key] = check
-
-    rotation = None
-    try:
-        rotation = _rotation(scene, h_t, theta_2, model, spectral, s.rotation_band_hz)
-    except (ConfigError, FitError) as exc:
-        notes.append(f"no rotation-isolation reading: {exc}")
-
-    run = RunInfo(source=str(source), scene=scene.name, seed=int(h.seed),
-                  status=str(recording.status), records=int(n_rec),
-                  records_planned=int(plan.records), record_s=float(plan.record_s),
-                  rate_hz=float(plan.rate_hz), clipped=MappingProxyType(clipped))
-    return Analysis(settings=s, spectral=spectral, run=run, scene=scene,
-                    spectra=MappingProxyType(spectra),
-                    h_t=h_t, theta_2=theta_2, model=model, expected=expected,
-                    comparisons=MappingProxyType(comparisons), fits=MappingProxyType(fits),
-                    fit_checks=MappingProxyType(checks), rotation=rotation, exact_modes=exact,
-                    antiresonances_hz=MappingProxyType(anti), highpass_at_fmin=highpass_at_fmin,
-                    notes=tuple(notes), coherence_budget=budget, coherence_dips=dips)
+    return fits, checks
 
 
 def _rotation(scene, h_t, theta_2, model, spectral, band) -> RotationReading:

@@ -102,7 +102,7 @@ def coherence_budget(header, settings, bench, *, n_fft: int, n_averages: float) 
     """The expected coherences of the run's bench under ``settings`` (a
     :class:`processing.spectra.SpectralSettings`) on the FFT length ``n_fft`` of the correlation
     functions; ``bench`` evaluates the exact sampled responses per source volt
-    (:class:`processing.sampled_bench.SampledBench`). Stationary noise sources only (as
+    (:class:`rig.bench.SampledResponse`). Stationary noise sources only (as
     ``E[H1]``)."""
     from processing.leakage import expected_h1_taps
 
@@ -122,8 +122,8 @@ def coherence_budget(header, settings, bench, *, n_fft: int, n_averages: float) 
     resp = {k: np.zeros(f.size, complex) for k in ("a", "x", "y", "dx", "theta")}
     r = bench(f[band])
     for c in ("a", "x", "y"):
-        resp[c][band] = r[c] / vpu[c]
-    resp["dx"][band], resp["theta"][band] = r["mirror_x"], r["mirror_rot"]
+        resp[c][band] = getattr(r, c) / vpu[c]
+    resp["dx"][band], resp["theta"][band] = r.mirror_x, r.mirror_rot
     f2 = np.abs(header.antialias.response(f)) ** 2
     q_tt, q_dt = quadratic_spectra(f, fs, n_fft, s_v * np.abs(resp["theta"]) ** 2,
                                    s_v * np.abs(resp["dx"]) ** 2,

@@ -17,7 +17,7 @@ order ``1 / n_d`` inside the random error).
       S_ax = S_v conj(A) X |F|^2,   S_aa = (S_v |A|^2 + N_a) |F|^2 + Q_a
 
   ``S_v`` the source's design PSD, ``A, X`` the channels in engineering units per source volt
-  (:class:`processing.sampled_bench.SampledBench`), ``F`` the anti-alias filter, ``N_a`` the
+  (:func:`rig.bench.sampled_response`), ``F`` the anti-alias filter, ``N_a`` the
   accelerometer's white noise, ``Q_a`` the ADC's quantisation noise of channel ``a``
   (``lsb^2 / (6 rate)``). The sensor noise of x and y does not enter ``E[G_ux]``. Neglected:
   aliasing of the decimation (the filter's stop band is ~100 dB down) and the FIR's edge
@@ -37,12 +37,15 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from processing.modal_model import InputSpectrum
-from processing.sampled_bench import SampledBench
 from processing.spectra import SettingsError, SpectralSettings, _readonly, window_autocorrelation
+
+if TYPE_CHECKING:  # rig.bench is imported on use: importing processing stays light
+    from rig.bench import SampledResponse
 
 __all__ = ["ExpectedEstimate", "expected_estimate", "expected_h1", "expected_h1_taps",
            "impulse_expected_h1", "CHANNELS"]
@@ -177,7 +180,7 @@ def _input_notches(lines, g_in, modes_hz, fmin_hz: float, fmax_hz: float) -> dic
 
 def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None = None,
                       fmin_hz: float = 0.1, fmax_hz: float = 10.0,
-                      bench: SampledBench | None = None) -> ExpectedEstimate:
+                      bench: SampledResponse | None = None) -> ExpectedEstimate:
     """Expected H1 of H_t and Theta_2 for the run's bench and source under ``settings``.
 
     Parameters
@@ -187,7 +190,8 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
     n_fft : FFT length of the correlation functions (default: a power of two >= 4 nperseg making
         the time aliasing of the slowest mode below 1e-12).
     fmin_hz, fmax_hz : band of :attr:`ExpectedEstimate.input_notch_db`.
-    bench : the run's :class:`processing.sampled_bench.SampledBench` if already built.
+    bench : the run's :class:`rig.bench.SampledResponse` if already built (an analysis builds
+        one and passes it on).
 
     Raises
     ------
@@ -201,7 +205,9 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
     source = scene.source
     acc = scene.accelerometer
     if bench is None:
-        bench = SampledBench(scene)
+        from rig.bench.sampled import sampled_response
+
+        bench = sampled_response(scene)
     tau = bench.tau_s
     n = settings.nperseg
     if n_fft is None:
@@ -222,7 +228,7 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
         eng = {c: np.zeros(f.size, complex) for c in CHANNELS}
         r = bench(f[band])
         for c in CHANNELS:
-            eng[c][band] = r[c] / vpu[c]
+            eng[c][band] = getattr(r, c) / vpu[c]
         return s_v, eng, np.abs(header.antialias.response(f)) ** 2
 
     f = np.arange(n_fft // 2 + 1) * (fs / n_fft)
@@ -260,7 +266,7 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
     def sensor(f):
         r = bench(f)
         with np.errstate(divide="ignore", invalid="ignore"):
-            k = r["h_t_pendulum"] / r["h_t"]
+            k = r.h_t_pendulum / r.h_t
         return np.where(np.isfinite(k), k, 1.0)
 
     spectrum = InputSpectrum(psd, noise, sensor, decay_s=tau,

@@ -6,6 +6,8 @@
 ``coherence`` (both coherences on one axis with their expected curves, each predicted dip
 marked with its cause); ``all`` writes the three.
 ``daq analyze --plot PATH --view V`` uses :func:`view_paths` and :func:`write_views`.
+The views only draw: the model curves are the analysis's (:attr:`Analysis.model_curves`, from
+its one :class:`rig.bench.SampledResponse`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,6 @@ from pathlib import Path
 import numpy as np
 
 from processing.analyzer import incomplete_note, paper_figures
-from processing.sampled_bench import resolved_fields
 from rig.output_files import atomic_output, check_writable
 
 VIEWS = ("bode", "nyquist", "coherence", "all")
@@ -33,21 +34,15 @@ def view_paths(path, view: str) -> dict[str, Path]:
     return {v: path.with_name(f"{path.stem}-{v}{path.suffix}") for v in VIEWS[:-1]}
 
 
-def _model_curves(a) -> tuple[np.ndarray, dict]:
-    """The exact whole-chain model drawn in the figures: :func:`resolved_fields` over the
-    display band."""
-    return resolved_fields(a.scene, a.settings.fmin_hz, a.settings.fmax_hz)
-
-
 def _responses(a):
     from processing.plots import Curve, Response
 
-    f, r = _model_curves(a)
+    r = a.model_curves
+    f = r.freqs_hz
     b = a.coherence_budget
     ex = {"x": None, "y": None} if b is None else b.expected
-    return [Response("H_t", a.h_t, "m/(m/s^2)", Curve("exact model of H_t", f, r["h_t"]),
-                     ex["x"]),
-            Response("Θ₂", a.theta_2, "rad/(m/s^2)", Curve("exact model of Θ₂", f, r["theta_2"]),
+    return [Response("H_t", a.h_t, "m/(m/s^2)", Curve("exact model of H_t", f, r.h_t), ex["x"]),
+            Response("Θ₂", a.theta_2, "rad/(m/s^2)", Curve("exact model of Θ₂", f, r.theta_2),
                      ex["y"])]
 
 
@@ -105,8 +100,8 @@ def bode_figures(a, *, k: float | None = None, phase: str = "wrapped", into=None
     from processing.plots import Curve, measured_bode_figure
 
     scene = a.scene
-    f, r = _model_curves(a)
-    theta1, g1 = r["theta1"], r["g1"]
+    r = a.model_curves  # the analysis's exact model over the display band
+    f = r.freqs_hz
     kk = a.settings.k if k is None else k
     paper = paper_figures(scene)
     figs = []
@@ -114,10 +109,10 @@ def bode_figures(a, *, k: float | None = None, phase: str = "wrapped", into=None
     est = a.settings.estimator.upper()
     into = (None, None) if into is None else into
     for target, (frf, model, stage1, e, what, title, s1, unit) in zip(into, (
-            (a.h_t, r["h_t"], g1, None if a.expected is None else a.expected.h_t, "H_t",
+            (a.h_t, r.h_t, r.h_g1, None if a.expected is None else a.expected.h_t, "H_t",
              "mirror translation H_t = W_ax/W_aa" + (" (cf. the paper's Fig. 9)" if paper else ""),
              "stage 1: translation of its centre of mass G1 (model)", "m/(m/s^2)"),
-            (a.theta_2, r["theta_2"], theta1, None if a.expected is None else a.expected.theta_2,
+            (a.theta_2, r.theta_2, r.theta_1, None if a.expected is None else a.expected.theta_2,
              "Θ₂", "mirror rotation Θ₂ = W_ay/W_aa" + (" (cf. the paper's Fig. 10)" if paper
                                                        else ""),
              "stage 1: rotation θ₁ (model)", "rad/(m/s^2)"))):

@@ -32,8 +32,9 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("rig", "daq", "processing", "benchmarks")
 
 #: What processing may import from daq: the stream's data types, the run file's reader (and
-#: format), the sink protocol a consumer implements, the run file's check, and the facade.
-DAQ_CONTRACT = ("daq", "daq.records", "daq.hdf5", "daq.sinks", "daq.check")
+#: format), the stepped-sine run file's reader (and format), the sink protocol a consumer
+#: implements, the run file's check, and the facade.
+DAQ_CONTRACT = ("daq", "daq.records", "daq.hdf5", "daq.sine_file", "daq.sinks", "daq.check")
 
 #: Sub-packages of processing that compose daq's acquisition with the analysis, each with why:
 #: they may import any daq module; the rest of processing never imports them.

@@ -141,7 +141,9 @@ def live_sinks(live, connect, rrd, force, magnify, pacer) -> list:
 def view(run, rrd, connect, screenshot_path, size, magnify, force):
     """Replay the run file RUN into rerun as the live view showed it: a spawned viewer by
     default, or --connect URL, --rrd FILE.rrd, --screenshot FILE.png (any combination). An
-    interrupted run shows its finished records."""
+    interrupted run shows its finished records. A stepped-sine run file (daq sine) shows its
+    points landing one by one over the exact model (and, with its records, the bench and the
+    signals of each point)."""
     import tempfile
 
     from processing.live_view import (MAGNIFICATION, LiveViewError, ViewerOptions,
@@ -158,16 +160,29 @@ def view(run, rrd, connect, screenshot_path, size, magnify, force):
                                    "FILE.png")
     if connect:
         check_viewer_url(connect)
+    from daq.sine_file import is_sine_file
+
+    sine = is_sine_file(run)
     with tempfile.TemporaryDirectory() as tmp:
         target = rrd if rrd is not None or screenshot_path is None else Path(tmp) / "view.rrd"
         stream = ViewerStream(ViewerOptions(spawn=spawn, connect=connect, rrd=target,
                                             force=force))
-        v = replay(run, stream, magnification=magnify or MAGNIFICATION)
+        if sine:  # a stepped-sine run file (daq sine)
+            from processing.live_view import replay_sine
+
+            v = replay_sine(run, stream, magnification=magnify or MAGNIFICATION)
+        else:
+            v = replay(run, stream, magnification=magnify or MAGNIFICATION)
         if (spawn or connect) and (stream.url is None or stream.viewer_lost):
             raise click.ClickException(f"the replay of {run} did not reach a viewer (the "
                                        "warning above says why); --rrd FILE.rrd saves it")
-        click.echo(f"replayed {v.footer.records_complete} of {v.header.plan.records} records "
-                   f"of {run} ({v.footer.status})")
+        if sine:
+            kept = "with" if v.records_kept else "without"
+            click.echo(f"replayed {v.points} points of the stepped sine {run} ({v.status}; "
+                       f"{kept} records)")
+        else:
+            click.echo(f"replayed {v.footer.records_complete} of {v.header.plan.records} "
+                       f"records of {run} ({v.footer.status})")
         if rrd is not None:
             click.echo(f"wrote {rrd} (rerun recording)")
         if screenshot_path is not None:

@@ -29,6 +29,7 @@ Rooms
 - ``sink``: the acquisition stream into rerun (:class:`LiveView`);
 - ``blueprint``: the layout (:func:`acquisition_blueprint`);
 - ``replay``: a run file replayed (:func:`replay`), free motion shown (:func:`show_trajectory`);
+- ``sine_replay``: a stepped-sine run file replayed (:func:`replay_sine`);
 - ``screenshot``: a recording rendered into a PNG without a window (:func:`screenshot`).
 
 Their public names are re-exported here: ``from processing.live_view import LiveView``.
@@ -45,13 +46,15 @@ from processing.live_view.blueprint import acquisition_blueprint  # noqa: E402
 from processing.live_view.replay import replay, show_trajectory  # noqa: E402
 from processing.live_view.screenshot import (recording_summary, screenshot,  # noqa: E402
                                              screenshot_command)
+from processing.live_view.sine_replay import SineReplay, replay_sine, sine_blueprint  # noqa: E402
 from processing.live_view.sink import LiveView  # noqa: E402
 from processing.live_view.stream import (MEMORY_LIMIT, TIMELINE, LiveViewError,  # noqa: E402
                                          LiveViewWarning, ViewerOptions, ViewerStream,
                                          _listening, viewer_executable)
 
 __all__ = ["ViewerOptions", "ViewerStream", "LiveView", "LiveViewWarning", "LiveViewError",
-           "acquisition_blueprint", "replay", "show_trajectory", "screenshot",
+           "acquisition_blueprint", "replay", "show_trajectory", "replay_sine", "SineReplay",
+           "sine_blueprint", "screenshot",
            "screenshot_command", "recording_summary", "viewer_executable"]
 
 

@@ -103,19 +103,20 @@ class LiveView(Sink):
     def _prepare_analyzer(self) -> None:
         from processing.leakage import expected_estimate
         from processing.phase_display import phase_branch
-        from processing.sampled_bench import resolved_fields
+        from rig.bench.sampled import sampled_response
 
         avg = self.average
         f = avg.freqs_hz
         lines = f[f > 0]
+        bench = sampled_response(self.header.scene)  # one evaluator for the model and E[H1]
         # the model on a grid that shows its modes and notches (not only at the lines)
-        self.model_f, fields = resolved_fields(self.header.scene, float(lines[0]),
-                                               float(f[-1]))
-        self.model = {"H_t": fields["h_t"], "Theta_2": fields["theta_2"]}
+        curves = bench.resolved(float(lines[0]), float(f[-1]))
+        self.model_f = curves.freqs_hz
+        self.model = {"H_t": curves.h_t, "Theta_2": curves.theta_2}
         self.expected = {}
         try:
             e = expected_estimate(self.header, avg.spectral, fmin_hz=avg.settings.fmin_hz,
-                                  fmax_hz=avg.settings.fmax_hz)
+                                  fmax_hz=avg.settings.fmax_hz, bench=bench)
             idx = np.searchsorted(e.freqs_hz, f)
             self.expected = {"H_t": e.h_t[idx], "Theta_2": e.theta_2[idx]}
         except ProcessingError:  # no E[H1] for this source (e.g. a sine): the model alone

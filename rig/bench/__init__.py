@@ -30,12 +30,13 @@ docs/devices.md.
 
 Rooms
 -----
-``model``       :class:`BenchModel`, :func:`build_model` (the state space and its exact step)
+``model``       :class:`BenchModel`, :func:`build_model`, :func:`linear_scene` (the exact step)
 ``run``         :class:`BenchState`, :func:`start`, :func:`advance` (one block), the stage kernel
 ``fused``       the bench fused with its sensors and anti-alias filter, at the output rate
 ``simulation``  :class:`BenchSimulation` (the stateful wrapper: blocks, calibrations, model info)
 ``response``    :func:`calibrations`, :func:`expected_response`, :class:`BenchResponse`,
                 :func:`stationary_levels`, :func:`signal_to_noise`
+``sampled``     :func:`sampled_response`: the same response in modal form, built once per analysis
 ``selection``   :func:`predict_linearisation_error`, :func:`select_model`
 ``estimates``   :func:`model_info` and the error estimates (Richardson)
 """
@@ -43,10 +44,11 @@ Rooms
 from rig.bench.selection import (FIRST_ORDER_LIMIT, PREDICTOR_BATCHES, PREDICTOR_ENTROPY,
                                  SPREAD_CALIBRATION, predict_linearisation_error, select_model)
 from rig.bench.model import (COUPLED_METHODS, DEFAULT_METHOD, MODELS, NONLINEAR_METHODS,
-                             PRESCRIBED_STAGE_METHODS, BenchModel, build_model)
+                             PRESCRIBED_STAGE_METHODS, BenchModel, build_model, linear_scene)
 from rig.bench.run import (STREAMS, BenchState, _spawn, advance, stage_fine_kernel, start)
-from rig.bench.response import (BenchResponse, _as_linear, calibrations, expected_response,
+from rig.bench.response import (BenchResponse, calibrations, expected_response,
                                 signal_to_noise, stationary_levels)
+from rig.bench.sampled import SampledResponse, sampled_response
 from rig.bench.estimates import _kernel_theta, linear_method, model_info, model_seed
 from rig.bench.fused import fused_model_info
 from rig.model_info import ModelInfo
@@ -54,6 +56,7 @@ from rig.bench.simulation import BenchSimulation
 
 __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
+           "linear_scene", "sampled_response", "SampledResponse",
            "model_info", "ModelInfo", "linear_method", "fused_model_info", "select_model",
            "predict_linearisation_error", "MODELS", "NONLINEAR_METHODS", "STREAMS"]
 

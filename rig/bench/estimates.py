@@ -32,8 +32,7 @@ from rig.linear import discretise
 from rig.scene import Scene
 from rig.devices.source import generate, start_source
 from rig.model_info import ModelInfo
-from rig.bench.model import BenchModel, build_model
-from rig.bench.response import _as_linear
+from rig.bench.model import BenchModel, build_model, linear_scene
 from rig.bench.run import _spawn, advance, stage_fine_kernel, start
 from rig.bench.selection import select_model
 
@@ -69,7 +68,7 @@ def _richardson_estimate(scene, model: BenchModel, v: np.ndarray, z0: np.ndarray
     fine = build_model(scene, method=ref.solver.name, substeps=ref.solver.substeps,
                        every=model.every, selection=model.selection)
     diff = (theta - _kernel_theta(fine, v, z0)) * ref.scale
-    lin = _kernel_theta(build_model(_as_linear(scene)), v, z0)
+    lin = _kernel_theta(build_model(linear_scene(scene)), v, z0)
     return {
         "max_abs_theta_rad": float(np.max(np.abs(diff))),
         "relative_rms_theta": _rel_rms(diff, theta),
@@ -251,7 +250,7 @@ def _prescribed_stage_estimate(model: BenchModel, v: np.ndarray, n: int, seed,
     theta = _probe_theta(model, n, seed)
     scale = max(float(np.max(np.abs(theta))), 1e-300)
     # (1) input interpolation: linearised pendulum, interpolated input vs exact linear bench
-    theta_exact = _probe_theta(build_model(_as_linear(scene)), n, seed)
+    theta_exact = _probe_theta(build_model(linear_scene(scene)), n, seed)
     m = model.oversample
     zs = np.zeros(model.n_states - 2 * scene.chain.n)
     a_fine = np.empty(n * m + 1)

@@ -213,6 +213,12 @@ def remainder_every(scene: Scene, fs_hz: float, substeps: int = 1,
     return 1
 
 
+def linear_scene(scene: Scene) -> Scene:
+    """``scene`` with the linear acquisition model (``acquisition.model = "linear"``: the bench's
+    exact linear step), as every analytic response of the bench uses it."""
+    return scene.with_acquisition(model="linear")
+
+
 def build_model(scene: Scene, *, method: str | None = None, oversample: int = 8,
                 substeps: int = 1, every: int | None = None, rtol: float = 1e-10,
                 atol: float = 1e-12, selection: dict | None = None) -> BenchModel:

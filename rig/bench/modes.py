@@ -48,9 +48,9 @@ class BenchModes:
 def bench_modes(scene, *, fmax_hz: float | None = None) -> BenchModes:
     """The oscillatory modes of ``scene``'s linear bench below ``fmax_hz`` (default: the
     acquisition's Nyquist frequency, ``rate_hz / 2``), module docstring."""
-    from rig.bench.model import build_model
+    from rig.bench.model import build_model, linear_scene
 
-    model = build_model(scene.with_acquisition(model="linear"))
+    model = build_model(linear_scene(scene))
     if fmax_hz is None:
         fmax_hz = scene.acquisition.rate_hz / 2
     lam, vec = np.linalg.eig(model.a)

@@ -26,13 +26,7 @@ from rig.linear import FrequencyResponse
 from rig.scene import Scene
 from rig.scene_memo import per_scene
 from rig.devices.source import NOISE_TYPES, Source
-from rig.bench.model import BenchModel, build_model
-
-
-def _calibrations(model: BenchModel) -> dict[str, Calibration]:
-    cal = {"a": model.accelerometer.calibration()}
-    cal.update(model.lever.calibrations())
-    return cal
+from rig.bench.model import build_model, linear_scene
 
 
 def calibrations(scene: Scene) -> dict[str, Calibration]:
@@ -41,8 +35,9 @@ def calibrations(scene: Scene) -> dict[str, Calibration]:
     return {"a": scene.accelerometer.calibration(), **scene.lever.calibrations()}
 
 
-#: Units of the responses of :func:`rig.bench.expected_response` (per source volt unless stated;
-#: ``*_continuous``: a field of its ``sampled=False`` response, as an acquisition records it).
+#: Units of the responses of :func:`rig.bench.expected_response` that a run file stores (per
+#: source volt unless stated; ``*_continuous``: a field of its ``sampled=False`` response, as an
+#: acquisition records it).
 RESPONSE_UNITS = {
     "a": "V/V", "x": "V/V", "y": "V/V", "stage_accel": "(m/s^2)/V", "stage_disp": "m/V",
     "mirror_x": "m/V", "mirror_rot": "rad/V", "h_t": "m/(m/s^2)", "theta_2": "rad/(m/s^2)",
@@ -86,12 +81,16 @@ class BenchResponse:
         the default 0.05 Hz corner).
     h_t_pendulum, theta_2_pendulum : the pendulum alone, mirror_x / stage_accel and
         mirror_rot / stage_accel (:func:`rig.describe.mirror_response`).
+    theta_1, h_g1 : stage 1 as the analyzer reads it: body 1's angle [rad per m/s^2] and the
+        translation of its centre of mass G1 relative to the stage [m per m/s^2], per unit of
+        sensed stage acceleration (a / cal_a, as h_t and theta_2). Not stored in run files.
     sampled : False: continuous-time chain times the DAC's hold ``(1 - e^{-i w h}) / (i w h)``
         (what an ideally anti-aliased measurement sees); True: the exact transfer function from
         the DAC samples to the simulated samples, ``C (e^{i w h} I - Phi)^-1 Gamma``, which also
         contains the hold's images folded back by sampling at the DAC rate.
 
-    ``UNITS``, ``LONG_NAMES`` (class constants): each response's unit and description.
+    ``UNITS``, ``LONG_NAMES`` (class constants): unit and description of each response a run
+    file stores.
     """
 
     UNITS: ClassVar[dict] = RESPONSE_UNITS
@@ -110,6 +109,8 @@ class BenchResponse:
     theta_2: np.ndarray
     h_t_pendulum: np.ndarray
     theta_2_pendulum: np.ndarray
+    theta_1: np.ndarray
+    h_g1: np.ndarray
     sampled: bool
 
     def response(self, *names: str) -> FrequencyResponse:
@@ -124,7 +125,7 @@ class BenchResponse:
 
 
 _RESPONSE_FIELDS = ("a", "x", "y", "stage_accel", "stage_disp", "mirror_x", "mirror_rot", "h_t",
-                    "theta_2", "h_t_pendulum", "theta_2_pendulum")
+                    "theta_2", "h_t_pendulum", "theta_2_pendulum", "theta_1", "h_g1")
 
 
 @per_scene(ignore=("source.level_vrms",))
@@ -142,8 +143,7 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
     source's level left out of the key: the responses are per source volt, so a sweep of the
     drive's level computes them once (tests/rig/test_scene_memo.py).
     """
-    model = build_model(scene) if scene.acquisition.model == "linear" else \
-        build_model(_as_linear(scene))
+    model = build_model(linear_scene(scene))
     f = np.atleast_1d(np.asarray(freqs_hz, float))
     fs = model.fs_hz
     if np.any(~np.isfinite(f)) or np.any(f < 0) or np.any(f >= fs / 2):
@@ -184,7 +184,7 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
             arr[dc] = 0.0
     mirror_x = theta @ scene.mirror_weights()
     mirror_rot = theta[:, scene.mirror.body]
-    cal = _calibrations(model)
+    cal = calibrations(scene)
     x = cal["x"].volts_per_unit * mirror_x
     y = cal["y"].volts_per_unit * mirror_rot
     a_eng = a / cal["a"].volts_per_unit
@@ -193,32 +193,39 @@ def expected_response(scene: Scene, freqs_hz, *, sampled: bool = False) -> Bench
         theta_2 = (y / cal["y"].volts_per_unit) / a_eng
         h_t_p = mirror_x / stage_accel
         th2_p = mirror_rot / stage_accel
+        theta_1 = theta[:, 0] / a_eng
+    g1 = g1_weight_m(chain)
     if dc.any():
-        h_t_p[dc], th2_p[dc], h_t[dc], theta_2[dc] = _dc_ratios(scene, acc, cal)
+        h_t_p[dc], th2_p[dc], h_t[dc], theta_2[dc], theta_1[dc] = _dc_ratios(scene, acc, cal)
     return BenchResponse(freqs_hz=f, a=a, x=x, y=y, stage_accel=stage_accel,
                          stage_disp=stage_disp, theta=theta, mirror_x=mirror_x,
                          mirror_rot=mirror_rot, h_t=h_t, theta_2=theta_2, h_t_pendulum=h_t_p,
-                         theta_2_pendulum=th2_p, sampled=bool(sampled))
+                         theta_2_pendulum=th2_p, theta_1=theta_1, h_g1=theta_1 * g1,
+                         sampled=bool(sampled))
 
 
-def _dc_ratios(scene: Scene, acc, cal) -> tuple[complex, complex, complex, complex]:
+def g1_weight_m(chain) -> float:
+    """Translation of body 1's centre of mass G1 relative to the stage per radian of body 1's
+    angle [m/rad] (linearised: :meth:`rig.chain.Chain.point_weights`)."""
+    return float(chain.point_weights(0, chain.com_m[0])[0])
+
+
+def _dc_ratios(scene: Scene, acc, cal) -> tuple[complex, ...]:
     """The ratios' values at 0 Hz, where numerator and denominator both vanish (the stage's
     acceleration, the mirror's motion): their limits. The pendulum alone: its static deflection
     per unit base acceleration (:meth:`rig.chain.Chain.frf_angles` at 0 Hz, ``-1/g`` per body;
     a sampled model has the same, as a zero-order hold keeps the DC gain). Through the
     accelerometer: that over its DC gain in engineering units, which is 0 with its high-pass
-    (the ratio grows without bound: NaN) and 1 without."""
+    (the ratio grows without bound: NaN) and 1 without. Returns ``h_t_pendulum,
+    theta_2_pendulum, h_t, theta_2, theta_1`` there."""
     theta = scene.chain.frf_angles(0.0)[0]
     h_t_p = complex(theta @ scene.mirror_weights())
     th2_p = complex(theta[scene.mirror.body])
     gain = complex(acc.frequency_response(np.zeros(1))[0]) / cal["a"].volts_per_unit
     if gain == 0:
-        return h_t_p, th2_p, complex(np.nan, np.nan), complex(np.nan, np.nan)
-    return h_t_p, th2_p, h_t_p / gain, th2_p / gain
-
-
-def _as_linear(scene: Scene) -> Scene:
-    return scene.with_acquisition(model="linear")
+        nan = complex(np.nan, np.nan)
+        return h_t_p, th2_p, nan, nan, nan
+    return h_t_p, th2_p, h_t_p / gain, th2_p / gain, complex(theta[0]) / gain
 
 
 def _source_psd(source: Source, f: np.ndarray) -> np.ndarray:
@@ -241,7 +248,7 @@ def stationary_levels(scene: Scene, *, points: int = 100_001) -> dict:
     stage acceleration, stroke, angles, mirror translation and spot positions, from the
     source PSD and :func:`expected_response` (``sampled=False``) integrated over 0..fmax.
     For a sine source the rms of the steady-state line."""
-    model = build_model(_as_linear(scene))
+    model = build_model(linear_scene(scene))
     src = model.source
     if src.type == "sine":
         f = np.array([src.frequency_hz])
@@ -277,7 +284,7 @@ def stationary_levels(scene: Scene, *, points: int = 100_001) -> dict:
 def signal_to_noise(scene: Scene, freqs_hz) -> dict[str, np.ndarray]:
     """Analytic signal-to-noise ratio of each channel [dB] at ``freqs_hz``: the channel's PSD
     under the scene's (noise-type) source over its sensor's white noise PSD."""
-    model = build_model(_as_linear(scene))
+    model = build_model(linear_scene(scene))
     f = np.atleast_1d(np.asarray(freqs_hz, float))
     p = _source_psd(model.source, f)
     if p is None:

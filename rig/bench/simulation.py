@@ -21,7 +21,7 @@ from rig.bench.estimates import _model_info
 from rig.model_info import ModelInfo
 from rig.bench.fused import advance_decimated, advance_decimated_nonlinear, lift, start_decimated
 from rig.bench.model import build_model
-from rig.bench.response import _calibrations
+from rig.bench.response import calibrations
 from rig.bench.run import _REL, _block_sizes, _source_blocks, _spawn, advance, start
 
 
@@ -173,7 +173,7 @@ class BenchSimulation:
 
     def calibrations(self) -> dict[str, Calibration]:
         """Per-channel calibrations (:func:`calibrations`)."""
-        return _calibrations(self.model)
+        return calibrations(self.model.scene)
 
     def model_info(self, *, probe_s: float = 20.0) -> ModelInfo:
         """What runs, why, and how accurate it is (computed once, cached).

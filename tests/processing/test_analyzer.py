@@ -24,9 +24,8 @@ instead of 30 averages), analysed once with the default settings. What each test
   that small moves the coverage of +-2 sigma by < 0.2 percentage points; measured < 0.01 sigma),
   where a white-input model is off by more; the fits' reduced chi^2 lies within 4 sqrt(2 / dof)
   of its expectation n_d / (n_d - 2);
-* the fast evaluation of the bench's response (modal form of its ZOH step) equals
-  rig.bench.expected_response within its stated 1e-7 (relative) over 0 - 50 Hz, and the analysis
-  runs BLAS single-threaded, restoring the setting afterwards;
+* an analysis builds the bench's model once (its rig.bench.SampledResponse), which its figures'
+  model curves reuse, and it runs BLAS single-threaded, restoring the setting afterwards;
 * settings are validated with errors naming the field, the value and what is valid.
 """
 
@@ -44,7 +43,6 @@ from processing.analyzer import AnalyzerSettings, analyze, model_at_lines
 from processing.frf import MeasuredResponse
 from processing.leakage import expected_estimate, impulse_expected_h1
 from processing.modal import fit_modes
-from processing.sampled_bench import SampledBench
 from processing.spectra import SettingsError, SpectralSettings
 from rig.bench import expected_response
 from rig.linear import LinearSystem
@@ -194,27 +192,29 @@ def test_input_aware_fits_return_the_exact_modes_from_the_expected_estimate(run)
     assert abs(white.modes[1].q - a.exact_modes[1][1]) > 0.1 * fit.modes[1].q_std
 
 
-def test_sampled_bench_equals_rig_expected_response(run):
-    """The modal form differs from expected_response's solve by round-off where modal terms
-    cancel: measured within 3e-9 relative over 0 - 500 Hz (largest near 0 Hz and at the
-    anti-resonances); checked to 1e-7 on dense grids, at the modes and around the
-    anti-resonances."""
+def test_an_analysis_builds_the_bench_model_once_and_its_figures_reuse_it(run, monkeypatch):
+    """One evaluator per analysis: E[H1], the coherence budget, the comparisons and the figures'
+    model curves all ask the analysis's rig.bench.SampledResponse (the model at the lines is the
+    run file's here)."""
+    import rig.bench.model
+    import rig.bench.response
+    import rig.bench.sampled
+
     rec, _ = run
-    scene = rec.header.scene
-    fast = SampledBench(scene)
-    chain = scene.chain
-    special = [float(v) for v in chain.modes()[0]]
-    special += [float(v) for v in chain.antiresonances_hz(scene.mirror_weights())]
-    special += [float(v) for v in chain.antiresonances_hz(np.eye(chain.n)[scene.mirror.body])]
-    f = np.concatenate([np.arange(1, 400) * (100.0 / 131072), np.linspace(0.05, 49.9, 3000),
-                        np.geomspace(0.05, 0.45 * fast.fs, 12),
-                        [v * (1 + d) for v in special for d in (-1e-3, 0.0, 1e-3)]])
-    got = fast(f)
-    ref = expected_response(scene, f, sampled=True)
-    for k in ("a", "x", "y", "stage_accel", "mirror_x", "mirror_rot", "h_t", "theta_2",
-              "h_t_pendulum", "theta_2_pendulum", "theta"):
-        b = np.asarray(getattr(ref, k))
-        assert np.max(np.abs(got[k] - b) / np.abs(b)) < 1e-7, k
+    calls = []
+    real = rig.bench.model.build_model
+
+    def counted(*args, **kw):
+        calls.append(args[0].name)
+        return real(*args, **kw)
+
+    for module in (rig.bench.model, rig.bench.response, rig.bench.sampled):
+        monkeypatch.setattr(module, "build_model", counted)
+    a = analyze(rec)
+    assert a.model.source == "file" and len(calls) == 1
+    curves = a.model_curves
+    assert a.model_curves is curves and len(calls) == 1
+    assert curves.freqs_hz[0] >= a.settings.fmin_hz and curves.freqs_hz[-1] <= a.settings.fmax_hz
 
 
 def test_blas_runs_single_threaded_inside_the_analysis_and_is_restored_after():

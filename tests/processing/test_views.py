@@ -18,7 +18,7 @@ from daq.cli import main
 from daq.hdf5 import Hdf5Sink, read_run
 from processing.analyzer import AnalyzerSettings, analyze
 from processing.views import bode_figures
-from processing.views import view_figures, view_paths
+from processing.views import view_figures, view_paths, write_views
 from rig.scene import load_scene
 
 SHORT = ["acquisition.records=3", "acquisition.record_s=20.0", "acquisition.settle_s=20.0"]
@@ -187,3 +187,27 @@ def test_a_band_from_zero_hz_plots_every_view_on_its_log_axis(run_file, runner, 
                                "--plot", str(out), "--view", "all"])
     assert res.exit_code == 0, res.output  # warnings are errors here: none was raised
     assert len(list(tmp_path.glob("z-*.png"))) == 3
+
+
+def test_views_draw_the_analysis_model_curves_and_build_no_bench_model(analysis, monkeypatch,
+                                                                        tmp_path):
+    import rig.bench.model
+    import rig.bench.response
+    import rig.bench.sampled
+
+    def refuse(*args, **kw):
+        raise AssertionError("a view built a bench model")
+
+    for module in (rig.bench.model, rig.bench.response, rig.bench.sampled):
+        monkeypatch.setattr(module, "build_model", refuse)
+    paths = write_views(analysis, tmp_path / "v.png", "all")
+    assert [p.name for p in paths] == ["v-bode.png", "v-nyquist.png", "v-coherence.png"]
+    figs = bode_figures(analysis)
+    try:
+        model = [ln for ln in figs[0].axes[0].get_lines()
+                 if ln.get_label() == "exact model of H_t (whole chain)"]
+        assert len(model) == 1
+        np.testing.assert_array_equal(model[0].get_xdata(), analysis.model_curves.freqs_hz)
+    finally:
+        for fig in figs:
+            plt.close(fig)
