@@ -24,9 +24,8 @@ Models (``acquisition.model``, ``acquisition.error_budget``)
 ``auto`` (default)
     The cheapest model that meets ``acquisition.error_budget`` (:func:`select_model`).
 
-Error estimates: :func:`model_info` (:mod:`rig.bench.estimates`, a :class:`ModelInfo`). Measured
-accuracies, costs and levels for the defaults: docs/bench_model.md; the sensors' levels:
-docs/devices.md.
+Error estimates: :func:`model_info` (:mod:`rig.bench.estimates`). Measured accuracies, costs and
+levels for the defaults: docs/bench_model.md; the sensors' levels: docs/devices.md.
 
 Rooms
 -----
