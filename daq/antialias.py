@@ -45,7 +45,6 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,6 +52,7 @@ import numpy as np
 
 from rig.acquisition_settings import decimation_factor
 from rig.errors import ConfigError
+from rig.output_files import atomic_output
 from rig.sosfilt import sosfilt_inplace
 
 KINDS = ("elliptic", "none")
@@ -252,11 +252,9 @@ def _elliptic_design(fs_hz: float, fp_hz: float, fst_hz: float, ripple_db: float
     sos = signal.ellip(order, ripple_db, attenuation_db, wn, btype="low", output="sos", fs=fs_hz)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("w", dir=path.parent, suffix=".tmp",
-                                         delete=False) as fh:
-            json.dump({"key": key, "order": int(order), "sos": sos.tolist()}, fh)
-        os.replace(fh.name, path)
-    except OSError:
+        with atomic_output(path, force=True) as tmp:
+            tmp.write_text(json.dumps({"key": key, "order": int(order), "sos": sos.tolist()}))
+    except (OSError, ConfigError):  # a cache that cannot be written is only a slower next run
         pass
     return int(order), np.asarray(sos, dtype=float)
 

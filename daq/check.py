@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from daq import run_layout as layout
 from daq.channels import Channel
 from daq.hdf5 import READABLE_FORMAT_VERSIONS
 from daq.records import STATUSES
@@ -231,17 +232,18 @@ class _Checker:
         if self.version not in READABLE_FORMAT_VERSIONS:
             self.problem("invalid", f"format version {self.version!r} is not one this reader "
                                     f"knows ({', '.join(READABLE_FORMAT_VERSIONS)})")
-        need = ("entry/status", "entry/records_complete", "entry/records_planned",
-                "entry/data", "entry/data/record", "entry/data/time", "entry/clipping/count",
-                "entry/instrument/acquisition", "entry/instrument/antialias",
-                "entry/scene/settings_json", "entry/model/frequency")
+        need = (layout.STATUS, layout.RECORDS_COMPLETE, layout.RECORDS_PLANNED, layout.DATA,
+                layout.member(layout.DATA, layout.RECORD), layout.member(layout.DATA, layout.TIME),
+                layout.member(layout.CLIPPING, layout.COUNT), layout.ACQUISITION,
+                layout.ANTIALIAS, layout.SCENE_SETTINGS,
+                layout.member(layout.MODEL, layout.FREQUENCY))
         missing = [k for k in need if k not in f]
         if missing:
             self.problem("invalid", f"not a whole run file: missing {', '.join(missing)}")
             return set()
-        e = f["entry"]
-        status = _text(e["status"][()]).strip("\x00 ")
-        n, planned = int(e["records_complete"][()]), int(e["records_planned"][()])
+        e = f[layout.ENTRY]
+        status = _text(f[layout.STATUS][()]).strip("\x00 ")
+        n, planned = int(f[layout.RECORDS_COMPLETE][()]), int(f[layout.RECORDS_PLANNED][()])
         self.n, self.planned = n, planned
         if status not in STATUSES:
             self.problem("invalid", f"status {status!r} is not one of {', '.join(STATUSES)}")
@@ -252,18 +254,19 @@ class _Checker:
         if status == "complete" and n != planned:
             self.problem("invalid", f"status complete but {n} of {planned} records written")
         if status != "complete":
-            msg = _text(e["message"][()]).strip("\x00 ") if "message" in e else ""
+            msg = _text(f[layout.MESSAGE][()]).strip("\x00 ") if layout.MESSAGE in f else ""
             self.notes.append(f"incomplete ({status}): {n} of {planned} records"
                               + (f" ({msg})" if msg else ""))
 
-        data = e["data"]
+        data = f[layout.DATA]
         names = [_text(data.attrs["signal"])] + [_text(s) for s in
                                                   data.attrs.get("auxiliary_signals", [])]
         for c in names:
             if c not in data:
-                self.problem("invalid", f"channel {c!r} named by entry/data@signal is missing")
-        samples = int(data["time"].shape[0])
-        self._plan(e, planned, samples)
+                self.problem("invalid", f"channel {c!r} named by {layout.DATA}@signal is "
+                                        "missing")
+        samples = int(data[layout.TIME].shape[0])
+        self._plan(f, planned, samples)
         self._calibrations(data, names)
 
         # per-record datasets: every dataset whose first axis grows with the records
@@ -273,7 +276,7 @@ class _Checker:
             import h5py
 
             if isinstance(obj, h5py.Dataset) and obj.maxshape and obj.maxshape[0] is None:
-                grow.append((f"entry/{name}", obj))
+                grow.append((layout.member(layout.ENTRY, name), obj))
 
         e.visititems(visit)
         unfinished = None  # a dataset with rows beyond records_complete, if any
@@ -288,9 +291,10 @@ class _Checker:
                 # a writer killed mid-record, or one whose stop could not trim the record it
                 # was writing (a full disk): rows readers never read
                 unfinished = name
-            if ds.ndim >= 2 and name.rsplit("/", 1)[-1] != "count" and ds.shape[1] != samples:
+            if (ds.ndim >= 2 and name.rsplit("/", 1)[-1] != layout.COUNT
+                    and ds.shape[1] != samples):
                 self.problem("invalid", f"{name} has {ds.shape[1]} samples per record, "
-                                        f"entry/data/time {samples}")
+                                        f"{layout.member(layout.DATA, layout.TIME)} {samples}")
             self._verify_rows(name, ds, min(rows, n))
         if unfinished is not None and status != "acquiring":
             self.notes.append(f"rows of an unfinished record beyond records_complete = {n} (e.g. "
@@ -359,19 +363,19 @@ class _Checker:
                                     f"{_ranges(bad)} fail{'' if len(bad) > 1 else 's'} "
                                     "the checksum (corrupt data)")
 
-    def _plan(self, e, planned: int, samples: int) -> None:
+    def _plan(self, f, planned: int, samples: int) -> None:
         from daq.records import RecordPlan
         from rig.errors import RigError
         from rig.scene import scene_from_settings
 
         try:
-            settings = json.loads(_text(e["scene/settings_json"][()]))
+            settings = json.loads(_text(f[layout.SCENE_SETTINGS][()]))
         except ValueError as exc:
-            self.problem("invalid", f"entry/scene/settings_json is not JSON ({exc})")
+            self.problem("invalid", f"{layout.SCENE_SETTINGS} is not JSON ({exc})")
             return
         try:
             scene = scene_from_settings(settings,
-                                        origin=_text(e["scene"].attrs.get("source", "")))
+                                        origin=_text(f[layout.SCENE].attrs.get("source", "")))
             plan = RecordPlan.from_acquisition(scene.acquisition)
         except (RigError, KeyError, TypeError, ValueError) as exc:
             self.problem("invalid", f"the stored scene does not rebuild: {_first_line(exc)}")

@@ -39,6 +39,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from daq import run_layout as layout
 from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
 from daq.records import (Footer, Header, ModelResponse, Record, RecordPlan, Recording, STATUSES,
@@ -233,17 +234,17 @@ class Hdf5Sink(Sink):
             fh.close()
             self._target_lock = None
 
-    def _flag_collection(self, entry, group: str, n: int, count_name: str, what: str):
+    def _flag_collection(self, f, group: str, n: int, count_name: str, what: str):
         """An NXcollection of per-sample uint8 flags per channel and their counts per record."""
         names = self._header.names
-        g = _group(entry, group, "NXcollection")
+        g = _group(f, group, "NXcollection")
         grec, gtim = self._scales(g, n)
         chan = g.create_dataset("channel", data=np.array(names, dtype=_STR), track_times=False)
         chan.make_scale("channel")
         chan.attrs["long_name"] = "channel name"
-        count = g.create_dataset("count", shape=(0, len(names)), maxshape=(None, len(names)),
-                                 dtype=np.int64, chunks=(64, len(names)), fletcher32=True,
-                                 track_times=False)
+        count = g.create_dataset(layout.COUNT, shape=(0, len(names)),
+                                 maxshape=(None, len(names)), dtype=np.int64,
+                                 chunks=(64, len(names)), fletcher32=True, track_times=False)
         count.dims[0].attach_scale(grec)
         count.dims[1].attach_scale(chan)
         _set_attrs(count, {"long_name": count_name, "units": "1"})
@@ -336,40 +337,41 @@ class Hdf5Sink(Sink):
         f, plan = self._f, h.plan
         n = plan.samples
         f.attrs["NX_class"] = "NXroot"
-        f.attrs["default"] = "entry"
+        f.attrs["default"] = layout.ENTRY
         _set_attrs(f, {"creator": f"pendulum-daq {h.software_version}", "file_format": FORMAT,
                        "file_format_version": FORMAT_VERSION,
                        "HDF5_Version": h5py.version.hdf5_version,
                        "h5py_version": h5py.version.version})
-        entry = _group(f, "entry", "NXentry", default="data",
-                       title=f"{h.scene.name}: {plan.records} records x {plan.record_s:g} s at "
-                             f"{plan.rate_hz:g} Hz, seed {h.seed}",
-                       start_time=h.start_time, seed=np.int64(h.seed), software="pendulum-daq",
-                       software_version=h.software_version, file_format_version=FORMAT_VERSION,
-                       scene_name=h.scene.name,
-                       status_note="status and records_complete are updated as the run "
-                                   "proceeds; any status but 'complete' means incomplete")
-        self._status = entry.create_dataset("status", data=_fixed("acquiring", _STATUS_LEN),
-                                            dtype=f"S{_STATUS_LEN}", track_times=False)
+        _group(f, layout.ENTRY, "NXentry", default=layout.name_of(layout.DATA),
+               title=f"{h.scene.name}: {plan.records} records x {plan.record_s:g} s at "
+                     f"{plan.rate_hz:g} Hz, seed {h.seed}",
+               start_time=h.start_time, seed=np.int64(h.seed), software="pendulum-daq",
+               software_version=h.software_version, file_format_version=FORMAT_VERSION,
+               scene_name=h.scene.name,
+               status_note="status and records_complete are updated as the run "
+                           "proceeds; any status but 'complete' means incomplete")
+        self._status = f.create_dataset(layout.STATUS, data=_fixed("acquiring", _STATUS_LEN),
+                                        dtype=f"S{_STATUS_LEN}", track_times=False)
         self._status.attrs["long_name"] = "run status: " + " | ".join(STATUSES)
-        self._records_complete = entry.create_dataset("records_complete", data=np.int64(0),
-                                                      track_times=False)
+        self._records_complete = f.create_dataset(layout.RECORDS_COMPLETE, data=np.int64(0),
+                                                  track_times=False)
         self._records_complete.attrs["long_name"] = "records fully written"
-        entry.create_dataset("records_planned", data=np.int64(plan.records),
-                             track_times=False).attrs["long_name"] = "records requested"
-        self._message = entry.create_dataset("message", data=_fixed("", _MESSAGE_LEN),
-                                             dtype=f"S{_MESSAGE_LEN}", track_times=False)
+        f.create_dataset(layout.RECORDS_PLANNED, data=np.int64(plan.records),
+                         track_times=False).attrs["long_name"] = "records requested"
+        self._message = f.create_dataset(layout.MESSAGE, data=_fixed("", _MESSAGE_LEN),
+                                         dtype=f"S{_MESSAGE_LEN}", track_times=False)
         self._message.attrs["long_name"] = "why the run stopped early"
         self._grow, self._record_scales = [], []
 
         # raw channels
-        data = _group(entry, "data", "NXdata", signal=h.names[0],
+        data = _group(f, layout.DATA, "NXdata", signal=h.names[0],
                       auxiliary_signals=list(h.names[1:]), axes=["record", "time"],
                       record_indices=0, time_indices=1)
         rec, tim = self._scales(data, n)
-        self._rec_start = self._series(data, "record_start", (), np.float64, rec, tim, None,
-                                       units="s", long_name="time of the record's first sample "
-                                       "from the start of the run (settling included)")
+        self._rec_start = self._series(data, layout.RECORD_START, (), np.float64, rec, tim,
+                                       None, units="s",
+                                       long_name="time of the record's first sample from the "
+                                                 "start of the run (settling included)")
         self._codes = {}
         for c in h.channels:
             d = c.describe()
@@ -385,9 +387,9 @@ class Hdf5Sink(Sink):
                                                self.level, **attrs)
         # per-sample flags: ADC clipping and sensor saturation
         self._count, self._flags = self._flag_collection(
-            entry, "clipping", n, "clipped samples per record and channel", "clipped")
+            f, layout.CLIPPING, n, "clipped samples per record and channel", "clipped")
         self._sat_count, self._sat_flags = self._flag_collection(
-            entry, "saturation", n, "samples per record and channel whose sensor saturated",
+            f, layout.SATURATION, n, "samples per record and channel whose sensor saturated",
             "saw its sensor beyond its range since the previous sample")
 
         # truth
@@ -395,7 +397,7 @@ class Hdf5Sink(Sink):
         if h.truth:
             signal = "mirror_x_m" if any(t.name == "mirror_x_m" for t in h.truth) \
                 else h.truth[0].name
-            tg = _group(entry, "truth", "NXdata", signal=signal, axes=["record", "time"],
+            tg = _group(f, layout.TRUTH, "NXdata", signal=signal, axes=["record", "time"],
                         record_indices=0, time_indices=1,
                         note="sampled at the channels' instants without anti-alias filter, "
                              "sensor or ADC")
@@ -415,11 +417,11 @@ class Hdf5Sink(Sink):
 
         # model response
         info = _without_timings(h.model_info.to_dict())
-        m = _group(entry, "model", "NXcollection",
+        m = _group(f, layout.MODEL, "NXcollection",
                    model_info_json=json.dumps(info, default=_json_default),
                    **_flat_scalars(info))
-        fr = m.create_dataset("frequency", data=h.response.freqs_hz, track_times=False)
-        fr.make_scale("frequency")
+        fr = m.create_dataset(layout.FREQUENCY, data=h.response.freqs_hz, track_times=False)
+        fr.make_scale(layout.FREQUENCY)
         _set_attrs(fr, {"units": "Hz", "long_name": "frequency (the record's FFT grid)"})
         for name, v in h.response.values.items():
             for part, arr in (("real", v.real), ("imag", v.imag)):
@@ -430,8 +432,8 @@ class Hdf5Sink(Sink):
                                              f"{h.response.long_names.get(name, name)}"})
 
         # instrument
-        inst = _group(entry, "instrument", "NXinstrument")
-        aa = _group(inst, "antialias", "NXcollection", **h.antialias.describe())
+        _group(f, layout.INSTRUMENT, "NXinstrument")
+        aa = _group(f, layout.ANTIALIAS, "NXcollection", **h.antialias.describe())
         sos_v = np.asarray(h.antialias.sos, dtype=np.float64)
         sec = aa.create_dataset("section", data=np.arange(1, sos_v.shape[0] + 1, dtype=np.int64),
                                 track_times=False)
@@ -449,21 +451,22 @@ class Hdf5Sink(Sink):
         aa.attrs["description"] = ("digital elliptic low-pass in second-order sections at the "
                                    "simulation rate, then decimation; H(f) = prod_k (b0 + b1 z^-1 "
                                    "+ b2 z^-2) / (1 + a1 z^-1 + a2 z^-2), z = exp(2 pi i f / fs)")
-        _group(inst, "acquisition", "NXcollection", **plan.describe())
+        _group(f, layout.ACQUISITION, "NXcollection", **plan.describe())
 
-        sc = _group(entry, "scene", "NXcollection", name=h.scene.name, source=h.scene.origin,
-                    description=h.scene.description)
-        js = sc.create_dataset("settings_json", data=json.dumps(h.scene.settings, sort_keys=True),
-                               dtype=_STR, track_times=False)
+        _group(f, layout.SCENE, "NXcollection", name=h.scene.name, source=h.scene.origin,
+               description=h.scene.description)
+        js = f.create_dataset(layout.SCENE_SETTINGS,
+                              data=json.dumps(h.scene.settings, sort_keys=True), dtype=_STR,
+                              track_times=False)
         js.attrs["long_name"] = "resolved scene settings (rig.scene.scene_from_settings)"
 
     def _scales(self, g, n: int):
-        rec = g.create_dataset("record", shape=(0,), maxshape=(None,), dtype=np.int64,
+        rec = g.create_dataset(layout.RECORD, shape=(0,), maxshape=(None,), dtype=np.int64,
                                chunks=(256,), fletcher32=True, track_times=False)
-        rec.make_scale("record")
+        rec.make_scale(layout.RECORD)
         _set_attrs(rec, {"long_name": "record index", "units": "1"})
-        tim = g.create_dataset("time", data=self._header.plan.times_s(), track_times=False)
-        tim.make_scale("time")
+        tim = g.create_dataset(layout.TIME, data=self._header.plan.times_s(), track_times=False)
+        tim.make_scale(layout.TIME)
         _set_attrs(tim, {"long_name": "time within the record", "units": "s"})
         self._grow.append(rec)
         self._record_scales.append(rec)
@@ -502,9 +505,8 @@ def mark_interrupted(path: str | Path) -> int | None:
         status, n = _status(f)
         if status != "acquiring":
             return None
-        entry = f["entry"]
-        entry["status"][()] = _fixed("interrupted", _STATUS_LEN)
-        entry["message"][()] = _fixed(
+        f[layout.STATUS][()] = _fixed("interrupted", _STATUS_LEN)
+        f[layout.MESSAGE][()] = _fixed(
             f"the writer stopped without closing the file (killed) after {n} finished records; "
             "marked interrupted on repair, its records kept", _MESSAGE_LEN)
     return n
@@ -538,17 +540,16 @@ def _s(v) -> str:
 
 
 def _status(f) -> tuple[str, int]:
-    e = f["entry"]
-    return _s(e["status"][()]).strip("\x00 "), int(e["records_complete"][()])
+    return _s(f[layout.STATUS][()]).strip("\x00 "), int(f[layout.RECORDS_COMPLETE][()])
 
 
 def run_info(path: str | Path) -> dict:
     """What a run file holds, as plain data (no sample data is read; used by ``daq inspect``)."""
     path = Path(path)
     with open_run(path) as f:
-        e = f["entry"]
+        e = f[layout.ENTRY]
         status, n = _status(f)
-        data = e["data"]
+        data = f[layout.DATA]
         names = [data.attrs["signal"]] + [_s(s) for s in data.attrs.get("auxiliary_signals", [])]
         channels = []
         for c in names:
@@ -557,10 +558,12 @@ def run_info(path: str | Path) -> dict:
                                  (v.item() if isinstance(v, np.generic) else v))
                              for k, v in a.items()
                              if k not in ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")})
-        counts = e["clipping/count"][:n] if "clipping" in e else np.zeros((n, len(names)), int)
-        sat = (e["saturation/count"][:n] if "saturation" in e
+        counts = (f[layout.CLIPPING][layout.COUNT][:n] if layout.CLIPPING in f
+                  else np.zeros((n, len(names)), int))
+        sat = (f[layout.SATURATION][layout.COUNT][:n] if layout.SATURATION in f
                else np.zeros((n, len(names)), int))
-        model = e["model"]
+        model = f[layout.MODEL]
+        scene = f[layout.SCENE]
         info = {
             "path": str(path),
             "file_bytes": path.stat().st_size,
@@ -568,26 +571,26 @@ def run_info(path: str | Path) -> dict:
             "file_format_version": _s(f.attrs["file_format_version"]),
             "software_version": _s(e.attrs["software_version"]),
             "start_time": _s(e.attrs["start_time"]),
-            "scene": _s(e["scene"].attrs["name"]),
-            "scene_source": _s(e["scene"].attrs["source"]),
+            "scene": _s(scene.attrs["name"]),
+            "scene_source": _s(scene.attrs["source"]),
             "seed": int(e.attrs["seed"]),
             "status": status,
             "complete": status == "complete",
             "records_complete": n,
-            "records_planned": int(e["records_planned"][()]),
-            "message": _s(e["message"][()]).strip("\x00 "),
+            "records_planned": int(f[layout.RECORDS_PLANNED][()]),
+            "message": _s(f[layout.MESSAGE][()]).strip("\x00 "),
             "acquisition": {k: (v.item() if isinstance(v, np.generic) else v)
-                            for k, v in e["instrument/acquisition"].attrs.items()
+                            for k, v in f[layout.ACQUISITION].attrs.items()
                             if k != "NX_class"},
             "antialias": {k: (v.item() if isinstance(v, np.generic) else _s(v))
-                          for k, v in e["instrument/antialias"].attrs.items()
+                          for k, v in f[layout.ANTIALIAS].attrs.items()
                           if k not in ("NX_class", "sos", "description")},
             "channels": channels,
             "clip_counts": {c: [int(x) for x in counts[:, i]] for i, c in enumerate(names)},
             "saturation_counts": {c: [int(x) for x in sat[:, i]] for i, c in enumerate(names)},
             "model_info": json.loads(_s(model.attrs["model_info_json"])),
-            "truth": sorted(k for k in e["truth"] if e["truth"][k].ndim >= 2)
-            if "truth" in e else [],
+            "truth": sorted(k for k, ds in f[layout.TRUTH].items() if ds.ndim >= 2)
+            if layout.TRUTH in f else [],
             "responses": sorted(k[:-5] for k in model if k.endswith("_real")),
         }
         info["writer_flag_set"] = write_flags(path) not in (0, None)
@@ -603,7 +606,7 @@ def read_run(path: str | Path, records=None) -> Recording:
     from rig.scene import scene_from_settings
 
     with open_run(path) as f:
-        e = f["entry"]
+        e = f[layout.ENTRY]
         status, n = _status(f)
         rows = slice(0, n)
         if records is not None:
@@ -612,13 +615,13 @@ def read_run(path: str | Path, records=None) -> Recording:
                 raise ConfigError(f"records {rows.tolist()} outside the {n} finished records "
                                   f"(0..{n - 1})")
             rows = rows if rows.size else slice(0, 0)
-        settings = json.loads(_s(e["scene/settings_json"][()]))
-        scene = scene_from_settings(settings, origin=_s(e["scene"].attrs["source"]))
+        settings = json.loads(_s(f[layout.SCENE_SETTINGS][()]))
+        scene = scene_from_settings(settings, origin=_s(f[layout.SCENE].attrs["source"]))
         plan = RecordPlan.from_acquisition(scene.acquisition)
-        data = e["data"]
+        data = f[layout.DATA]
         names = [_s(data.attrs["signal"])] + [_s(s) for s in data.attrs["auxiliary_signals"]]
         channels = tuple(Channel.from_attrs(c, data[c].attrs) for c in names)
-        ag = e["instrument/antialias"]
+        ag = f[layout.ANTIALIAS]
         a = ag.attrs
         sos = np.array(ag["sos"][()] if "sos" in ag else a["sos"], dtype=float)  # 1.1 / 1.0
         sos.setflags(write=False)
@@ -628,11 +631,11 @@ def read_run(path: str | Path, records=None) -> Recording:
                              attenuation_db=float(a["attenuation_db"]), order=int(a["order"]),
                              sos=sos)
         truth, truth_fields = {}, []
-        if "truth" in e:
-            tg = e["truth"]
+        if layout.TRUTH in f:
+            tg = f[layout.TRUTH]
             for k in tg:
                 ds = tg[k]
-                if ds.ndim < 2 or k == "record_start":
+                if ds.ndim < 2 or k == layout.RECORD_START:
                     continue
                 shape = ds.shape[2:]
                 dims = tuple((list(ds.dims[2 + i].keys()) or [f"{k}_dim{i}"])[0]
@@ -640,11 +643,11 @@ def read_run(path: str | Path, records=None) -> Recording:
                 truth_fields.append(TruthField(k, _s(ds.attrs.get("units", "")),
                                                _s(ds.attrs.get("long_name", k)), shape, dims))
                 truth[k] = ds[rows]
-        m = e["model"]
+        m = f[layout.MODEL]
         values = {k[:-5]: m[k][()] + 1j * m[k[:-5] + "_imag"][()] for k in m
                   if k.endswith("_real")}
         response = ModelResponse(
-            freqs_hz=m["frequency"][()], values=values,
+            freqs_hz=m[layout.FREQUENCY][()], values=values,
             units={k: _s(m[k + "_real"].attrs.get("units", "")) for k in values},
             long_names={k: _s(m[k + "_real"].attrs.get("long_name", k))[len("real part of "):]
                         for k in values})
@@ -655,8 +658,8 @@ def read_run(path: str | Path, records=None) -> Recording:
                         response=response, software_version=_s(e.attrs["software_version"]),
                         start_time=_s(e.attrs["start_time"]))
         codes = {c: data[c][rows] for c in names}
-        clipped = {c: e["clipping"][c][rows].astype(bool) for c in names}
-        saturated = ({c: e["saturation"][c][rows].astype(bool) for c in names}
-                     if "saturation" in e else {})
+        clipped = {c: f[layout.CLIPPING][c][rows].astype(bool) for c in names}
+        saturated = ({c: f[layout.SATURATION][c][rows].astype(bool) for c in names}
+                     if layout.SATURATION in f else {})
     return Recording(header=header, codes=codes, clipped=clipped, truth=truth, status=status,
                      saturated=saturated)

@@ -20,7 +20,8 @@ from pathlib import Path
 
 from rig.errors import ConfigError
 
-__all__ = ["RunNeeds", "estimate_needs", "is_disk_full", "machine_memory_bytes", "preflight"]
+__all__ = ["RunNeeds", "estimate_needs", "run_file_bytes", "is_disk_full",
+           "machine_memory_bytes", "preflight"]
 
 _RESPONSES = 40  # model responses stored (real and imaginary parts count once: complex)
 _FIXED_FILE = 256 * 1024  # metadata, scales, scene, attributes
@@ -35,15 +36,36 @@ class RunNeeds:
     memory_bytes: int
 
 
+def _per_sample_bytes(channels: int, bodies: int, truth: bool) -> int:
+    """Bytes per sample instant: each channel's int16 code and its clip and saturation flags,
+    and the float64 ground truth (four scalars and one angle per body) if kept."""
+    return channels * (2 + 1 + 1) + ((_TRUTH_SCALARS + bodies) * 8 if truth else 0)
+
+
+def _response_bytes(samples: int) -> int:
+    """Bytes of the model responses on the record's FFT grid (complex128)."""
+    return (samples // 2 + 1) * _RESPONSES * 16
+
+
+def run_file_bytes(*, records: int, samples: int, channels: int, bodies: int,
+                   truth: bool) -> int:
+    """Upper estimate of a run file's size [bytes] (no compression counted) for ``records``
+    records of ``samples`` samples on ``channels`` channels, with the ground truth of a
+    ``bodies``-body pendulum if ``truth``: the one size estimate of a run file (``daq acquire``'s
+    preflight, a sweep's dry run)."""
+    per_sample = _per_sample_bytes(channels, bodies, truth)
+    return int(records * (samples * per_sample + 64) + _response_bytes(samples) + _FIXED_FILE)
+
+
 def estimate_needs(*, records: int, samples: int, channels: int, bodies: int,
                    truth: bool) -> RunNeeds:
     """Upper estimates for ``records`` records of ``samples`` samples on ``channels`` channels,
-    with the ground truth of a ``bodies``-body pendulum if ``truth``."""
-    per_sample = channels * (2 + 1 + 1) + ((_TRUTH_SCALARS + bodies) * 8 if truth else 0)
-    response = (samples // 2 + 1) * _RESPONSES * 16
-    file_bytes = records * (samples * per_sample + 64) + response + _FIXED_FILE
-    memory = 4 * samples * per_sample + 3 * response
-    return RunNeeds(int(file_bytes), int(memory))
+    with the ground truth of a ``bodies``-body pendulum if ``truth``: the file
+    (:func:`run_file_bytes`) and the memory."""
+    per_sample = _per_sample_bytes(channels, bodies, truth)
+    memory = 4 * samples * per_sample + 3 * _response_bytes(samples)
+    return RunNeeds(run_file_bytes(records=records, samples=samples, channels=channels,
+                                   bodies=bodies, truth=truth), int(memory))
 
 
 def machine_memory_bytes() -> int | None:

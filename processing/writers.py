@@ -42,6 +42,7 @@ import h5py
 import numpy as np
 
 from daq.hdf5 import LIBVER, attr_value
+from processing.analysis_group import write_analysis_group
 from rig.output_files import atomic_output, write_columns_csv
 
 __all__ = ["GROUP", "FORMAT", "FORMAT_VERSION", "CSV_COLUMNS", "write_spectra", "write_csv",
@@ -64,21 +65,6 @@ def _attr(value):
     return attr_value(value, list_dtype=float)
 
 
-def _variable(g, name: str, data, scale, *, units: str, long_name: str) -> None:
-    ds = g.create_dataset(name, data=np.asarray(data, dtype=float), fletcher32=True,
-                          track_times=False)
-    ds.dims[0].attach_scale(scale)
-    ds.attrs["units"] = units
-    ds.attrs["long_name"] = long_name
-
-
-def _complex(g, name: str, data, scale, *, units: str, long_name: str) -> None:
-    data = np.asarray(data, dtype=complex)
-    for part, arr in (("real", data.real), ("imag", data.imag)):
-        _variable(g, f"{name}_{part}", arr, scale, units=units,
-                  long_name=f"{part} part of {long_name}")
-
-
 def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) -> Path:
     """Write the spectra, responses, coherences, model and E[H1] of ``analysis`` (module
     docstring) into a new HDF5 file ``path``.
@@ -99,7 +85,6 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
     a = analysis
     path = Path(path)
     sp = a.spectral
-    f = a.freqs_hz
     with atomic_output(path, force=force) as tmp:
         with h5py.File(tmp, "w", track_order=True, libver=LIBVER) as fh:
             run = a.run
@@ -127,41 +112,7 @@ def write_spectra(analysis, path, *, force: bool = False, group: str = GROUP) ->
             if a.expected is not None:
                 g.attrs["expected_n_fft"] = np.int64(a.expected.n_fft)
                 g.attrs["expected_alias_bound"] = a.expected.alias_bound
-            fr = g.create_dataset("frequency", data=f, track_times=False)
-            fr.make_scale("frequency")
-            fr.attrs["units"] = "Hz"
-            fr.attrs["long_name"] = "frequency (the analyzer's lines)"
-            for c, name in (("a", "G_aa"), ("x", "G_xx"), ("y", "G_yy")):
-                s = a.spectra[c]
-                _variable(g, name, s.values, fr, units=s.value_units,
-                          long_name=f"one-sided auto spectral density of {c}")
-            for c, name in (("ax", "G_ax"), ("ay", "G_ay")):
-                s = a.spectra[c]
-                _complex(g, name, s.values, fr, units=s.value_units,
-                         long_name=f"one-sided cross spectral density <conj(A) {c[1].upper()}>")
-            for frf, name, c, what in ((a.h_t, "H_t", "x", "mirror translation"),
-                                       (a.theta_2, "Theta_2", "y", "mirror rotation")):
-                unit = f"{a.spectra[c].units[0]}/({a.spectra['a'].units[0]})"
-                _complex(g, name, frf.h, fr, units=unit,
-                         long_name=f"{name} = G_a{c} / G_aa, measured {what} per unit stage "
-                                   f"acceleration ({frf.estimator.upper()})")
-                _variable(g, f"coherence_{c}", frf.coherence, fr, units="1",
-                          long_name=f"magnitude-squared coherence of a and {c}")
-                budget = a.coherence_budget
-                if budget is not None and np.array_equal(budget.freqs_hz, f):
-                    _variable(g, f"expected_coherence_{c}", budget.expected[c], fr, units="1",
-                              long_name=f"expected coherence of a and {c} (optical lever "
-                                        "geometry, noise floors, quantisation, leakage: "
-                                        "processing.coherence_model)")
-                _variable(g, f"{name}_relative_error", frf.relative_error, fr, units="1",
-                          long_name=f"Bendat-Piersol normalised random error of |{name}| (1 "
-                                    "sigma; also the phase's std in rad)")
-                _complex(g, f"model_{name}", getattr(a.model, name.lower()), fr, units=unit,
-                         long_name=f"exact {name} of the whole sampled chain")
-                if a.expected is not None:
-                    _complex(g, f"expected_{name}", getattr(a.expected, name.lower()), fr,
-                             units=unit, long_name=f"expected estimate E[H1] of {name} "
-                                                   "(leakage bias included)")
+            write_analysis_group(g, a)
     return path
 
 

@@ -130,26 +130,55 @@ def remove_stale_temps(path: Path) -> list[Path]:
 
 
 @contextlib.contextmanager
-def atomic_output(path: Path, *, force: bool, suffix: str = ""):
+def atomic_output(path: Path, *, force: bool, suffix: str = "", reserve: bool = True,
+                  durable: bool = False):
     """Yield a temporary path beside ``path`` (:func:`temp_beside`); on success rename it to
     ``path``, on error or interruption remove it. A dead writer's temporary files of ``path``
     are removed first (:func:`remove_stale_temps`).
 
     The existing file (if any, and only with ``force``) is replaced only once the new one is
-    complete.
+    complete. Without ``force`` the new file is published with a hard link, which fails if
+    ``path`` appeared meanwhile (another writer's file is never overwritten; ForceRequired);
+    on a file system without hard links, by a check and a rename.
+
+    ``reserve=False`` yields the name without creating the file (for a writer that creates its
+    file itself and refuses an existing one); ``durable=True`` flushes the file to disk before
+    it is renamed (for files a resumed run trusts after a crash).
     """
     path = check_writable(path, force=force)
     remove_stale_temps(path)
     tmp_path = temp_beside(path, suffix)
+    if not reserve:
+        tmp_path.unlink()
     try:
         yield tmp_path
-        if path.exists() and not force:  # appeared meanwhile
-            raise ForceRequired(f"output {str(path)!r} exists")
         os.chmod(tmp_path, umask_mode())  # the user's umask, as for any new file
-        os.replace(tmp_path, path)
+        if durable:
+            fd = os.open(tmp_path, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        _publish(tmp_path, path, force)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def _publish(tmp_path: Path, path: Path, force: bool) -> None:
+    if force:
+        os.replace(tmp_path, path)
+        return
+    try:
+        os.link(tmp_path, path)
+    except FileExistsError:  # appeared meanwhile
+        raise ForceRequired(f"output {str(path)!r} exists") from None
+    except OSError:  # no hard links here (e.g. FAT, some network file systems)
+        if os.path.lexists(path):
+            raise ForceRequired(f"output {str(path)!r} exists") from None
+        os.replace(tmp_path, path)
+        return
+    tmp_path.unlink()
 
 
 @functools.lru_cache(maxsize=1)

@@ -31,6 +31,7 @@ import numpy as np
 
 from processing.dataset.manifest import unit_of
 from rig.errors import ConfigError
+from rig.output_files import atomic_output
 
 __all__ = ["ExportSettings", "ExportResult", "export_dataset", "parse_split", "assign_splits",
            "manifest_runs",
@@ -203,18 +204,16 @@ def _run_columns(path: Path, s: ExportSettings) -> tuple[dict, dict, float]:
     for c in rec.header.names:  # the analyzer's own arrays: code -> volts -> calibration undone
         cols[c], units[c] = rec.values(c), rec.header.channel(c).unit
     if s.truth or s.drive:
-        with h5py.File(path, "r") as f:
-            if "truth" not in f["entry"]:
-                raise ConfigError(f"{path.name} has no ground truth: the sweep was made with "
-                                  "keep.truth = false; export without --truth/--drive")
-            t = f["entry/truth"]
-            n = rec.records
-            if s.truth:
-                for name, (col, unit) in TRUTH_COLUMNS.items():
-                    cols[col], units[col] = np.asarray(t[name][:n], dtype=float), unit
-            if s.drive:
-                cols[DRIVE_COLUMN[0]] = np.asarray(t["source_v"][:n], dtype=float)
-                units[DRIVE_COLUMN[0]] = DRIVE_COLUMN[1]
+        t = rec.truth  # read_run's: every truth field, finished records only
+        if not t:
+            raise ConfigError(f"{path.name} has no ground truth: the sweep was made with "
+                              "keep.truth = false; export without --truth/--drive")
+        if s.truth:
+            for name, (col, unit) in TRUTH_COLUMNS.items():
+                cols[col], units[col] = np.asarray(t[name], dtype=float), unit
+        if s.drive:
+            cols[DRIVE_COLUMN[0]] = np.asarray(t["source_v"], dtype=float)
+            units[DRIVE_COLUMN[0]] = DRIVE_COLUMN[1]
     return cols, units, float(rec.header.plan.rate_hz)
 
 
@@ -310,18 +309,16 @@ def _write_parquet(path: Path, part: dict, units: dict, keys: list) -> None:
         fields.append(pa.field(c, arr.type, metadata=md))
         arrays.append(arr)
     table = pa.Table.from_arrays(arrays, schema=pa.schema(fields))
-    tmp = path.with_name(f".{path.name}.partial")
-    pq.write_table(table, tmp, compression="zstd")
-    tmp.replace(path)
+    with atomic_output(path, force=True) as tmp:
+        pq.write_table(table, tmp, compression="zstd")
 
 
 def _write_npz(path: Path, part: dict, units: dict, keys: list) -> None:
     arrays = {c: (v.astype(str) if v.dtype == object else v) for c, v in part.items()}
     arrays["units_json"] = np.array(json.dumps({**units, "start_s": "s",
                                                 **{k: unit_of(k) for k in keys}}))
-    tmp = path.with_name(f".{path.name}.partial.npz")
-    np.savez_compressed(tmp, **arrays)
-    tmp.replace(path)
+    with atomic_output(path, force=True, suffix=".npz") as tmp:
+        np.savez_compressed(tmp, **arrays)
 
 
 def _card(ds_dir, s, keys, units, counts, runs, meta, command) -> str:

@@ -31,11 +31,13 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 from pathlib import Path
 
 import h5py
 import numpy as np
+
+from daq import run_layout as layout
+from rig.output_files import atomic_output
 
 __all__ = ["write_manifest", "write_table", "MANIFEST", "TABLE", "FORMAT", "FORMAT_VERSION"]
 
@@ -43,6 +45,12 @@ MANIFEST, TABLE = "manifest.h5", "manifest.csv"
 FORMAT, FORMAT_VERSION = "pendulum-daq dataset", "1.0"
 _STR = h5py.string_dtype()
 _SKIP_ATTRS = ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME", "_Netcdf4Dimid")
+#: Where the manifest's dimension scales take their attributes from, in the first run file.
+_SCALE_SOURCES = {"record": layout.member(layout.DATA, layout.RECORD),
+                  "time": layout.member(layout.DATA, layout.TIME),
+                  "frequency": layout.member(layout.ANALYSIS, layout.FREQUENCY),
+                  "model_frequency": layout.member(layout.MODEL, layout.FREQUENCY),
+                  "body": layout.member(layout.TRUTH, layout.BODY)}
 
 
 def _rows(specs, results: dict) -> list[dict]:
@@ -63,19 +71,12 @@ def _rows(specs, results: dict) -> list[dict]:
 def write_table(path: Path, specs, results: dict, parameter_keys) -> Path:
     """The CSV of every run (module docstring), written under a temporary name and renamed."""
     cols = ["run", "status", "error", "seed", "file", "sha256", "model", *parameter_keys]
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
+    with atomic_output(path, force=True, durable=True) as tmp:
         with open(tmp, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=cols)
             w.writeheader()
             for row in _rows(specs, results):
                 w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:  # a full disk, a signal: no temporary file stays
-        tmp.unlink(missing_ok=True)
-        raise
     return path
 
 
@@ -125,35 +126,35 @@ def _survey(out_dir: Path, complete: list[tuple[int, str]]):
 
     for index, fname in complete:
         with h5py.File(out_dir / "runs" / fname, "r") as f:
-            e = f["entry"]
-            d = e["data"]
-            axis("record", d["record"][()])
-            axis("time", d["time"][()])
+            d = f[layout.DATA]
+            axis("record", d[layout.RECORD][()])
+            axis("time", d[layout.TIME][()])
             for c in ("a", "x", "y"):
-                add(c, f"entry/data/{c}", d[c], ("run", "record", "time"))
-            if "truth" in e:
-                t = e["truth"]
-                if "body" in t:
-                    axis("body", t["body"][()])
+                add(c, layout.member(layout.DATA, c), d[c], ("run", "record", "time"))
+            if layout.TRUTH in f:
+                t = f[layout.TRUTH]
+                if layout.BODY in t:
+                    axis("body", t[layout.BODY][()])
                 for k in t:
-                    if t[k].ndim >= 2 and k != "record_start":
+                    if t[k].ndim >= 2 and k != layout.RECORD_START:
                         dims = ("run", "record", "time") + (("body",) if t[k].ndim == 3 else ())
-                        add(f"truth_{k}", f"entry/truth/{k}", t[k], dims)
-            m = e["model"]
-            axis("model_frequency", m["frequency"][()])
+                        add(f"truth_{k}", layout.member(layout.TRUTH, k), t[k], dims)
+            m = f[layout.MODEL]
+            axis("model_frequency", m[layout.FREQUENCY][()])
             for k in ("h_t_real", "h_t_imag", "theta_2_real", "theta_2_imag"):
                 if k in m:
-                    add(f"model_{k}", f"entry/model/{k}", m[k], ("run", "model_frequency"))
-            if "analysis" not in e:  # a raw-only sweep (keep.analysis = false)
+                    add(f"model_{k}", layout.member(layout.MODEL, k), m[k],
+                        ("run", "model_frequency"))
+            if layout.ANALYSIS not in f:  # a raw-only sweep (keep.analysis = false)
                 seen += 1
                 continue
-            g = e["analysis"]
-            axis("frequency", g["frequency"][()])
+            g = f[layout.ANALYSIS]
+            axis("frequency", g[layout.FREQUENCY][()])
             for k in g:
-                if isinstance(g[k], h5py.Dataset) and k != "frequency" and g[k].ndim == 1:
-                    add(k, f"entry/analysis/{k}", g[k], ("run", "frequency"))
-            if "modal" in g:
-                for k, ds in g["modal"].items():
+                if isinstance(g[k], h5py.Dataset) and k != layout.FREQUENCY and g[k].ndim == 1:
+                    add(k, layout.member(layout.ANALYSIS, k), g[k], ("run", "frequency"))
+            if layout.MODAL in g:
+                for k, ds in g[layout.MODAL].items():
                     modal.setdefault(k, {})[index] = float(ds[()])
                     modal_units[k] = str(ds.attrs.get("units", ""))
         seen += 1
@@ -174,11 +175,8 @@ def write_manifest(out_dir: str | Path, sweep, specs, results: dict) -> Path:
     complete = [(r["run"], r["file"]) for r in rows if r["status"] == "complete"]
     stacked, axes, modal, modal_units, not_stacked = _survey(out_dir, complete)
     path = out_dir / MANIFEST
-    tmp = out_dir / f".{MANIFEST}.tmp"
-    if tmp.exists():
-        tmp.unlink()
     keys = list(sweep.parameter_keys)
-    try:
+    with atomic_output(path, force=True, durable=True) as tmp:
         with h5py.File(tmp, "w", libver=("v110", "v110")) as f:
             counts = {s: sum(r["status"] == s for r in rows) for s in ("complete", "failed",
                                                                           "missing")}
@@ -222,10 +220,7 @@ def write_manifest(out_dir: str | Path, sweep, specs, results: dict) -> Path:
                 with h5py.File(out_dir / "runs" / complete[0][1], "r") as first:
                     for name in ("record", "time", "frequency", "model_frequency", "body"):
                         if name in scales:
-                            src = {"record": "entry/data/record", "time": "entry/data/time",
-                                   "frequency": "entry/analysis/frequency",
-                                   "model_frequency": "entry/model/frequency",
-                                   "body": "entry/truth/body"}[name]
+                            src = _SCALE_SOURCES[name]
                             if src in first:
                                 for k, v in _attrs(first[src]).items():
                                     scales[name].attrs[k] = v
@@ -233,11 +228,12 @@ def write_manifest(out_dir: str | Path, sweep, specs, results: dict) -> Path:
             by_index = dict(complete)
             for name, v in stacked.items():
                 shape = (n,) + tuple(v["shape"])
-                layout = h5py.VirtualLayout(shape=shape, dtype=v["dtype"])
+                virtual = h5py.VirtualLayout(shape=shape, dtype=v["dtype"])
                 for index, fname in by_index.items():
-                    layout[index] = h5py.VirtualSource(f"runs/{fname}", v["path"], shape=v["shape"])
+                    virtual[index] = h5py.VirtualSource(f"runs/{fname}", v["path"],
+                                                        shape=v["shape"])
                 fill = np.nan if np.issubdtype(v["dtype"], np.floating) else 0
-                ds = f.create_virtual_dataset(name, layout, fillvalue=fill)
+                ds = f.create_virtual_dataset(name, virtual, fillvalue=fill)
                 for i, dim in enumerate(v["dims"]):
                     ds.dims[i].attach_scale(scales[dim])
                 for k, val in (v["attrs"] or {}).items():
@@ -255,11 +251,7 @@ def write_manifest(out_dir: str | Path, sweep, specs, results: dict) -> Path:
             links = f.create_group("runs")
             links.attrs["note"] = "external links to each complete run file's /entry"
             for index, fname in complete:
-                links[Path(fname).stem] = h5py.ExternalLink(f"runs/{fname}", "/entry")
-        os.replace(tmp, path)
-    except BaseException:  # a full disk, a signal: no temporary file stays
-        tmp.unlink(missing_ok=True)
-        raise
+                links[Path(fname).stem] = h5py.ExternalLink(f"runs/{fname}", "/" + layout.ENTRY)
     return path
 
 

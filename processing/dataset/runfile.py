@@ -31,6 +31,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from daq import run_layout as layout
+from processing.analysis_group import write_analysis_group
+
 __all__ = ["write_outputs", "check_run_file", "RunFileCheck", "sha256_file", "modal_table",
            "FIT_LABELS"]
 
@@ -64,19 +67,6 @@ def modal_table(analysis) -> dict:
     return out
 
 
-def _var(g, name, data, scale, units, long_name):
-    ds = g.create_dataset(name, data=np.asarray(data, dtype=float), track_times=False)
-    ds.dims[0].attach_scale(scale)
-    ds.attrs["units"] = units
-    ds.attrs["long_name"] = long_name
-
-
-def _cvar(g, name, data, scale, units, long_name):
-    data = np.asarray(data, dtype=complex)
-    for part, arr in (("real", data.real), ("imag", data.imag)):
-        _var(g, f"{name}_{part}", arr, scale, units, f"{part} part of {long_name}")
-
-
 def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None:
     """Add the kept analysis outputs and the run's place in the sweep to the run file ``path``
     (module docstring). ``spec``: sweep_seed, run_index, run_seed, spec_hash, parameters,
@@ -84,8 +74,7 @@ def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None
     then gets ``entry/dataset`` (with ``@analysis = 0``) and no ``entry/analysis``."""
     a = analysis
     with h5py.File(path, "r+") as f:
-        e = f["entry"]
-        ds = e.create_group("dataset")
+        ds = f.create_group(layout.DATASET)
         ds.attrs["NX_class"] = "NXcollection"
         ds.attrs["sweep_seed"] = np.int64(spec["sweep_seed"])
         ds.attrs["run_index"] = np.int64(spec["run_index"])
@@ -101,7 +90,7 @@ def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None
             os.fsync(f.id.get_vfd_handle())
             return
 
-        g = e.create_group("analysis")
+        g = f.create_group(layout.ANALYSIS)
         g.attrs["NX_class"] = "NXcollection"
         sp = a.spectral
         g.attrs["settings_json"] = json.dumps(a.settings.describe(), sort_keys=True)
@@ -112,40 +101,9 @@ def write_outputs(path: str | Path, analysis, keep: dict, *, spec: dict) -> None
         g.attrs["n_averages"] = np.int64(a.h_t.n_averages)
         g.attrs["n_effective"] = float(a.h_t.n_effective)
         g.attrs["k_sigma"] = float(a.settings.k)
-        fr = g.create_dataset("frequency", data=a.freqs_hz, track_times=False)
-        fr.make_scale("frequency")
-        fr.attrs["units"] = "Hz"
-        fr.attrs["long_name"] = "frequency (the analyzer's lines)"
-        units_t = f"{a.spectra['x'].units[0]}/({a.spectra['a'].units[0]})"
-        units_r = f"{a.spectra['y'].units[0]}/({a.spectra['a'].units[0]})"
-        if keep.get("spectra", True):
-            for c, name in (("a", "G_aa"), ("x", "G_xx"), ("y", "G_yy")):
-                s = a.spectra[c]
-                _var(g, name, s.values, fr, s.value_units,
-                     f"one-sided auto spectral density of {c}")
-            for c, name in (("ax", "G_ax"), ("ay", "G_ay")):
-                s = a.spectra[c]
-                _cvar(g, name, s.values, fr, s.value_units,
-                      f"one-sided cross spectral density <conj(A) {c[1].upper()}>")
-        if keep.get("frf", True):
-            for frf, name, c, unit in ((a.h_t, "H_t", "x", units_t),
-                                       (a.theta_2, "Theta_2", "y", units_r)):
-                _cvar(g, name, frf.h, fr, unit, f"measured {name} = G_a{c} / G_aa "
-                      f"({frf.estimator.upper()})")
-                _var(g, f"coherence_{c}", frf.coherence, fr, "1",
-                     f"magnitude-squared coherence of a and {c}")
-                _var(g, f"{name}_relative_error", frf.relative_error, fr, "1",
-                     f"Bendat-Piersol normalised random error of |{name}| (1 sigma; also the "
-                     "phase's std in rad)")
-        if keep.get("expected", True):
-            for name, unit in (("H_t", units_t), ("Theta_2", units_r)):
-                _cvar(g, f"model_{name}", getattr(a.model, name.lower()), fr, unit,
-                      f"exact {name} of the whole sampled chain at the lines")
-                if a.expected is not None:
-                    _cvar(g, f"expected_{name}", getattr(a.expected, name.lower()), fr, unit,
-                          f"expected estimate E[H1] of {name} (leakage bias included)")
+        write_analysis_group(g, a, keep, run_file=True)
         if keep.get("modal", True):
-            m = g.create_group("modal")
+            m = g.create_group(layout.MODAL)
             m.attrs["NX_class"] = "NXcollection"
             # the stored text names the module before the analyzer was split: run files stay
             # byte-identical across the restructuring (it is a description, not a reference)
@@ -198,12 +156,12 @@ def check_run_file(path: str | Path, *, sha256: str | None = None,
     if not problems:
         try:
             with h5py.File(path, "r") as f:
-                e = f["entry"]
-                raw_only = "dataset" in e and int(e["dataset"].attrs.get("analysis", 1)) == 0
-                if "dataset" not in e or ("analysis" not in e and not raw_only):
-                    problems.append("no analysis outputs (entry/analysis, entry/dataset)")
+                has_dataset = layout.DATASET in f
+                raw_only = has_dataset and int(f[layout.DATASET].attrs.get("analysis", 1)) == 0
+                if not has_dataset or (layout.ANALYSIS not in f and not raw_only):
+                    problems.append(f"no analysis outputs ({layout.ANALYSIS}, {layout.DATASET})")
                 else:
-                    h = str(e["dataset"].attrs["spec_hash"])
+                    h = str(f[layout.DATASET].attrs["spec_hash"])
         except (OSError, KeyError) as exc:
             what = f"no {exc.args[0]!r} in it" if isinstance(exc, KeyError) else str(exc)
             problems.append(f"unreadable: {what}")

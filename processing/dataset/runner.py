@@ -38,7 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from rig.output_files import process_alive
+from daq.resources import run_file_bytes
+from rig.output_files import atomic_output, process_alive
 from rig.errors import ConfigError, ForceRequired
 
 from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table
@@ -150,10 +151,9 @@ def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = Non
             out.append(PlannedRun(spec, None, "", str(exc).splitlines()[0], 0.0, 0))
             continue
         sim_s = acq.settle_s + acq.records * acq.record_s
-        n = acq.records * samples
-        per = 3 * 2 + (8 * (4 + sc.chain.n) if acq.truth and sweep.keep["truth"] else 0)
-        out.append(PlannedRun(spec, sc.settings, sc.origin, "", float(sim_s),
-                              int(n * per + 200_000)))
+        size = run_file_bytes(records=acq.records, samples=samples, channels=3,  # a, x, y
+                              bodies=sc.chain.n, truth=acq.truth and sweep.keep["truth"])
+        out.append(PlannedRun(spec, sc.settings, sc.origin, "", float(sim_s), size))
     return tuple(out)
 
 
@@ -182,7 +182,8 @@ def describe_plan(sweep: Sweep, planned, *, workers: int, head: int = 10) -> str
     lines.append(f"estimated time: {_duration(wall)} on {workers} worker"
                  f"{'s' if workers != 1 else ''} for the linear model (runs whose drive needs "
                  "the nonlinear model take longer: BENCHMARKS.md)")
-    lines.append(f"estimated disk: {disk / 1e6:.1f} MB (at most: codes before compression)")
+    lines.append(f"estimated disk: {disk / 1e6:.1f} MB (at most: run files before "
+                 "compression)")
     return "\n".join(lines)
 
 
@@ -271,16 +272,8 @@ def _prepare(out_dir: Path, sweep: Sweep, planned, force: bool) -> list[str]:
 
 
 def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        with open(tmp, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:  # a full disk, a signal: no temporary file stays
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_output(path, force=True, durable=True) as tmp:
+        tmp.write_text(text)
 
 
 @contextlib.contextmanager

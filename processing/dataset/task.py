@@ -14,14 +14,16 @@ only KeyboardInterrupt propagates (after the temporary file is removed).
 from __future__ import annotations
 
 import os
-import secrets
 import sys
 import socket
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-__all__ = ["Job", "JobResult", "run_task", "partial_name", "worker_init", "failure_text"]
+from rig.errors import ForceRequired
+from rig.output_files import atomic_output
+
+__all__ = ["Job", "JobResult", "run_task", "worker_init", "failure_text"]
 
 
 @dataclass(frozen=True)
@@ -93,13 +95,6 @@ class JobResult:
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
-def partial_name(final: Path) -> Path:
-    """A temporary name beside ``final`` that no other writer uses (host, pid and a token)."""
-    host = socket.gethostname().replace(".", "-")
-    return final.with_name(f".{final.name}.{host}.{os.getpid()}.{secrets.token_hex(4)}.partial"
-                           f"{final.suffix}")
-
-
 _BUSY = False  # this worker is running a task (SIGINT interrupts it; an idle worker ignores it)
 
 
@@ -137,14 +132,6 @@ def worker_init() -> None:
         pass
 
 
-def _publish(tmp: Path, final: Path, replace: bool) -> None:
-    if replace:
-        os.replace(tmp, final)
-        return
-    os.link(tmp, final)  # FileExistsError if a finished file is there: never overwritten
-    tmp.unlink()
-
-
 def run_task(job: Job) -> JobResult:
     """Run one job (made by :func:`processing.dataset.runner.run_sweep`) and return its result
     (:class:`JobResult`: "complete" means the final file exists, valid, with that sha256)."""
@@ -155,12 +142,12 @@ def run_task(job: Job) -> JobResult:
     t0, c0 = time.perf_counter(), time.process_time()
     final = Path(job.runs_dir) / job.file
     status, error, model, sha256 = "failed", "", "", ""
-    tmp = partial_name(final)
     try:
-        model = _run(job, tmp)
-        try:
-            _publish(tmp, final, job.replace)
-        except FileExistsError:
+        try:  # a hard link publishes it: a finished file is never overwritten without replace
+            with atomic_output(final, force=job.replace, suffix=".partial.h5",
+                               reserve=False) as tmp:
+                model = _run(job, tmp)
+        except ForceRequired:
             # finished meanwhile by another worker of an earlier, killed sweep: keep that one
             # if it is this run, valid
             chk = check_run_file(final, spec_hash=job.spec_hash)
@@ -175,8 +162,6 @@ def run_task(job: Job) -> JobResult:
         error = failure_text(exc)[:500]
     finally:
         _BUSY = False
-        if tmp.exists():
-            tmp.unlink()
     return JobResult(index=job.index, status=status, error=error, file=job.file, sha256=sha256,
                      model=model, wall_s=time.perf_counter() - t0, host=socket.gethostname(),
                      cpu_s=time.process_time() - c0)

@@ -29,13 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
+from daq import run_layout as layout
 from rig.errors import ConfigError
 
 __all__ = ["write_zarr_index", "open_zarr_index", "INDEX", "default_chunks_url"]
 
 INDEX = "index.icechunk"
-_GROUPS = (("entry/data", "", ("record_start",)), ("entry/truth", "truth_", ("record_start",)),
-           ("entry/model", "model_", ()), ("entry/analysis", "", ()))
+#: The run file's groups in the index: (group, prefix of its variables, variables left out).
+_GROUPS = ((layout.DATA, "", (layout.RECORD_START,)),
+           (layout.TRUTH, "truth_", (layout.RECORD_START,)),
+           (layout.MODEL, "model_", ()), (layout.ANALYSIS, "", ()))
 
 
 @contextlib.contextmanager
@@ -86,8 +89,8 @@ def _run_dataset(path: Path, registry):
     for group, prefix, drop in present:
         v = open_virtual_dataset(url, registry=registry, parser=HDFParser(group=group))
         v = v.drop_vars([d for d in drop if d in v.variables])
-        if group == "entry/model":
-            v = v.rename({"frequency": "model_frequency"})
+        if group == layout.MODEL:
+            v = v.rename({layout.FREQUENCY: "model_frequency"})
         if prefix:
             v = v.rename({k: f"{prefix}{k}" for k in v.data_vars})
         parts.append(v)

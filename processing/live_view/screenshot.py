@@ -8,7 +8,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from rig.output_files import check_writable, remove_stale_temps, temp_beside
+from rig.output_files import atomic_output
 from processing.live_view.stream import LiveViewError, viewer_executable
 
 
@@ -59,11 +59,9 @@ def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
 
     png = Path(png)
     fmt = image_format(png)
-    check_writable(png, force=force)
-    remove_stale_temps(png)
-    # absolute: the viewer does not write a relative path where this process would
-    tmp = Path(os.path.abspath(temp_beside(png, ".part.png")))
-    try:
+    with atomic_output(png, force=force, suffix=".part.png") as tmp:
+        # absolute: the viewer does not write a relative path where this process would
+        tmp = Path(os.path.abspath(tmp))
         cmd, env = screenshot_command(Path(rrd), tmp, size)
         try:
             p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
@@ -76,9 +74,6 @@ def screenshot(rrd, png, *, size: str = "1600x900", force: bool = False,
         _to_size(tmp, size)
         if fmt == "jpeg":
             _to_jpeg(tmp)
-        os.replace(tmp, png)
-    finally:
-        tmp.unlink(missing_ok=True)
     return png
 
 

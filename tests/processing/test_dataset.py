@@ -226,6 +226,37 @@ def test_manifest_opens_in_xarray_and_its_stacked_arrays_equal_the_run_files(thr
 
 # -- failures, resume, interruption ----------------------------------------------------------
 
+def test_every_group_of_a_sweep_s_run_file_is_where_the_declared_layout_says(three_ways):
+    """The run file's layout is declared once (daq.run_layout): every declared path is in a
+    sweep's run file, and every group of its entry is declared."""
+    from daq import run_layout as layout
+
+    _, out = three_ways
+    paths = [v for v in (getattr(layout, n) for n in layout.__all__)
+             if isinstance(v, str) and v.split("/")[0] == layout.ENTRY]
+    with h5py.File(out["one"] / "runs/run_000000.h5", "r") as f:
+        assert [p for p in paths if p not in f] == []
+        declared = {layout.name_of(p) for p in paths}
+        assert sorted(set(f[layout.ENTRY]) - declared) == []
+
+
+def test_the_plan_estimates_each_run_file_as_the_acquisition_s_preflight_does(three_ways):
+    """One size estimate of a run file: the dry run's per run equals daq acquire's preflight
+    for the same scene, and bounds the file written (nothing compressed is counted)."""
+    from daq.hdf5 import read_run
+    from daq.resources import estimate_needs
+
+    path, out = three_ways
+    for p in plan_runs(load_sweep(path)):
+        f = out["one"] / "runs" / p.spec.name
+        h = read_run(f).header
+        needs = estimate_needs(records=h.plan.records, samples=h.plan.samples,
+                               channels=len(h.channels), bodies=h.scene.chain.n,
+                               truth=bool(h.truth))
+        assert p.bytes_estimate == needs.file_bytes
+        assert 0 < f.stat().st_size <= p.bytes_estimate
+
+
 def test_an_invalid_parameter_set_is_recorded_and_the_sweep_goes_on(tmp_path):
     # run 1: the scene rejects q1 < 0 (found while planning); run 2: a single 10 s record gives
     # one average, which the analyzer refuses (found in the worker)
