@@ -18,10 +18,13 @@ packages the tests that need them skip, saying which package is missing.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
@@ -53,8 +56,46 @@ def ensure_venv() -> None:
             run(sys.executable, "-m", "venv", "--clear", "--without-pip", VENV)
     has_pip = subprocess.run([str(PY), "-m", "pip", "--version"], capture_output=True).returncode == 0
     pip = [PY, "-m", "pip"] if has_pip else [sys.executable, "-m", "pip", "--python", PY]
-    run(*pip, "install", "--disable-pip-version-check", "-q", "-e", f".[{','.join(EXTRAS)}]")
+    print(f"installing pendulum-daq and its dependencies into {VENV.name} (once, a few minutes)",
+          flush=True)
+    t0 = time.monotonic()
+    with elapsed_lines("installing"):
+        rc = subprocess.run([str(c) for c in (*pip, "install", "--disable-pip-version-check",
+                                              "-q", "-e", f".[{','.join(EXTRAS)}]")],
+                            cwd=ROOT).returncode
+    if rc:
+        raise SystemExit(f"pip could not install pendulum-daq into {VENV.name} (exit status "
+                         f"{rc}; its messages are above); fix that and run this again")
+    print(f"installed in {_minutes(time.monotonic() - t0)}", flush=True)
     STAMP.write_text(want)
+
+
+#: Seconds between the lines that say a long, quiet step is still running.
+TICK_S = 30.0
+
+
+def _minutes(s: float) -> str:
+    return f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min"
+
+
+@contextlib.contextmanager
+def elapsed_lines(what: str, every_s: float = TICK_S):
+    """While the block runs, print ``"  still <what>: <elapsed>"`` every ``every_s`` seconds
+    (pip's quiet install prints nothing for minutes)."""
+    stop = threading.Event()
+    t0 = time.monotonic()
+
+    def tick():
+        while not stop.wait(every_s):
+            print(f"  still {what}: {_minutes(time.monotonic() - t0)}", flush=True)
+
+    t = threading.Thread(target=tick, name="elapsed", daemon=True)
+    t.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        t.join()
 
 
 COMPAT_VENV = ROOT / ".venv-compat"
@@ -144,6 +185,14 @@ def check_extra_args(cmd: list, extra: list[str], env: dict) -> int:
                           env=env).returncode
 
 
+def test_workers() -> list[str]:
+    """The whole suite runs in one pytest process per core, up to four (pytest-xdist), each
+    test file in one process (``--dist loadfile``: a file's module fixtures are built once)."""
+    n = min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+            else os.cpu_count() or 1, 4)
+    return ["-n", str(n), "--dist", "loadfile"] if n > 1 else []
+
+
 def main(argv: list[str]) -> int:
     """Run a job: its commands in sequence, stopping at the first failure; extra args go to the
     job's last command (``daq analyze`` for the experiment, pytest for the tests)."""
@@ -171,6 +220,8 @@ def main(argv: list[str]) -> int:
         rc = check_extra_args(cmds[-1], argv[1:], env)
         if rc:
             return rc
+    if argv[0] == "test" and not argv[1:]:
+        cmds = [[*cmds[0], *test_workers()]]
     for i, cmd in enumerate(cmds):
         cmd = [str(c) for c in cmd] + (argv[1:] if i == len(cmds) - 1 else [])
         if len(cmds) > 1:

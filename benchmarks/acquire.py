@@ -36,7 +36,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
+from benchmarks.interleave import interleaved, ratio_rows  # noqa: E402
 from daq.acquisition import acquire  # noqa: E402
 from daq.benches import rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink  # noqa: E402

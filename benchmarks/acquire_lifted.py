@@ -35,12 +35,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._interleave import interleaved, ratio_rows  # noqa: E402
+from benchmarks.interleave import interleaved, ratio_rows  # noqa: E402
 from daq.acquisition import acquire  # noqa: E402
 from daq.benches import BLOCK_S, rig_bench  # noqa: E402
 from daq.hdf5 import Hdf5Sink, read_run  # noqa: E402
 from rig import bench as rb  # noqa: E402
 from rig.bench import fused as rl  # noqa: E402
+from rig.bench.run import spawn_streams  # noqa: E402
 from rig.sosfilt import lift_sections  # noqa: E402
 from rig.devices.source import generate, start_source  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
@@ -84,7 +85,7 @@ def lsim_peer(seconds):
     model = rb.build_model(scene)
     q = model.decimation
     n = int(round(seconds * model.fs_hz))
-    _, children = rb._spawn(2009)
+    _, children = spawn_streams(2009)
     v, src = generate(model.source, start_source(model.source, children[0]), n)
     t = np.arange(n) / model.fs_hz
     sys_c = signal.StateSpace(model.a, model.b, np.eye(model.n_states),

@@ -9,7 +9,7 @@ method etdab), medians of ``--rounds`` interleaved rounds of ``time.process_time
 Parts: ``source`` (the drive's blocks), ``bench`` (``rig.bench.run.bench_states`` on given source
 blocks: the etdab kernel and the per-sample state), ``kinematics`` (the mirror's exact x, z, rot
 from theta, numpy), ``noise`` (three ``standard_normal`` draws per block), ``fused kernel``
-(``rig.bench.fused._nonlinear_kernel``: the mirror's kinematics, the sensors' noise draws, the
+(``rig.bench.fused.nonlinear_fused_kernel``: the mirror's kinematics, the sensors' noise draws, the
 sensors, geometry, clipping, flags, the lifted anti-alias filter, keep; ``kinematics`` and
 ``noise`` time what it includes, done apart), and the two whole paths: ``fused`` (``BenchSimulation.decimated_blocks``) and
 ``per-sample`` (``BenchSimulation.blocks`` then daq's filter and decimation).
@@ -30,7 +30,7 @@ from daq.records import RecordPlan  # noqa: E402
 from rig.bench import fused as rl  # noqa: E402
 from rig.sosfilt import lift_sections  # noqa: E402
 from rig.bench import BenchSimulation  # noqa: E402
-from rig.bench.run import BenchState, _mirror_kinematics, bench_states  # noqa: E402
+from rig.bench.run import BenchState, mirror_kinematics, bench_states  # noqa: E402
 from rig.devices.source import generate  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 
@@ -75,7 +75,7 @@ def main(argv=None):
 
     def kinematics():
         for _ in range(nb):
-            _mirror_kinematics(scene, theta, exact=True)
+            mirror_kinematics(scene, theta, exact=True)
 
     def noise():
         rng = np.random.default_rng(1)
@@ -85,9 +85,9 @@ def main(argv=None):
     acc, lever, q = model.accelerometer, model.lever, model.decimation
     sections = lift_sections(sos, q)
     hp_col = m["accel_highpass_q_mps"].start if acc.n_states else -1
-    layout = rl._MirrorLayout(m["theta_rad"].start, hp_col,
-                              np.asarray(scene.chain.length_m, dtype=float), scene.mirror.body,
-                              float(scene.mirror.position_m))
+    layout = rl.MirrorLayout(m["theta_rad"].start, hp_col,
+                             np.asarray(scene.chain.length_m, dtype=float), scene.mirror.body,
+                             float(scene.mirror.position_m))
 
     def kernel():
         s_aa = np.zeros((3, 2 * sos.shape[0]))
@@ -96,9 +96,9 @@ def main(argv=None):
         mx, mrot = np.empty(n // q), np.empty(n // q)
         rngs = [np.random.default_rng(k) for k in range(3)]
         for _ in range(nb):
-            rl._nonlinear_kernel(keep["z_out"], keep["accel"], layout, acc.row_params(fs),
-                                 lever.row_params(fs), *rngs, sections, s_aa, carry,
-                                 (volts, sat, mx, mrot), q, rl.CHUNK_INTERVALS)
+            rl.nonlinear_fused_kernel(keep["z_out"], keep["accel"], layout, acc.row_params(fs),
+                                      lever.row_params(fs), *rngs, sections, s_aa, carry,
+                                      (volts, sat, mx, mrot), q, rl.CHUNK_INTERVALS)
 
     def fused():
         sim = BenchSimulation(scene, 2009, method="etdab")

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from benchmarks._interleave import quart, tree_pairs  # noqa: E402
+from benchmarks.interleave import quart, tree_pairs  # noqa: E402
 
 HERE = Path(__file__).resolve().parent.parent
 # the paper's acquisition to a run file in a warm process through the API of 2026-12-01

@@ -30,6 +30,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from rig import bench as rb  # noqa: E402
+from rig.bench.estimates import kernel_theta as kernel_only  # noqa: E402
+from rig.bench.run import spawn_streams  # noqa: E402
 from rig.solvers import coupled as rc  # noqa: E402
 from rig.scene import load_scene  # noqa: E402
 from rig.devices.source import generate, start_source  # noqa: E402
@@ -45,7 +47,7 @@ def kernel_theta(model, v):
     """Angles of the model's kernel alone over the input v from rest, wall and CPU time."""
     z = np.zeros(model.n_states)
     t, c = time.perf_counter(), time.process_time()
-    th = rb._kernel_theta(model, v, z)
+    th = kernel_only(model, v, z)
     return th, time.perf_counter() - t, time.process_time() - c
 
 
@@ -64,7 +66,7 @@ def main(argv=None):
               "linear": rb.build_model(rb.linear_scene(sc))}
     fs = models["etdab"].fs_hz
     n = int(RUN_S * fs)
-    _, children = rb._spawn(2009)
+    _, children = spawn_streams(2009)
     v, _ = generate(models["etdab"].source, start_source(models["etdab"].source, children[0]), n)
     ref_m = rb.build_model(sc, method="lawson4", substeps=2)
     ref, _, _ = kernel_theta(ref_m, v)

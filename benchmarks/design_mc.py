@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks._interleave import quart  # noqa: E402
+from benchmarks.interleave import quart  # noqa: E402
 from rig.design import design, parse_targets  # noqa: E402
 from rig.design.tolerance import evaluate_loop, monte_carlo, parse_tolerances  # noqa: E402
 

@@ -41,11 +41,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._interleave import interleaved  # noqa: E402
+from benchmarks.interleave import interleaved  # noqa: E402
 
 
 def _timed(fn):
-    """``fn()``'s (wall, CPU) seconds, as :func:`benchmarks._interleave.interleaved` takes them."""
+    """``fn()``'s (wall, CPU) seconds, as :func:`benchmarks.interleave.interleaved` takes them."""
     t, c = time.perf_counter(), time.process_time()
     fn()
     return time.perf_counter() - t, time.process_time() - c
@@ -74,8 +74,8 @@ def fft_part(rounds: int) -> None:
 
     def run(config):
         src.FRAME_FACTOR, src.FRAMES_PER_FFT = config
-        src._design.cache_clear()
-        src._real_spectrum.cache_clear()
+        src.noise_fir.cache_clear()
+        src.noise_fir_rfft.cache_clear()
         source.taps  # the filter's design, outside the timing
 
         def generate():
@@ -93,8 +93,8 @@ def fft_part(rounds: int) -> None:
         _, cpu = interleaved(list(configs), rounds, run, rotate=False)
     finally:
         src.FRAME_FACTOR, src.FRAMES_PER_FFT = own
-        src._design.cache_clear()
-        src._real_spectrum.cache_clear()
+        src.noise_fir.cache_clear()
+        src.noise_fir_rfft.cache_clear()
     ref = made[own]
     rms = float(np.sqrt(np.mean(ref**2)))
     print(f"the source's noise ({source.n_taps} taps), the paper run's {n:,} samples in 100 s "

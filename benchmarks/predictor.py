@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks._interleave import tree_pairs  # noqa: E402
+from benchmarks.interleave import tree_pairs  # noqa: E402
 
 _CHILD = r"""
 import json, sys, time

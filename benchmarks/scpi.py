@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks._interleave import quart  # noqa: E402
+from benchmarks.interleave import quart  # noqa: E402
 
 SETUP = ":INST:SEL FFT;:SOUR:FUNC RAND;:SOUR:VOLT 0.1;:OUTP ON;:FREQ:SPAN 12.5;RES {lines};" \
         ":AVER:TYPE RMS;COUN {averages};:AVER ON;:CALC1:FEED 'XFR:POW:RAT 2,1';:CALC1:FORM REAL"

@@ -4,6 +4,7 @@ acquisition's own ratio in the same process, and its accuracy at every point.
 
     .venv/bin/python benchmarks/sine.py                       # 3 rounds (~5 minutes loaded)
     .venv/bin/python benchmarks/sine.py --rounds 1 --figure docs/figures/sine-vs-fft.png
+    .venv/bin/python benchmarks/sine.py --swept --rounds 3   # stepped, swept and FFT
 
 Per round, in alternating order: (A) the accuracy sweep of the README and of
 tests/processing/test_sine.py over 0.1-10 Hz on ``ishizaki2009`` (auto resolution 2 dB / 20
@@ -17,7 +18,9 @@ truth included). One warm-up of each first (numba's cache, the filter design). P
 round's two ratios and their quotient, the sweep's points, and its largest differences from
 the exact response against the 0.1 dB / 0.5 deg of the issue. ``--figure`` draws the FFT
 measurement (``daq analyze``'s default Hann analysis of run B) and the sweep of the last round
-over the exact model, side by side (README "Swept and stepped sine").
+over the exact model, side by side (README "Swept and stepped sine"). ``--swept`` times the
+swept sine (``mode="swept"``, 200 points, the rule's path at its default tolerance) beside the
+stepped sweep and the FFT run, the order rotating per round, and prints both sweeps' accuracy.
 """
 
 import argparse
@@ -37,6 +40,10 @@ from processing.sine_sweep import SineSettings, measure_sine  # noqa: E402
 ACCURACY = SineSettings(fmin_hz=0.1, fmax_hz=10.0, points=50, auto_resolution=(2.0, 20.0),
                         auto_level=("y", 3e-4, 0.2), level_limit_vrms=1.0,
                         random_error_db=0.02, max_integrate_s=20000.0)
+#: the swept sine of ``daq sine --mode swept`` (200 points, the rule's path at its default
+#: tolerance, the auto level a profile along the sweep)
+SWEPT = SineSettings(fmin_hz=0.1, fmax_hz=10.0, points=200, auto_level=("y", 3e-4, 0.2),
+                     level_limit_vrms=1.0, mode="swept")
 
 
 def sine_run(scene, settings, seed):
@@ -141,13 +148,52 @@ def figure(path, scene, sweep, recording):
     fig.savefig(path, dpi=110)
 
 
+def swept_rounds(rounds: int) -> None:
+    """Stepped (A), swept (S) and FFT (B) side by side, the order rotating per round."""
+    scene = rig.load_scene("ishizaki2009")
+    warm = SineSettings(fmin_hz=2.0, fmax_hz=3.0, points=3, auto_level=("y", 3e-4, 0.2))
+    sine_run(scene, warm, 1)
+    sine_run(scene, SineSettings(fmin_hz=1.0, fmax_hz=1.2, points=3, mode="swept",
+                                 sweep_tolerance=0.05, level_vrms=0.05), 1)
+    fft_run(scene.with_acquisition(records=2), 1)
+    kinds = ("stepped", "swept", "fft")
+    rows, last = [], {}
+    for r in range(rounds):
+        order = kinds[r % 3:] + kinds[:r % 3]
+        got = {}
+        for which in order:
+            got[which] = (fft_run(scene, 2009) if which == "fft" else
+                          sine_run(scene, ACCURACY if which == "stepped" else SWEPT, 2009))
+            last[which] = got[which][2]
+        ratio = {k: got[k][0] / got[k][1] for k in kinds}
+        rows.append(ratio)
+        print(f"round {r + 1} ({' then '.join(order)}): " + "; ".join(
+            f"{k} {got[k][0]:,.0f} s bench / {got[k][1]:.2f} s CPU = {ratio[k]:,.0f} x"
+            for k in kinds) + f"; swept / stepped {ratio['swept'] / ratio['stepped']:.2f}",
+            flush=True)
+    med = {k: float(np.median([row[k] for row in rows])) for k in kinds}
+    print(f"median over {rounds} rounds: " + ", ".join(f"{k} {v:,.0f} x" for k, v in med.items())
+          + f"; swept / stepped {np.median([r['swept'] / r['stepped'] for r in rows]):.2f}")
+    for k in ("stepped", "swept"):
+        sw = last[k]
+        print(f"{k}: {len(sw.points)} points, {sw.bench_s:,.0f} s of bench time, "
+              f"{sw.model_info['model']} model; against the exact response:")
+        print("\n".join(accuracy_lines(sw)))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--figure", type=Path, default=None)
     ap.add_argument("--figure-only", action="store_true",
                     help="One sweep and one FFT run for --figure, nothing timed.")
+    ap.add_argument("--swept", action="store_true",
+                    help="Time the stepped sweep, the swept sweep and the FFT run side by "
+                         "side (the order rotating per round).")
     args = ap.parse_args()
+    if args.swept:
+        swept_rounds(args.rounds)
+        return
     scene = rig.load_scene("ishizaki2009")
     if args.figure_only:
         sweep = sine_run(scene, ACCURACY, 2009)[2]

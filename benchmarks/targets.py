@@ -181,7 +181,7 @@ def etd4m_rounds(chain, base, ref, rounds):
     ``rounds`` interleaved rounds, errors against ``ref`` (0.01 s rows), etd4m at m = 10 also
     along the path before etd4m_kernel2h (:func:`_path_before`); then solve_ivp RK45 (rtol 1e-6,
     atol 1e-9) restarted at every held sample on the first 5 s, extrapolated to 3000 s."""
-    from benchmarks.work_precision import _ivp_per_sample
+    from benchmarks.work_precision import ivp_per_sample
 
     configs = [("etd3m", 5, 0.01, False), ("etd3m", 10, 0.01, False),
                ("etd4m", 10, 0.01, True), ("etd4m", 10, 0.01, "fir-loop"),
@@ -217,8 +217,8 @@ def etd4m_rounds(chain, base, ref, rounds):
         print(f"etd4m m = 10, now / {what}, per round: CPU {np.median(ratio):.3f} "
               f"[{np.quantile(ratio, 0.25):.3f}, {np.quantile(ratio, 0.75):.3f}]")
     piece = 5000
-    rows, wall, _, cpu = _ivp_per_sample(chain, base.ax_mps2, base.dt_s, piece, 10, np.zeros(4),
-                                         "RK45", dict(rtol=1e-6, atol=1e-9))
+    rows, wall, _, cpu = ivp_per_sample(chain, base.ax_mps2, base.dt_s, piece, 10, np.zeros(4),
+                                        "RK45", dict(rtol=1e-6, atol=1e-9))
     err = rel_rms_error(rows[:, :2], ref[:rows.shape[0]])
     print(f"| solve_ivp RK45 per sample, rtol 1e-6 | - | 0.01 s | {wall * 600:.0f} (5 s: "
           f"{wall:.2f}, x 600) | {cpu * 600:.0f} | {err:.2g} (first 5 s) | "

@@ -344,9 +344,9 @@ def _ivp_rhs_const(t, y, hc, s, cm, g, bod, alg, u, work):
     return out[0]
 
 
-def _ivp_per_sample(chain, ax, h, n_samples, out_every, y0, method, options):
+def ivp_per_sample(chain, ax, h, n_samples, out_every, y0, method, options):
     """One solve_ivp call per held sample (the input constant inside each). Returns (rows at
-    every ``out_every``-th instant, wall, nfev)."""
+    every ``out_every``-th instant, wall [s], nfev, CPU [s])."""
     args = (chain.H, chain.S, chain.C, chain.g_mps2, bodies_array(chain), rhs_algorithm(chain))
     work = np.empty((chain.n, max(chain.n + 2, 6)))
     y = np.array(y0, float)
@@ -459,7 +459,7 @@ def _ivp_per_sample_entries(ctx, scene, chain, ax, h, y0, duration, piece_s, out
     n = round(piece_s / h)
     for method, options, setting in configs:
         ctx.progress(f"{scene}: solve_ivp {method} per sample {setting} ({piece_s:g} s piece)")
-        rows, wall, nfev, cpu = _ivp_per_sample(chain, ax, h, n, out_every, y0, method, options)
+        rows, wall, nfev, cpu = ivp_per_sample(chain, ax, h, n, out_every, y0, method, options)
         err, extra = score(rows, rows.shape[0])
         out.append(Entry(scene, "solve_ivp", method + "+per-sample", setting,
                          wall * duration / piece_s, (wall,), err, piece_s, extrapolated=True,

@@ -34,7 +34,7 @@ from daq import run_layout as layout
 from daq.channels import Channel
 from daq.hdf5 import READABLE_FORMAT_VERSIONS
 from daq.records import STATUSES
-from daq.repair import UnreadableFile, _first_line, open_hdf5
+from daq.repair import UnreadableFile, first_line, open_hdf5
 from rig.output_files import not_a_file
 from rig.errors import ConfigError
 
@@ -128,10 +128,10 @@ def check_file(path: str | Path) -> FileCheck:
         c.run()
     except Exception as exc:  # noqa: BLE001 - whatever breaks on a bad file is a finding
         if "checksum" in str(exc):
-            c.problem("corrupt", f"its metadata fails a checksum ({_first_line(exc)})")
+            c.problem("corrupt", f"its metadata fails a checksum ({first_line(exc)})")
         else:
             what = (f"no {exc.args[0]!r}" if isinstance(exc, KeyError) and exc.args
-                    else _first_line(exc))
+                    else first_line(exc))
             c.problem("invalid", f"unexpected structure ({what})")
     return c.result()
 
@@ -210,20 +210,20 @@ class _Checker:
                     obj.attrs[k]
             except (OSError, TypeError, ValueError) as exc:
                 self.problem("corrupt", f"{name}: an attribute cannot be read "
-                                        f"({_first_line(exc)})")
+                                        f"({first_line(exc)})")
             if isinstance(obj, h5py.Dataset) and name not in skip:
                 try:
                     obj[()]
                 except (OSError, TypeError, ValueError) as exc:
                     what = ("fails its checksum" if "filter" in str(exc) else "cannot be read")
-                    self.problem("corrupt", f"{name} {what} ({_first_line(exc)})")
+                    self.problem("corrupt", f"{name} {what} ({first_line(exc)})")
 
         try:
             for k in f.attrs:
                 f.attrs[k]
             f.visititems(visit)
         except (OSError, RuntimeError, KeyError) as exc:
-            self.problem("corrupt", f"its object tree cannot be walked ({_first_line(exc)})")
+            self.problem("corrupt", f"its object tree cannot be walked ({first_line(exc)})")
 
     # -- run files ----------------------------------------------------------------------------
     def _run(self, f) -> set:
@@ -378,7 +378,7 @@ class _Checker:
                                         origin=_text(f[layout.SCENE].attrs.get("source", "")))
             plan = RecordPlan.from_acquisition(scene.acquisition)
         except (RigError, KeyError, TypeError, ValueError) as exc:
-            self.problem("invalid", f"the stored scene does not rebuild: {_first_line(exc)}")
+            self.problem("invalid", f"the stored scene does not rebuild: {first_line(exc)}")
             return
         if plan.records != planned:
             self.problem("invalid", f"the stored scene plans {plan.records} records, "
@@ -396,7 +396,7 @@ class _Checker:
                 ch = Channel.from_attrs(c, a)
             except Exception as exc:  # noqa: BLE001 - any failure is an inconsistent file
                 self.problem("invalid", f"channel {c}: calibration does not rebuild "
-                                        f"({_first_line(exc)})")
+                                        f"({first_line(exc)})")
                 continue
             lsb = float(a.get("scale_factor", np.nan))
             vpu, upv = float(a.get("volts_per_unit", np.nan)), float(a.get("units_per_volt",

@@ -502,7 +502,7 @@ def mark_interrupted(path: str | Path) -> int | None:
     with h5py.File(path, "r+") as f:
         if f.attrs.get("file_format") != FORMAT:
             return None
-        status, n = _status(f)
+        status, n = run_status(f)
         if status != "acquiring":
             return None
         f[layout.STATUS][()] = _fixed("interrupted", _STATUS_LEN)
@@ -539,7 +539,10 @@ def _s(v) -> str:
     return str(v)
 
 
-def _status(f) -> tuple[str, int]:
+def run_status(f) -> tuple[str, int]:
+    """(the run's status without its padding, its finished records) of the open run file ``f``
+    (:data:`daq.run_layout.STATUS`, ``RECORDS_COMPLETE``): what a reader polling a growing
+    file needs, without reading any data."""
     return _s(f[layout.STATUS][()]).strip("\x00 "), int(f[layout.RECORDS_COMPLETE][()])
 
 
@@ -548,7 +551,7 @@ def run_info(path: str | Path) -> dict:
     path = Path(path)
     with open_run(path) as f:
         e = f[layout.ENTRY]
-        status, n = _status(f)
+        status, n = run_status(f)
         data = f[layout.DATA]
         names = [data.attrs["signal"]] + [_s(s) for s in data.attrs.get("auxiliary_signals", [])]
         channels = []
@@ -607,7 +610,7 @@ def read_run(path: str | Path, records=None) -> Recording:
 
     with open_run(path) as f:
         e = f[layout.ENTRY]
-        status, n = _status(f)
+        status, n = run_status(f)
         rows = slice(0, n)
         if records is not None:
             rows = np.unique(np.asarray(list(records), dtype=np.int64))

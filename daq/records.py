@@ -192,6 +192,25 @@ class Header:
                 return c
         raise KeyError(name)
 
+    def noise_rms(self, *, quantisations: int = 1) -> dict[str, float]:
+        """Predicted rms of the noise of each channel a, x, y, in engineering units: its
+        sensor's white noise through the anti-alias filter plus ``quantisations``
+        quantisations (one ADC's: 1; a difference of two quantised channels: 2)."""
+        import math
+
+        sc, aa = self.scene, self.antialias
+        f = np.linspace(0.0, aa.fs_hz / 2, 200_001)
+        gain2 = float(np.trapezoid(np.abs(aa.response(f)) ** 2, f))  # [Hz]
+        density_v = {"a": sc.accelerometer.sensitivity_vpmps2 * sc.accelerometer.noise_mps2_rthz,
+                     "x": sc.lever.gain_vpm * sc.lever.noise_m_rthz,
+                     "y": sc.lever.gain_vpm * sc.lever.noise_m_rthz}
+        out = {}
+        for c in (c for c in self.names if c in density_v):
+            ch = self.channel(c)
+            var_v = abs(density_v[c]) ** 2 * gain2 + quantisations * ch.adc.lsb_v ** 2 / 12
+            out[c] = math.sqrt(var_v) / abs(ch.volts_per_unit)
+        return out
+
 
 @dataclass(frozen=True, eq=False)
 class Block:

@@ -88,7 +88,7 @@ def open_hdf5(path: str | Path):
         f = _open_swmr(path) if marked else h5py.File(path, "r")
     except (OSError, KeyError) as exc:
         raise UnreadableFile(path, "unreadable", f"HDF5 cannot open it "
-                                                 f"({_first_line(exc)})") from None
+                                                 f"({first_line(exc)})") from None
     return f, marked
 
 
@@ -145,7 +145,9 @@ def _open_swmr(path: Path):
     return h5py.File(fid)
 
 
-def _first_line(exc: BaseException) -> str:
+def first_line(exc: BaseException) -> str:
+    """The first line of ``exc``'s message (h5py's and HDF5's run on over several lines), or
+    ``"no message"``: the reason quoted in a one-line report."""
     text = str(exc).strip().splitlines()
     return text[0] if text else "no message"
 

@@ -96,17 +96,32 @@ class SineAcquisition:
     def point(self, point) -> PointRecord:
         """Run and digitise ``point`` (:class:`PointRecord`)."""
         block, phase0 = self.bench.run(point)
+        codes, clip, volts, sat = self.digitize(block)
+        rec = PointRecord(point=point, t0_s=self._t_s, phase_cycles=phase0, codes=codes,
+                          volts=volts, clipped={k: int(np.count_nonzero(v))
+                                                for k, v in clip.items()},
+                          saturated={k: int(np.count_nonzero(v)) for k, v in sat.items()})
+        self._t_s += point.samples / self.rate_hz
+        return rec
+
+    def samples(self, v: np.ndarray):
+        """Run the DAC samples ``v`` [V] (a whole number of output intervals, any source:
+        the swept one's, :mod:`rig.devices.swept_sine`) and digitise them: ``(codes, clipped,
+        volts, saturated)``, codes and per-sample clipped / saturated flags by channel name,
+        volts (3, samples) of a, x, y."""
+        return self.digitize(self.bench.run_samples(v))
+
+    def digitize(self, block):
+        """A :class:`rig.blocks.DecimatedBlock` through the ADCs: ``(codes, clipped, volts,
+        saturated)`` as :meth:`samples`."""
         codes, clipped, volts = {}, {}, []
         for c in self.channels:
             adc = c.adc
             code, clip = adc.digitize(np.asarray(block.volts[c.name]))
-            codes[c.name], clipped[c.name] = code, int(np.count_nonzero(clip))
+            codes[c.name], clipped[c.name] = code, np.asarray(clip, bool)
             volts.append(adc.volts(code))
-        saturated = {k: int(np.count_nonzero(v)) for k, v in block.saturated.items()}
-        rec = PointRecord(point=point, t0_s=self._t_s, phase_cycles=phase0, codes=codes,
-                          volts=np.stack(volts), clipped=clipped, saturated=saturated)
-        self._t_s += point.samples / self.rate_hz
-        return rec
+        saturated = {k: np.asarray(v, bool) for k, v in block.saturated.items()}
+        return codes, clipped, np.stack(volts), saturated
 
     def extend(self, record: PointRecord, times: int) -> PointRecord:
         """Continue ``record``'s point (which must be the last one run) so that its window is

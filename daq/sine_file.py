@@ -1,4 +1,4 @@
-"""The stepped-sine run file: one row per measured point, written point by point.
+"""The sine run file (stepped or swept): one row per measured point, written point by point.
 
 The conventions of the FFT run file (:mod:`daq.hdf5`): NeXus classes with ``default``
 attributes, the HDF5 1.10 format bounds (:data:`daq.hdf5.LIBVER`), a fletcher32 checksum on
@@ -10,6 +10,7 @@ status "interrupted"). Layout (format :data:`FORMAT`, version :data:`FORMAT_VERS
 
     /                     NXroot @default=entry @file_format @file_format_version @creator
     entry/                NXentry @default=sweep @title @start_time @seed @scene_name
+                          @mode (stepped | swept) @sweep_s (swept: the sweep's duration [s])
       status              S16: acquiring | complete | interrupted | failed
       points_complete     int64: points fully written (every per-point dataset has that many)
       sweep/              NXdata @signal=h_t_gain_db @axes=point
@@ -113,13 +114,16 @@ class SineFileSink:
             f.attrs[k] = v
         e = f.create_group("entry")
         st = info["settings"]
+        mode = str(info.get("mode", "stepped"))
         for k, v in {"NX_class": "NXentry", "default": "sweep",
-                     "title": f"{scene.name}: stepped sine {st['fmin_hz']:g}-{st['fmax_hz']:g} "
-                              f"Hz, seed {info['seed']}",
+                     "title": f"{scene.name}: {mode} sine {st['fmin_hz']:g}-{st['fmax_hz']:g} "
+                              f"Hz, seed {info['seed']}", "mode": mode,
                      "start_time": utc_now_iso(), "seed": np.int64(info["seed"]),
                      "software_version": software_version(), "scene_name": scene.name,
                      "file_format_version": FORMAT_VERSION}.items():
             e.attrs[k] = v
+        if "sweep_s" in info:
+            e.attrs["sweep_s"] = float(info["sweep_s"])
         self._status = e.create_dataset("status", data=np.bytes_(b"acquiring"),
                                         dtype=f"S{_STATUS_LEN}")
         self._complete = e.create_dataset("points_complete", data=np.int64(0))
@@ -252,7 +256,7 @@ class SineFileSink:
 
 
 def read_sine(path) -> dict:
-    """A sine run file's points as plain arrays: ``{"status", "points", "columns": {name:
+    """A sine run file's points as plain arrays: ``{"status", "points", "mode", "columns": {name:
     array}, "units": {name: unit}, "model_info", "settings", "scene_settings"}`` (the
     ``points_complete`` finished points only)."""
     from daq.repair import open_hdf5
@@ -268,6 +272,7 @@ def read_sine(path) -> dict:
         cols = {k: g[k][:n] for k in g if k not in ("point", "harmonic")}
         units = {k: str(g[k].attrs.get("units", "")) for k in cols}
         return {"status": e["status"][()].decode().strip("\x00 "), "points": n,
+                "mode": str(e.attrs.get("mode", "stepped")),
                 "columns": cols, "units": units, "harmonic": g["harmonic"][()],
                 "model_info": json.loads(e["model"].attrs["model_info_json"]),
                 "settings": json.loads(e["settings"].attrs["settings_json"]),
@@ -275,8 +280,9 @@ def read_sine(path) -> dict:
 
 
 def sine_info(path) -> dict:
-    """What ``daq inspect`` shows of a sine run file (JSON-ready): format, scene, seed, status,
-    points, band, bench time, model and the settings."""
+    """What ``daq inspect`` shows of a sine run file (JSON-ready): format, scene, seed, mode,
+    status, points, band, bench time, model and the settings (a file written before the mode
+    was recorded is stepped)."""
     d = read_sine(path)
     from daq.repair import open_hdf5
 
@@ -290,8 +296,10 @@ def sine_info(path) -> dict:
     c = d["columns"]
     f_hz = c.get("frequency", np.zeros(0))
     bench = float(np.sum(c.get("settle_s", 0)) + np.sum(c.get("integrate_s", 0)))
+    if head.get("mode") == "swept":  # windows overlap: the sweep's own duration
+        bench = float(head.get("sweep_s", bench))
     return {"path": str(path), "file_format": FORMAT, "file_format_version": version,
-            **head, "status": d["status"], "points": d["points"],
+            "mode": "stepped", **head, "status": d["status"], "points": d["points"],
             "fmin_hz": float(f_hz.min()) if f_hz.size else None,
             "fmax_hz": float(f_hz.max()) if f_hz.size else None,
             "bench_s_accepted_points": bench, "records_kept": kept,

@@ -25,7 +25,6 @@ cannot give. The drive comes from the run's ground truth (``acquisition.truth``,
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -55,21 +54,9 @@ def oracle_recording(recording):
 
 
 def noise_floor_rms(recording) -> dict[str, float]:
-    """Predicted rms of (measured - oracle) per channel, in engineering units (module docstring)."""
-    h = recording.header
-    sc = h.scene
-    aa = h.antialias
-    f = np.linspace(0.0, aa.fs_hz / 2, 200_001)
-    gain2 = float(np.trapezoid(np.abs(aa.response(f)) ** 2, f))  # [Hz]
-    density_v = {"a": sc.accelerometer.sensitivity_vpmps2 * sc.accelerometer.noise_mps2_rthz,
-                 "x": sc.lever.gain_vpm * sc.lever.noise_m_rthz,
-                 "y": sc.lever.gain_vpm * sc.lever.noise_m_rthz}
-    out = {}
-    for c in h.names:
-        ch = h.channel(c)
-        var_v = abs(density_v[c]) ** 2 * gain2 + 2 * ch.adc.lsb_v ** 2 / 12
-        out[c] = math.sqrt(var_v) / abs(ch.volts_per_unit)
-    return out
+    """Predicted rms of (measured - oracle) per channel, in engineering units (module docstring;
+    :meth:`daq.records.Header.noise_rms` with two quantisations)."""
+    return recording.header.noise_rms(quantisations=2)
 
 
 def write_sysid_file(recording, path: str | Path, *, test_fraction: float = 0.2,

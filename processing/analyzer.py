@@ -51,9 +51,10 @@ from processing.modal import FitError, ModalFit, fit_modes
 from processing.rotation import RotationReading, rotation_reading
 from processing.report import analysis_report, analysis_summary
 from processing.spectra import (AVERAGING, WINDOWS, ChannelDataError, SettingsError,
-                                SpectralSettings, _readonly, auto_spectrum, cross_spectrum,
+                                SpectralSettings, auto_spectrum, cross_spectrum,
                                 segment_ffts)
 from rig import validation
+from rig.readonly import readonly
 from rig.threads import single_threaded_blas
 from rig.errors import ConfigError
 
@@ -324,7 +325,7 @@ def model_at_lines(header, freqs_hz) -> ModelAtLines:
         r = _bench_response(header.scene, f)
         vals = {k: r[k] for k in _MODEL_KEYS}
         source = "recomputed"
-    return ModelAtLines(_readonly(f), *(_readonly(np.asarray(vals[k], complex))
+    return ModelAtLines(readonly(f), *(readonly(np.asarray(vals[k], complex))
                                         for k in _MODEL_KEYS), source)
 
 

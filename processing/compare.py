@@ -41,11 +41,12 @@ from types import MappingProxyType
 import numpy as np
 
 from processing.frf import MeasuredResponse
-from processing.spectra import ProcessingError, SpectralSettings, _readonly
+from processing.spectra import ProcessingError, SpectralSettings
+from rig.readonly import readonly
 
 __all__ = [
-    "ModelError", "line_correlation", "expected_fraction_within", "fraction_standard_error",
-    "BandStats", "PeakBias", "Comparison", "compare",
+    "ModelError", "line_correlation", "correlation_matrix", "expected_fraction_within",
+    "fraction_standard_error", "BandStats", "PeakBias", "Comparison", "compare",
 ]
 
 class ModelError(ProcessingError, ValueError):
@@ -64,6 +65,13 @@ def line_correlation(settings: SpectralSettings, *, tol: float = 1e-6) -> np.nda
     c = rho**2
     big = np.nonzero(c > tol)[0]
     return c[: big[-1] + 1].copy() if big.size else np.ones(1)
+
+
+def correlation_matrix(lines: np.ndarray, corr: np.ndarray) -> np.ndarray:
+    """The correlation matrix ``R[i, j] = corr[|lines[i] - lines[j]|]`` (0 beyond the last lag)
+    of the errors at the line indices ``lines``, ``corr`` from :func:`line_correlation`."""
+    lag = np.abs(lines[:, None] - lines[None, :])
+    return np.where(lag < corr.size, corr[np.minimum(lag, corr.size - 1)], 0.0)
 
 
 def expected_fraction_within(k: float, n_effective: float) -> float:
@@ -464,8 +472,8 @@ def compare(measured: MeasuredResponse, model, *, expected=None,
     if not np.any(sel):
         raise ModelError(f"no finite measured lines in {fmin_hz} <= f <= {fmax_hz} Hz")
     idx = np.nonzero(sel)[0]
-    meas = dataclasses.replace(measured, freqs_hz=f_all[idx], h=_readonly(measured.h[idx]),
-                               coherence=_readonly(measured.coherence[idx]))
+    meas = dataclasses.replace(measured, freqs_hz=f_all[idx], h=readonly(measured.h[idx]),
+                               coherence=readonly(measured.coherence[idx]))
     mod = model_all[idx]
     exp_ = None if expected is None else np.asarray(expected, dtype=complex)[idx]
     for name, arr in (("model", mod), ("expected", exp_)):
@@ -475,7 +483,7 @@ def compare(measured: MeasuredResponse, model, *, expected=None,
     df = float(np.median(np.diff(f_all))) if f_all.size > 1 else math.nan
     res = [(float(fr), float(q)) for fr, q in resonances]
     masks = _band_masks(f, df, res, antiresonances_hz, near_lines, near_bandwidths)
-    cmp = Comparison(meas, _readonly(mod), None if exp_ is None else _readonly(exp_), float(k),
+    cmp = Comparison(meas, readonly(mod), None if exp_ is None else readonly(exp_), float(k),
                      (), (), masks, df, settings)
     bands = tuple(_stats(name, m, cmp) for name, m in masks.items())
     peaks = [p for fr, q in res

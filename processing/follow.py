@@ -128,7 +128,7 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
     ``orphan_s``: a writer takes its lock just after creating the file) with the checker's reason (e.g. truncated). Raises
     :class:`rig.errors.ConfigError` in these cases, and for settings the run cannot take (e.g. a
     time record longer than a record)."""
-    from daq.hdf5 import _status, open_run, read_run
+    from daq.hdf5 import run_status, open_run, read_run
     from processing.analyzer import AnalyzerSettings
     from rig.output_files import not_a_file
     from rig.errors import ConfigError
@@ -140,7 +140,7 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
     while True:
         try:
             with open_run(path) as f:
-                status, n = _status(f)
+                status, n = run_status(f)
         except (ConfigError, OSError, KeyError) as exc:  # not yet (or not now) readable
             now = time.monotonic()
             why = not_a_file(path)
@@ -175,7 +175,7 @@ def follow_run(path: str | Path, settings=None, *, poll_s: float = 0.2,
             return
         if status == "acquiring" and not _writer_alive(path):
             with open_run(path) as f:  # a last look: records that landed before it died
-                status, n = _status(f)
+                status, n = run_status(f)
             if n == seen:
                 return
             continue

@@ -50,17 +50,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from processing.choices import ESTIMATORS
+from processing.segments import require_cross
 from processing.spectra import (
     SegmentFFTs,
     SettingsError,
     SpectralSettings,
-    _readonly,
-    _require_cross,
     averaged_cross,
     coherence,
     segment_ffts,
 )
 from rig.linear import FrequencyResponse
+from rig.readonly import readonly
 
 
 
@@ -175,7 +175,7 @@ def frequency_response(ffts: SegmentFFTs, input, output, *,
     est = str(estimator).lower()
     if est not in ESTIMATORS:
         raise SettingsError(f"estimator = {estimator!r} is invalid: expected one of {ESTIMATORS}")
-    _require_cross(ffts, "a frequency response")
+    require_cross(ffts, "a frequency response")
     gxx = averaged_cross(ffts, input, input)
     gyy = averaged_cross(ffts, output, output)
     gxy = averaged_cross(ffts, input, output)
@@ -193,8 +193,8 @@ def frequency_response(ffts: SegmentFFTs, input, output, *,
         h[0] = np.nan  # the detrend removed the 0 Hz line: the ratio there is noise over noise
         g2[0] = np.nan
     u_in, u_out = ffts.units[input], ffts.units[output]
-    return MeasuredResponse(ffts.freqs_hz, _readonly(h), (output,), f"({u_out})/({u_in})",
-                            coherence=_readonly(g2), n_averages=ffts.n_segments,
+    return MeasuredResponse(ffts.freqs_hz, readonly(h), (output,), f"({u_out})/({u_in})",
+                            coherence=readonly(g2), n_averages=ffts.n_segments,
                             n_effective=ffts.n_effective, estimator=est, input=input,
                             output=output)
 

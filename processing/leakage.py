@@ -42,7 +42,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from processing.modal_model import InputSpectrum
-from processing.spectra import SettingsError, SpectralSettings, _readonly, window_autocorrelation
+from processing.spectra import SettingsError, SpectralSettings, window_autocorrelation
+from rig.readonly import readonly
 
 if TYPE_CHECKING:  # rig.bench is imported on use: importing processing stays light
     from rig.bench import SampledResponse
@@ -271,6 +272,6 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
 
     spectrum = InputSpectrum(psd, noise, sensor, decay_s=tau,
                              label="the bench's exact input spectrum")
-    return ExpectedEstimate(_readonly(lines), _readonly(e_t), _readonly(e_r), n_fft, tau, bound,
-                            _readonly(g_in), MappingProxyType(notch), spectrum)
+    return ExpectedEstimate(readonly(lines), readonly(e_t), readonly(e_r), n_fft, tau, bound,
+                            readonly(g_in), MappingProxyType(notch), spectrum)
 

@@ -35,12 +35,13 @@ import numpy as np
 
 from processing.compare import line_correlation
 from processing.frf import MeasuredResponse
-from processing.modal_model import (FINE_PER_LINE, KERNEL_TOL, MAX_FINE_GRID, FitError,
-                                    InputSpectrum, _DirectTerms, _InputLeakage, _LagInputLeakage,
-                                    _WhiteLeakage, _direct, _input_terms, _pole, _pole_derivs,
-                                    _poly_basis, _split)
-from processing.modal_solver import _Model, _real_stack, _varpro
-from processing.spectra import SpectralSettings, _readonly
+from processing.modal_model import (FINE_PER_LINE, KERNEL_TOL, MAX_FINE_GRID, DirectTerms,
+                                    FitError, InputLeakage, InputSpectrum, LagInputLeakage,
+                                    WhiteLeakage, coloured_input_terms, direct_model, mode_pole,
+                                    mode_pole_derivs, poly_basis, unpack_params)
+from processing.modal_solver import LineModel, real_stack, varpro
+from processing.spectra import SpectralSettings
+from rig.readonly import readonly
 
 __all__ = ["FitError", "Mode", "ModalFit", "InputSpectrum", "fit_modes", "METHODS", "DOMAINS",
            "WEIGHTINGS", "MIN_LINES_PER_BANDWIDTH", "FINE_PER_LINE", "KERNEL_TOL"]
@@ -81,7 +82,7 @@ class Mode:
     @property
     def pole(self) -> complex:
         """Continuous pole ``p`` [rad/s]."""
-        return _pole(self.f_hz, self.q)
+        return mode_pole(self.f_hz, self.q)
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,22 +158,17 @@ class ModalFit:
     def response(self, freqs_hz) -> np.ndarray:
         """The fitted modal model ``H(f)`` (not the leakage-tapered one) at ``freqs_hz`` [Hz]."""
         f = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
-        h, _ = _direct(self.params, f, len(self.modes), self.residual_coeffs.size, self.domain,
-                       self.fs, self.f_centre_hz, self.f_half_hz, jac=False)
+        h, _ = direct_model(self.params, f, len(self.modes), self.residual_coeffs.size, self.domain,
+                            self.fs, self.f_centre_hz, self.f_half_hz, jac=False)
         return h
 
 
 # -- model evaluation ------------------------------------------------------------------------
 
 
-def _correlation_matrix(lines: np.ndarray, corr: np.ndarray) -> np.ndarray:
-    lag = np.abs(lines[:, None] - lines[None, :])
-    return np.where(lag < corr.size, corr[np.minimum(lag, corr.size - 1)], 0.0)
-
-
 def _correlate_lines(lines: np.ndarray, corr: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``R @ x`` for ``R = _correlation_matrix(lines, corr)`` without forming ``R``: ``lines``
-    ascending and distinct, ``corr`` (a few lags) from :func:`line_correlation`."""
+    """``R @ x`` for ``R`` of :func:`processing.compare.correlation_matrix` without forming it:
+    ``lines`` ascending and distinct, ``corr`` (a few lags) from :func:`line_correlation`."""
     out = corr[0] * x
     for d in range(1, corr.size):
         i = np.searchsorted(lines, lines + d)  # pairs (j, i) with lines[i] = lines[j] + d
@@ -304,12 +300,12 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
     input_txt = "white input" if input_spectrum is None else f"input: {input_spectrum.label}"
     modes, notes = _modes(fq, c, cov, domain, fs, df, method, input_txt)
     fit = ModalFit(
-        modes=tuple(modes), residual_coeffs=_readonly(a_res), method=method, domain=domain,
+        modes=tuple(modes), residual_coeffs=readonly(a_res), method=method, domain=domain,
         weighting=weighting, band_hz=(lo, hi), f_centre_hz=fc, f_half_hz=fh,
-        freqs_hz=_readonly(f), data=_readonly(h), fitted=_readonly(fitted),
-        sigma=_readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
+        freqs_hz=readonly(f), data=readonly(h), fitted=readonly(fitted),
+        sigma=readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
         n_lines=int(f.size), n_params=n_par, dof=dof, chi2=chi2, reduced_chi2=chi2 / dof,
-        expected_reduced_chi2=expected_chi2, covariance=_readonly(cov), params=_readonly(params),
+        expected_reduced_chi2=expected_chi2, covariance=readonly(cov), params=readonly(params),
         fs=float(fs) if fs is not None else math.nan, resolution_hz=df, settings=settings,
         line_correlated=correlated, notes=(), input_spectrum=input_spectrum,
         iterations=n_iter)
@@ -433,7 +429,7 @@ def _covariance(model, params, h, sigma, lines, corr, cov_factor):
     weighted Jacobian), or the sandwich ``A^-1 (J^T R J) A^-1`` with the lines' correlation
     ``corr`` (R acting on the Re and Im halves alike), times ``cov_factor``."""
     fitted, jac = model.full(params)
-    jw = _real_stack(jac / sigma[:, None])
+    jw = real_stack(jac / sigma[:, None])
     try:
         a_inv = np.linalg.inv(jw.T @ jw)
     except np.linalg.LinAlgError:
@@ -456,7 +452,7 @@ def _modes(fq, c, cov, domain: str, fs, df: float, method: str,
     notes, modes = [], []
     for r_i in np.argsort(fq[:, 0]):
         fr, q = (float(v) for v in fq[r_i])
-        p, dpf, dpq = _pole_derivs(fr, q)
+        p, dpf, dpq = mode_pole_derivs(fr, q)
         # Continuous-equivalent residue and its Jacobian w.r.t. (f, Q, Re c, Im c).
         if domain == "z":
             e = np.exp(-p / fs) * fs
@@ -500,7 +496,7 @@ def _fit_notes(fit: ModalFit, converged: bool, terms, tau: float | None) -> list
             notes.append(f"the coloured-input model's fine grid ({terms.fine} points per line, "
                          f"at most {MAX_FINE_GRID} around the circle) aliases the slowest fitted "
                          f"decay (tau = {tau:.3g} s) by up to {bound:.1e} (relative)")
-    if isinstance(terms, _LagInputLeakage) and terms.alias > 10 * KERNEL_TOL:
+    if isinstance(terms, LagInputLeakage) and terms.alias > 10 * KERNEL_TOL:
         notes.append(f"the input's correlation is not negligible at half the lag grid "
                      f"({terms.alias:.1e} of its peak): give input_spectrum.decay_s")
     if not fit.adequate:

@@ -16,9 +16,9 @@ modes), and near each pole identical to "s" (``c_r / (zeta - z_r) ~ R_r / (i w -
 ``R_r = c_r / (z_r T)``, the continuous-equivalent residue reported either way). Fitted
 parameters: ``f_r`` [Hz], ``Q_r``, the complex ``c_r`` (or ``R_r``) and ``a_j``.
 
-Leakage-aware terms: :class:`_WhiteLeakage` (white input) and, for a coloured input
-(:class:`InputSpectrum`), :class:`_InputLeakage` (banded convolution on a fine frequency grid) or
-:class:`_LagInputLeakage` (lag domain, for windows whose power kernel falls slowly); their
+Leakage-aware terms: :class:`WhiteLeakage` (white input) and, for a coloured input
+(:class:`InputSpectrum`), :class:`InputLeakage` (banded convolution on a fine frequency grid) or
+:class:`LagInputLeakage` (lag domain, for windows whose power kernel falls slowly); their
 equations and errors are in :mod:`processing.modal`.
 """
 
@@ -51,13 +51,16 @@ class FitError(ProcessingError, ValueError):
     """Invalid fit arguments, or a fit that cannot be made (too few lines, singular Jacobian)."""
 
 
-def _pole(f_hz: float, q: float) -> complex:
+def mode_pole(f_hz: float, q: float) -> complex:
+    """The s-plane pole ``p = w (-1/(2Q) + i sqrt(1 - 1/(4Q^2)))`` [rad/s] of a mode of natural
+    frequency ``f_hz`` [Hz] and quality factor ``q``, ``w = 2 pi f_hz`` (real for ``Q <= 1/2``:
+    the square root's argument is clipped at 0)."""
     w = 2 * np.pi * f_hz
     return complex(w * (-0.5 / q + 1j * math.sqrt(max(1.0 - 0.25 / q**2, 0.0))))
 
 
-def _pole_derivs(f_hz: float, q: float) -> tuple[complex, complex, complex]:
-    """p and dp/df, dp/dQ."""
+def mode_pole_derivs(f_hz: float, q: float) -> tuple[complex, complex, complex]:
+    """:func:`mode_pole` and its derivatives ``dp/df`` [rad/s per Hz], ``dp/dQ`` [rad/s]."""
     s = math.sqrt(max(1.0 - 0.25 / q**2, 1e-300))
     w = 2 * np.pi * f_hz
     p = w * (-0.5 / q + 1j * s)
@@ -66,31 +69,37 @@ def _pole_derivs(f_hz: float, q: float) -> tuple[complex, complex, complex]:
     return p, dp_df, dp_dq
 
 
-def _poly_basis(f, n_res, fc, fh) -> np.ndarray:
+def poly_basis(f, n_res, fc, fh) -> np.ndarray:
+    """The residual polynomial's basis ``((f - fc) / fh)^j``, ``j < n_res``, shape
+    ``(f.size, n_res)`` (module docstring: ``fc``, ``fh`` the band's centre and half-width)."""
     x = (f - fc) / fh
     return np.stack([x**j for j in range(n_res)], axis=-1) if n_res else np.zeros((f.size, 0))
 
 
-def _split(params, m, n_res):
+def unpack_params(params, m, n_res):
+    """The fit's real parameter vector ``[f_1, Q_1, ..., Re c_1, Im c_1, ..., Re a_0, Im a_0,
+    ...]`` as ``(f, Q)`` (m, 2), the complex residues ``c`` (m,) and the complex polynomial
+    coefficients ``a`` (n_res,)."""
     fq = params[: 2 * m].reshape(m, 2)
     c = params[2 * m: 4 * m].reshape(m, 2)
     a = params[4 * m: 4 * m + 2 * n_res].reshape(n_res, 2)
     return fq, c[:, 0] + 1j * c[:, 1], a[:, 0] + 1j * a[:, 1]
 
 
-def _direct(params, f, m, n_res, domain, fs, fc, fh, *, jac=True):
-    """Modal model and its Jacobian (complex, (n, n_params))."""
-    fq, c, a = _split(params, m, n_res)
+def direct_model(params, f, m, n_res, domain, fs, fc, fh, *, jac=True):
+    """The modal model (module docstring) at ``f`` [Hz] for the parameters ``params``
+    (:func:`unpack_params`) and its complex Jacobian (n, n_params), None without ``jac``."""
+    fq, c, a = unpack_params(params, m, n_res)
     w = 2 * np.pi * f
     if domain == "z":
         x = np.exp(1j * w / fs)
     else:
         x = 1j * w
-    basis = _poly_basis(f, n_res, fc, fh)
+    basis = poly_basis(f, n_res, fc, fh)
     h = basis @ a if n_res else np.zeros(f.size, complex)
     J = np.zeros((f.size, params.size), complex) if jac else None
     for r in range(m):
-        p, dpf, dpq = _pole_derivs(*fq[r])
+        p, dpf, dpq = mode_pole_derivs(*fq[r])
         if domain == "z":
             zr = np.exp(p / fs)
             dz = (zr * dpf / fs, zr * dpq / fs)
@@ -183,7 +192,7 @@ class InputSpectrum:
         return out[0], out[0] + out[1], k
 
 
-class _DirectTerms:
+class DirectTerms:
     """The modal model itself on the fitted lines: ``a = 1 / (x - z)``, ``b = 1 / (x - conj z)``
     with ``x = exp(i w T)`` (domain "z") or ``i w`` (domain "s")."""
 
@@ -197,7 +206,7 @@ class _DirectTerms:
         return (u1, u2, u1 * u1, u2 * u2) if jac else (u1, u2, None, None)
 
 
-class _WhiteLeakage:
+class WhiteLeakage:
     """``E[H1]`` of the discrete modal impulse response under a white input (module notes):
     ``A_r[k] = sum_n r_w[n] z_r^(n-1) exp(-2j pi k n / N)``, one FFT of length ``N`` per mode."""
 
@@ -258,12 +267,12 @@ def _kernel(settings: SpectralSettings, fine: int):
     return d_half, None, math.nan
 
 
-def _input_terms(settings: SpectralSettings):
+def coloured_input_terms(settings: SpectralSettings):
     """The coloured-input model for this window: band-limited frequency-domain convolution where
     the window's power kernel falls fast enough (Hann, flat top), lag domain otherwise."""
     if _kernel(settings, FINE_PER_LINE)[1] is not None:
-        return _InputLeakage
-    return _LagInputLeakage
+        return InputLeakage
+    return LagInputLeakage
 
 
 def _sensor_divided(coherent, sensor) -> np.ndarray:
@@ -275,7 +284,7 @@ def _sensor_divided(coherent, sensor) -> np.ndarray:
     return u
 
 
-class _InputLeakage:
+class InputLeakage:
     """``E[H1]`` of the discrete modal response under a coloured input (module notes):
     ``E_k = K_k T[S / K / (zeta - z)]_k / T[S + N]_k`` with ``T[F]_k = (1/n2) sum_j D[k M - j]
     F_j`` on a grid ``M`` times finer than the lines, ``D`` the window's power kernel, applied as
@@ -337,7 +346,7 @@ class _InputLeakage:
         return math.exp(-(self.n2 - n) / (self.fs * tau_s)) if tau_s > 0 else 0.0
 
 
-class _LagInputLeakage:
+class LagInputLeakage:
     """The same model in the lag domain, for any window: with ``R_U`` the correlation of
     ``U = S / K`` (an inverse FFT on ``n_r`` points, once) the numerator's correlation for the
     term ``1 / (zeta - z)`` is ``R[tau] = sum_{m >= 1} z^(m-1) R_U[tau - m]``, needed for

@@ -20,10 +20,12 @@ import math
 
 import numpy as np
 
-from processing.modal_model import _pole_derivs
+from processing.modal_model import mode_pole_derivs
 
 
-def _real_stack(z: np.ndarray) -> np.ndarray:
+def real_stack(z: np.ndarray) -> np.ndarray:
+    """``z``'s real parts stacked over its imaginary parts along the first axis: a complex
+    least-squares problem as a real one of twice the rows."""
     return np.concatenate([z.real, z.imag], axis=0)
 
 
@@ -33,7 +35,7 @@ def _expit(x):
     return np.where(x >= 0, 1.0 / (1.0 + e), e / (1.0 + e))
 
 
-class _Model:
+class LineModel:
     """The modal model on the fitted lines, from one of the term models: for poles ``z_r`` the
     terms ``a_r, b_r`` (and ``d a_r / d z_r``, ``d b_r / d conj(z_r)``) give
     ``H = sum_r [c_r a_r + conj(c_r) b_r] + P``, linear in ``c`` and ``P``'s coefficients."""
@@ -46,7 +48,7 @@ class _Model:
         z = np.empty(self.m, complex)
         dz = np.empty((self.m, 2), complex)
         for r, (fr, q) in enumerate(fq):
-            p, dpf, dpq = _pole_derivs(float(fr), float(q))
+            p, dpf, dpq = mode_pole_derivs(float(fr), float(q))
             if self.domain == "z":
                 z[r] = np.exp(p / self.fs)
                 dz[r] = (z[r] * dpf / self.fs, z[r] * dpq / self.fs)
@@ -88,8 +90,8 @@ class _Model:
         return cols @ beta, np.concatenate([self.mode_derivs(c, extra), cols], axis=1)
 
 
-def _varpro(model: _Model, h: np.ndarray, sigma: np.ndarray, starts: np.ndarray, lo: float,
-            span: float, q_max: float, *, max_iter: int = 200):
+def varpro(model: LineModel, h: np.ndarray, sigma: np.ndarray, starts: np.ndarray, lo: float,
+           span: float, q_max: float, *, max_iter: int = 200):
     """Weighted least squares by variable projection: the residues and the residual polynomial
     are solved linearly for every trial ``(f, Q)``, which Levenberg-Marquardt (Kaufman's
     Jacobian of the projected residual) moves in ``v = logit((f - lo) / span)``,
@@ -97,7 +99,7 @@ def _varpro(model: _Model, h: np.ndarray, sigma: np.ndarray, starts: np.ndarray,
     band, underdamped, with ``Q < q_max``. Returns ``(f, Q)`` (m, 2), the linear parameters, the
     iterations and whether it converged."""
     m = model.m
-    y = _real_stack(h / sigma)
+    y = real_stack(h / sigma)
     yy = float(y @ y)
 
     def to_fq(x):
@@ -109,7 +111,7 @@ def _varpro(model: _Model, h: np.ndarray, sigma: np.ndarray, starts: np.ndarray,
     def evaluate(x):
         fq = to_fq(x)
         cols, extra = model.design(fq, jac=True)
-        aw = _real_stack(cols / sigma[:, None])
+        aw = real_stack(cols / sigma[:, None])
         qm, rm = np.linalg.qr(aw)
         try:
             beta = np.linalg.solve(rm, qm.T @ y)
@@ -117,7 +119,7 @@ def _varpro(model: _Model, h: np.ndarray, sigma: np.ndarray, starts: np.ndarray,
             beta = np.linalg.lstsq(aw, y, rcond=None)[0]
         res = y - aw @ beta
         c = beta[0:2 * m:2] + 1j * beta[1:2 * m:2]
-        dv = _real_stack(model.mode_derivs(c, extra) / sigma[:, None])
+        dv = real_stack(model.mode_derivs(c, extra) / sigma[:, None])
         jac = -(dv - qm @ (qm.T @ dv))  # Kaufman: -P_perp (dA/dtheta) beta
         e = _expit(x[0::2])
         jac[:, 0::2] *= span * e * (1.0 - e)

@@ -25,6 +25,7 @@ from matplotlib.colors import LogNorm  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import FuncFormatter, MultipleLocator, NullFormatter  # noqa: E402
 
+from processing.line_steps import line_steps
 from processing.phase_display import branch_text, branch_ticks, phase_branch, wrap_to
 from rig.describe import MirrorResponse, gain_db, phase_deg
 
@@ -178,7 +179,9 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     ----------
     measured : processing.frf.MeasuredResponse
     model, stage1, expected : Curve, optional
-        Exact model, stage-1 model (dotted, as in the paper) and expected estimate (dashed).
+        Exact model, stage-1 model (dotted, as in the paper) and expected estimate (at the
+        lines only: each line's value held over its bin, :func:`processing.line_steps.
+        line_steps`; its SVG elements' ids are ``expected-estimate-gain`` and ``-phase``).
         Default styles apply unless the Curve's ``style`` sets them.
     k : band width in sigma (default 2).
     title : figure title; unit : unit of the response for the gain label (default
@@ -224,15 +227,19 @@ def measured_bode_figure(measured, *, model: Curve | None = None, stage1: Curve 
     ax_p.semilogx(fs, p_meas, **marker)
     defaults = ((model, {"color": "k", "lw": 1.2}), (stage1, {"color": "tab:blue", "ls": ":",
                                                               "lw": 1.5}),
-                (expected, {"color": "tab:green", "ls": "--", "lw": 1.0}))
+                (expected, {"color": "tab:green", "lw": 0.9}))
     for curve, style in defaults:
         if curve is None:
             continue
-        cf = np.asarray(curve.freqs_hz)
+        cf, ch = np.asarray(curve.freqs_hz), np.asarray(curve.h)
+        gid = {}
+        if curve is expected:  # defined at the lines only: held over each line's bin
+            cf, ch = line_steps(cf, ch)
+            gid = {"gain": "expected-estimate-gain", "phase": "expected-estimate-phase"}
         m = (cf >= fmin_hz) & (cf <= fmax_hz)
         st = {**style, **curve.style}
-        ax_g.semilogx(cf[m], gain_db(curve.h[m]), label=curve.label, **st)
-        ax_p.semilogx(*phase_curve(cf[m], curve.h[m], phase, lo), **st)
+        ax_g.semilogx(cf[m], gain_db(ch[m]), label=curve.label, gid=gid.get("gain"), **st)
+        ax_p.semilogx(*phase_curve(cf[m], ch[m], phase, lo), gid=gid.get("phase"), **st)
     ax_c.semilogx(fs, measured.coherence[sel], color="tab:red", lw=0.8)
     ax_g.set_ylabel(f"gain{' |' + what + '|' if what else ''} [dB re 1 {unit or measured.units}]")
     _phase_axis(ax_p, phase, what, lo)

@@ -13,11 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from processing.compare import line_correlation
+from processing.compare import correlation_matrix, line_correlation
 from processing.frf import MeasuredResponse
-from processing.modal import _correlation_matrix
 from processing.modal_model import FitError
-from processing.spectra import SpectralSettings, _readonly
+from processing.spectra import SpectralSettings
+from rig.readonly import readonly
 
 __all__ = ["RotationReading", "rotation_reading"]
 
@@ -113,7 +113,7 @@ def rotation_reading(theta2: MeasuredResponse, theta1, *, band_hz: tuple[float, 
     cmat = np.diag(srel**2)
     if settings is not None:
         lines = np.round(f / settings.resolution_hz).astype(int)
-        cmat = _correlation_matrix(lines, line_correlation(settings)) * np.outer(srel, srel)
+        cmat = correlation_matrix(lines, line_correlation(settings)) * np.outer(srel, srel)
     n = f.size
     std = math.sqrt(float(cmat.sum())) / n
     db = 20.0 / math.log(10.0)
@@ -125,8 +125,8 @@ def rotation_reading(theta2: MeasuredResponse, theta1, *, band_hz: tuple[float, 
     else:
         lim = lim_std = math.nan
     return RotationReading(
-        freqs_hz=_readonly(f), ratio=_readonly(ratio), ratio_sigma_rel=_readonly(srel),
-        model_ratio=None if mr is None else _readonly(mr), band_hz=(lo, hi), mean_db=mean,
+        freqs_hz=readonly(f), ratio=readonly(ratio), ratio_sigma_rel=readonly(srel),
+        model_ratio=None if mr is None else readonly(mr), band_hz=(lo, hi), mean_db=mean,
         mean_std_db=std * db, model_mean_db=model_mean, limit_db=lim,
         limit_std_db=lim_std,
         exact_limit_db=20 * math.log10(abs(exact_limit)) if exact_limit else math.nan,

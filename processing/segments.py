@@ -228,7 +228,9 @@ def segment_ffts(channels, settings: SpectralSettings, *,
     return SegmentFFTs(s, names, spec, freqs, n_rec, k_per_rec, MappingProxyType(unit_map))
 
 
-def _require_cross(ffts: SegmentFFTs, what: str) -> None:
+def require_cross(ffts: SegmentFFTs, what: str) -> None:
+    """SettingsError unless ``ffts`` can give cross products: peak-hold averaging keeps only
+    the auto powers; ``what`` (e.g. ``"coherence"``) names the estimate asked for."""
     if ffts.settings.averaging == "peak":
         raise SettingsError(f"averaging = 'peak' holds the maximum auto power per line; {what} is "
                             "undefined under peak hold: expected averaging 'rms', 'vector' or "
@@ -255,7 +257,7 @@ def averaged_cross(ffts: SegmentFFTs, x, y, *, power_average: bool = False) -> n
     a = ffts[x]
     if mode == "peak":
         if x != y:
-            _require_cross(ffts, "a cross spectrum")
+            require_cross(ffts, "a cross spectrum")
         return np.max(a.real**2 + a.imag**2, axis=0)
     if mode == "vector" and not power_average:
         am = ffts.weights @ a

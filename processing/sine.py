@@ -24,7 +24,8 @@ exponentials are orthogonal, so DC and the other harmonics do not leak into ``Y_
 
 Harmonics at or above half the output rate are not measured (NaN).
 
-Public API: :class:`SinePointResult`, :func:`analyze_point`.
+Public API: :class:`SinePointResult`, :func:`analyze_point`, :func:`point_result` (shared
+with the swept analysis, :mod:`processing.swept_sine`), :func:`tracking_fit`.
 """
 
 from __future__ import annotations
@@ -126,16 +127,35 @@ def analyze_point(record, truth, chain, lever, harmonics: int = 5) -> SinePointR
     phases = phase_w + p.cycles * np.arange(n) / n
     y = record.volts[:, s:s + n]
     coef, var = synchronous_dft(y, phases, harmonics)
+    return point_result(
+        coef, var, np.var(y, axis=1), n, truth.steady_v, truth.steady_v + truth.transient_v,
+        chain, lever, frequency_hz=p.frequency_hz, level_vrms=p.level_vrms, settle_s=s / rate,
+        integrate_s=n / rate, cycles=p.cycles, t0_s=record.t0_s,
+        clipped=np.array([record.clipped[c] for c in ("a", "x", "y")]),
+        saturated=np.array([record.saturated.get(c, 0) for c in ("a", "x", "y")]),
+        settle_bound=np.asarray(truth.settle_bound))
+
+
+def point_result(coef, var, ac_power, n, steady_v, noiseless_v, chain, lever, *, frequency_hz,
+                 level_vrms, settle_s, integrate_s, cycles, t0_s, clipped, saturated,
+                 settle_bound) -> SinePointResult:
+    """A :class:`SinePointResult` from a window's coefficients [V] ``coef`` (3, H) of a, x, y,
+    the residual variances ``var`` (3,) [V^2], the window's variances ``ac_power`` (3,) and
+    length ``n`` (output samples), the exact steady coefficients ``steady_v`` (3,) and those of
+    the noiseless linear chain's estimate ``noiseless_v`` (3,) (their difference is the stated
+    bias), with the point's description (module docstring; the stepped and the swept
+    analysis share it)."""
+    rate = chain.fs_hz / chain.q
+    harmonics = coef.shape[1]
     vpu = chain.volts_per_unit
     eu = coef / vpu[:, None]
-    nyq = np.arange(1, harmonics + 1) * p.frequency_hz >= rate / 2
+    nyq = np.arange(1, harmonics + 1) * frequency_hz >= rate / 2
     eu[:, nyq] = np.nan
-    ac_power = np.var(y, axis=1)
     ratio = (np.abs(coef[:, 0]) ** 2 / 2) / np.maximum(ac_power, 1e-300)
     sd = np.sqrt(var * 2.0 / n)
     rel = sd / np.maximum(np.abs(coef[:, 0]), 1e-300)
-    steady = truth.steady_v / vpu
-    noiseless = (truth.steady_v + truth.transient_v) / vpu
+    steady = steady_v / vpu
+    noiseless = noiseless_v / vpu
     h = eu[1:, 0] / eu[0, 0]
     ex = steady[1:] / steady[0]
     biased = noiseless[1:] / noiseless[0]
@@ -143,23 +163,52 @@ def analyze_point(record, truth, chain, lever, harmonics: int = 5) -> SinePointR
     # filter at 2f
     from rig.bench.sine import filter_response
 
-    g1, g2 = filter_response(chain, p.frequency_hz), filter_response(chain, 2 * p.frequency_hz)
+    g1, g2 = filter_response(chain, frequency_hz), filter_response(chain, 2 * frequency_hz)
     dx, th = steady[1] / g1, steady[2] / g1
     cf = lever_quadratic_coefficients(lever)
     lever_2f = np.array([-cf["x"] * th * th / 2, -cf["y"] * dx * th / 2]) * g2
-    if 2 * p.frequency_hz >= rate / 2:
+    if 2 * frequency_hz >= rate / 2:
         lever_2f[:] = np.nan
     return SinePointResult(
-        frequency_hz=p.frequency_hz, level_vrms=p.level_vrms, settle_s=s / rate,
-        integrate_s=n / rate, cycles=p.cycles, t0_s=record.t0_s, h_t=complex(h[0]),
-        theta_2=complex(h[1]), h_t_exact=complex(ex[0]), theta_2_exact=complex(ex[1]),
-        h_t_bias=complex(biased[0] - ex[0]), theta_2_bias=complex(biased[1] - ex[1]),
+        frequency_hz=float(frequency_hz), level_vrms=float(level_vrms), settle_s=float(settle_s),
+        integrate_s=float(integrate_s), cycles=int(cycles), t0_s=float(t0_s),
+        h_t=complex(h[0]), theta_2=complex(h[1]), h_t_exact=complex(ex[0]),
+        theta_2_exact=complex(ex[1]), h_t_bias=complex(biased[0] - ex[0]),
+        theta_2_bias=complex(biased[1] - ex[1]),
         rel_error={"h_t": float(math.hypot(rel[0], rel[1])),
                    "theta_2": float(math.hypot(rel[0], rel[2]))},
-        harmonics=eu, fundamental_ratio=ratio, lever_2f=lever_2f,
-        clipped=np.array([record.clipped[c] for c in ("a", "x", "y")]),
-        saturated=np.array([record.saturated.get(c, 0) for c in ("a", "x", "y")]),
-        settle_bound=np.asarray(truth.settle_bound), coef_sd=sd / np.abs(vpu))
+        harmonics=eu, fundamental_ratio=ratio, lever_2f=lever_2f, clipped=np.asarray(clipped),
+        saturated=np.asarray(saturated), settle_bound=np.asarray(settle_bound),
+        coef_sd=sd / np.abs(vpu))
+
+
+def tracking_fit(y: np.ndarray, phase_cycles: np.ndarray, harmonics: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(Y, residual variance)`` as :func:`synchronous_dft` for a phase that need not run
+    uniformly (a swept source): the least-squares fit of ``mean + sum_k Re(Y_k e^{i 2 pi k
+    phi_j})``, k = 1..harmonics, to each row of ``y`` (channels, N). Over whole cycles of a
+    uniform phase the basis is orthogonal and the fit is the synchronous DFT; harmonics whose
+    basis cannot be fitted (fewer than two samples per period) are NaN."""
+    y = np.asarray(y, float)
+    n = y.shape[1]
+    phi = np.asarray(phase_cycles, float)
+    ref = math.floor(phi[n // 2])
+    d = phi - ref  # small numbers: the basis keeps its precision
+    k = np.arange(1, harmonics + 1)
+    step = np.max(np.diff(phi)) if n > 1 else 1.0
+    fit_k = k[k * step < 0.5]
+    cols = [np.ones(n)]
+    for kk in fit_k:
+        cols += [np.cos(2 * np.pi * kk * d), -np.sin(2 * np.pi * kk * d)]
+    basis = np.stack(cols, axis=1)
+    sol, *_ = np.linalg.lstsq(basis, y.T, rcond=None)
+    resid = y.T - basis @ sol
+    dof = max(n - basis.shape[1], 1)
+    var = np.sum(resid ** 2, axis=0) / dof
+    coef = np.full((y.shape[0], harmonics), np.nan + 0j)
+    for i, kk in enumerate(fit_k):
+        coef[:, kk - 1] = sol[1 + 2 * i] + 1j * sol[2 + 2 * i]
+    return coef, var
 
 
 _RESP_UNITS = {"h_t": "m/(m/s^2)", "theta_2": "rad/(m/s^2)"}

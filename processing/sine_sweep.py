@@ -27,6 +27,10 @@ Per point (:class:`SineSettings`):
   measured (capped at ``level_limit_vrms``), up to ``auto_level_tries`` times in all, and the
   next point starts at the level that held (the 35670A's ``SOUR:VOLT:AUTO``).
 
+``mode = "swept"`` sweeps continuously instead (:mod:`processing.swept_sine`: the rule's rate
+from the poles, ``sweep_tolerance``, or a chirp of ``sweep_s``; auto level as a profile from the
+model; no auto resolution).
+
 Sinks receive ``start(info)`` (settings, seed, model, channels, filter, scene, the row's
 columns), ``point(row, record)`` (:func:`processing.sine.point_row` and the
 :class:`daq.sine.PointRecord`) for every accepted point and ``stop(status)`` (the sine run file,
@@ -53,7 +57,9 @@ CHANNELS = ("a", "x", "y")
 
 @dataclass(frozen=True)
 class SineSettings:
-    """A stepped-sine sweep (module docstring). Frequencies [Hz], times [s], levels [V rms]."""
+    """A sine sweep, stepped or swept (``mode``; module docstring). Frequencies [Hz], times
+    [s], levels [V rms]; ``sweep_tolerance`` [1], ``sweep_s`` and ``max_sweep_s`` [s] apply to
+    the swept mode."""
 
     fmin_hz: float = 0.1
     fmax_hz: float = 10.0
@@ -75,6 +81,10 @@ class SineSettings:
     level_limit_vrms: float = 1.0
     auto_level_tries: int = 4
     harmonics: int = 5
+    mode: str = "stepped"
+    sweep_tolerance: float = 0.005
+    sweep_s: float | None = None
+    max_sweep_s: float = 2e6
 
     def __post_init__(self):
         def pos(name, lo=0.0, strict=True):
@@ -131,6 +141,19 @@ class SineSettings:
                 not 1 <= self.harmonics <= 20:
             raise ConfigError(f"harmonics = {self.harmonics!r} is invalid: expected an integer "
                               "1..20")
+        if self.mode not in ("stepped", "swept"):
+            raise ConfigError(f"mode = {self.mode!r} is invalid: expected stepped or swept")
+        pos("sweep_tolerance")
+        if self.sweep_s is not None:
+            pos("sweep_s")
+        pos("max_sweep_s")
+        if self.mode == "swept":
+            for name, what in (("auto_resolution", "auto resolution"),
+                               ("random_error_db", "a random-error target")):
+                if getattr(self, name) is not None:
+                    raise ConfigError(f"{name} = {getattr(self, name)!r} is invalid in swept "
+                                      f"mode: {what} is a stepped-sine option (the swept "
+                                      "source cannot go back or stay); expected None")
 
     def grid(self) -> np.ndarray:
         """The nominal frequencies [Hz] in the sweep's order."""
@@ -151,6 +174,7 @@ class SineSweep:
     model_info: dict
     status: str = "complete"
     settings: SineSettings = field(default_factory=SineSettings)
+    warnings: tuple = ()
 
     def column(self, name: str) -> np.ndarray:
         """One attribute of every accepted point as an array."""
@@ -299,20 +323,31 @@ def _measure(scene, settings, seed, sinks, progress) -> SineSweep:
         if hasattr(s, "check"):
             s.check()
     worst = _worst_frequency(scene, settings)
-    acq = SineAcquisition(scene, seed, worst_hz=worst,
-                          level_vrms=_worst_level(scene, settings, level0, worst),
+    worst_level = _worst_level(scene, settings, level0, worst)
+    acq = SineAcquisition(scene, seed, worst_hz=worst, level_vrms=worst_level,
                           duration_s=_worst_duration(scene, settings, worst),
                           fmax_hz=settings.fmax_hz)
     info = {"settings": _settings_dict(settings), "seed": int(seed), "worst_hz": worst,
             "model": acq.model_info, "channels": acq.channels, "antialias": acq.antialias,
-            "scene": scene, "columns": POINT_COLUMNS, "harmonics": settings.harmonics}
+            "scene": scene, "columns": POINT_COLUMNS, "harmonics": settings.harmonics,
+            "mode": settings.mode}
+    plan = None
+    if settings.mode == "swept":
+        from processing.swept_sine import run_swept, swept_plan
+
+        # swept: the fixed level, or the auto level's profile along the sweep
+        plan = swept_plan(settings, acq, level0)
+        info["sweep_s"] = plan.duration_s
     for s in sinks:
         s.start(info)
     accepted, discarded = [], []
     status = "failed"
     try:
-        _sweep(settings, acq, rate, level0, accepted, discarded, sinks, progress,
-               settling_bias, step_error)
+        if plan is None:
+            _sweep(settings, acq, rate, level0, accepted, discarded, sinks, progress,
+                   settling_bias, step_error)
+        else:
+            run_swept(plan, acq, accepted, sinks, progress)
         status = "complete"
     except KeyboardInterrupt:
         status = "interrupted"
@@ -320,10 +355,12 @@ def _measure(scene, settings, seed, sinks, progress) -> SineSweep:
     finally:
         for s in sinks:
             s.stop(status)
-    bench_s = sum(p.settle_s + p.integrate_s for p in accepted + discarded)
+    bench_s = (sum(p.settle_s + p.integrate_s for p in accepted + discarded) if plan is None
+               else plan.duration_s)
     return SineSweep(points=tuple(accepted), discarded=tuple(discarded), bench_s=bench_s,
                      cpu_s=time.process_time() - t_cpu, model_info=acq.model_info,
-                     status=status, settings=settings)
+                     status=status, settings=settings,
+                     warnings=() if plan is None else plan.warnings)
 
 
 def _sweep(settings, acq, rate, level, accepted, discarded, sinks, progress, settling_bias,

@@ -1,12 +1,12 @@
-"""The files of a stepped-sine sweep: CSV, Bode PNG over the exact model, Markdown report.
+"""The files of a sine sweep (stepped or swept): CSV, Bode PNG over the exact model, report.
 
 :func:`write_sine_csv` writes one row per point: the columns of ``daq analyze``'s CSV
 (:data:`processing.writers.CSV_COLUMNS`; the coherence columns hold the fundamental's share of
 the output channel's power) followed by :data:`EXTRA_COLUMNS`: the point's settle and
 integration time (simulated seconds), source level, the random errors (1 sigma, dB and degrees),
-the exact steady state and the settling bias (dB, degrees) of H_t (x) and Theta_2 (y), and the
-magnitudes of harmonics 2..H of a, x, y in engineering units with the optical lever's predicted
-2f magnitudes of x and y. :func:`sine_bode_figure` draws the points over the exact whole-chain
+the exact steady state and the settling (swept: sweep) bias (dB, degrees) of H_t (x) and
+Theta_2 (y), and the magnitudes of harmonics 2..H of a, x, y in engineering units with the
+optical lever's predicted 2f magnitudes of x and y. :func:`sine_bode_figure` draws the points over the exact whole-chain
 response, with their difference from it against the stated settling bias and random error;
 :func:`sine_report` writes the report (settling bias, random error and distortion separated at
 every point). Files are written under a temporary name and renamed when complete; an existing
@@ -106,6 +106,7 @@ def sine_bode_figure(sweep, scene, *, title: str = ""):
     model = rig.expected_response(scene, fm, sampled=True)
     fig = Figure(figsize=(11, 8.2), layout="constrained")
     f = sweep.column("frequency_hz")
+    kind = "sweep" if sweep.settings.mode == "swept" else "settling"
     for col, (name, what, unit) in enumerate((("h_t", "H_t", "m/(m/s^2)"),
                                               ("theta_2", "Theta_2", "rad/(m/s^2)"))):
         ax_g = fig.add_subplot(3, 2, col + 1)
@@ -116,15 +117,15 @@ def sine_bode_figure(sweep, scene, *, title: str = ""):
         ax_g.semilogx(fm, DB * np.log(np.abs(hm)), color="0.35", lw=1.0,
                       label="exact model of the whole chain (steady state)")
         ax_g.semilogx(f, DB * np.log(np.abs(h)), "o", ms=2.6, color="tab:red",
-                      label=f"stepped sine, {len(f)} points")
+                      label=f"{sweep.settings.mode} sine, {len(f)} points")
         ax_p.semilogx(*phase_curve(fm, hm), color="0.35", lw=1.0)
         ax_p.semilogx(f, np.degrees(np.angle(h)), "o", ms=2.6, color="tab:red")
         diff = np.array([p.gain_phase_error(name)[0] for p in sweep.points])
         bias = np.array([p.bias_db_deg(name)[0] for p in sweep.points])
         sig = np.array([p.error_db_deg(name)[0] for p in sweep.points])
         ax_e.fill_between(f, bias - 2 * sig, bias + 2 * sig, color="tab:blue", alpha=0.2,
-                          lw=0, label="stated settling bias +- 2 sigma random error")
-        ax_e.semilogx(f, bias, color="tab:blue", lw=0.8, label="stated settling bias")
+                          lw=0, label=f"stated {kind} bias +- 2 sigma random error")
+        ax_e.semilogx(f, bias, color="tab:blue", lw=0.8, label=f"stated {kind} bias")
         ax_e.semilogx(f, diff, "o", ms=2.2, color="tab:red",
                       label="measured - exact steady state")
         ax_e.axhline(0.0, color="0.5", lw=0.6)
@@ -153,7 +154,8 @@ def sine_bode_figure(sweep, scene, *, title: str = ""):
                 labels += l_
             fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=8,
                        frameon=False)
-    fig.suptitle(title or f"{scene.name}: stepped sine {sweep.settings.fmin_hz:g}-"
+    fig.suptitle(title or f"{scene.name}: {sweep.settings.mode} sine "
+                          f"{sweep.settings.fmin_hz:g}-"
                           f"{sweep.settings.fmax_hz:g} Hz, {sweep.bench_s / 3600:.1f} h of bench "
                           f"time ({sweep.model_info.get('model', '?')} model)")
     return fig
@@ -178,7 +180,7 @@ def sine_report(sweep, scene) -> str:
     explains), the points at the modes and anti-resonance, the harmonics against the optical
     lever's prediction, and any clipping or saturation."""
     st, pts = sweep.settings, sweep.points
-    lines = [f"# Stepped sine: {scene.name}", "", "## Sweep", ""]
+    lines = [f"# {st.mode.capitalize()} sine: {scene.name}", "", "## Sweep", ""]
     lines += [f"- {len(pts)} points {st.fmin_hz:g}-{st.fmax_hz:g} Hz ({st.spacing}, "
               f"{st.direction}); {len(sweep.discarded)} more run and discarded (auto "
               f"resolution {st.auto_resolution}, auto level {st.auto_level})",
@@ -189,6 +191,12 @@ def sine_report(sweep, scene) -> str:
                                else f"the rule from the poles: until every channel's modal "
                                     f"transient bound is {st.settle_tolerance:g} of its steady "
                                     f"amplitude (at most {st.max_settle_s:g} s)"),
+              *([f"- swept: " + (f"a {st.spacing} chirp of {st.sweep_s:g} s" if st.sweep_s
+                                   else f"the rule's path from the poles and zeros (tolerance "
+                                        f"{st.sweep_tolerance:g})") + "; settle above: the "
+                 "lead-in at the first frequency; a point's bias is the sweep's"]
+                if st.mode == "swept" else []),
+              *[f"- WARNING: {w}" for w in sweep.warnings],
               f"- model: {sweep.model_info.get('model')} "
               f"({sweep.model_info.get('reason', 'forced')})", ""]
     lines += ["## Accuracy against the exact response", "",
@@ -293,7 +301,8 @@ def sine_uff_datasets(sweep, scene) -> list[dict]:
         h = np.array([getattr(p, attr) for p in sweep.points])
         out.append(uff58(func_type=FRF, response=CHANNEL_DOFS[ch], reference=CHANNEL_DOFS["a"],
                          x=f, data=h, abscissa="frequency", even=False, ids=(
-                             f"{name} = {ch}/a [{unit}], stepped sine (synchronous DFT)",
+                             f"{name} = {ch}/a [{unit}], {sweep.settings.mode} sine "
+                             "(synchronous DFT)",
                              f"scene {scene.name}, {len(f)} points {f.min():.4g}-{f.max():.4g} Hz",
                              f"model {sweep.model_info.get('model')}, bench "
                              f"{sweep.bench_s:.0f} s simulated")))

@@ -17,15 +17,17 @@ above (``from processing.spectra import SpectralSettings, segment_ffts``).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from processing.choices import AVERAGING, WINDOWS
 from processing.errors import ChannelDataError, ProcessingError, SettingsError
-from processing.segments import SegmentFFTs, _require_cross, averaged_cross, segment_ffts
+from processing.segments import SegmentFFTs, require_cross, averaged_cross, segment_ffts
 from processing.spectral_settings import (DETRENDS, SpectralSettings, WindowInfo,
                                           window_autocorrelation)
+from rig.readonly import readonly
 
 SCALINGS = ("density", "spectrum")
 
@@ -124,12 +126,6 @@ def _check_scaling(scaling: str) -> None:
         raise SettingsError(f"scaling = {scaling!r} is invalid: expected one of {SCALINGS}")
 
 
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
-
-
 def auto_spectrum(ffts: SegmentFFTs, channel, *, scaling: str = "density") -> Spectrum:
     """Averaged auto spectrum ``G_xx`` of one channel.
 
@@ -151,7 +147,7 @@ def auto_spectrum(ffts: SegmentFFTs, channel, *, scaling: str = "density") -> Sp
     info = ffts.settings.window_info
     if scaling == "spectrum":
         g = g * info.enbw_hz
-    return Spectrum(ffts.freqs_hz, _readonly(g), scaling, (channel,), (ffts.units[channel],),
+    return Spectrum(ffts.freqs_hz, readonly(g), scaling, (channel,), (ffts.units[channel],),
                     ffts.n_segments, ffts.n_effective, info.enbw_hz, ffts.settings.averaging)
 
 
@@ -172,12 +168,12 @@ def cross_spectrum(ffts: SegmentFFTs, x, y, *, scaling: str = "density") -> Spec
         Under peak hold, where cross spectra are undefined.
     """
     _check_scaling(scaling)
-    _require_cross(ffts, "a cross spectrum")
+    require_cross(ffts, "a cross spectrum")
     g = averaged_cross(ffts, x, y).astype(np.complex128)
     info = ffts.settings.window_info
     if scaling == "spectrum":
         g = g * info.enbw_hz
-    return Spectrum(ffts.freqs_hz, _readonly(g), scaling, (x, y),
+    return Spectrum(ffts.freqs_hz, readonly(g), scaling, (x, y),
                     (ffts.units[x], ffts.units[y]), ffts.n_segments, ffts.n_effective,
                     info.enbw_hz, ffts.settings.averaging)
 
@@ -190,13 +186,13 @@ def coherence(ffts: SegmentFFTs, x, y) -> np.ndarray:
     Lines where ``G_xx G_yy = 0`` give NaN. The estimate is biased up by about
     ``(1 - gamma^2)^2 / n_effective`` (so uncorrelated signals read about ``1 / n_effective``).
     """
-    _require_cross(ffts, "coherence")
+    require_cross(ffts, "coherence")
     gxx = averaged_cross(ffts, x, x, power_average=True)
     gyy = averaged_cross(ffts, y, y, power_average=True)
     gxy = averaged_cross(ffts, x, y, power_average=True)
     with np.errstate(divide="ignore", invalid="ignore"):
         g2 = (gxy.real**2 + gxy.imag**2) / (gxx * gyy)
-    return _readonly(np.minimum(g2, 1.0))
+    return readonly(np.minimum(g2, 1.0))
 
 
 def estimate_auto_spectra(channels, *, settings: SpectralSettings, scaling: str = "density",

@@ -119,8 +119,8 @@ def bode_figures(a, *, k: float | None = None, phase: str = "wrapped", into=None
         figs.append(measured_bode_figure(
             frf, model=Curve(f"exact model of {what} (whole chain)", f, model),
             stage1=Curve(s1, f, stage1),
-            expected=None if e is None else Curve(f"E[H1] of {what} (expected estimate)", lines,
-                                                  e),
+            expected=None if e is None else Curve(f"E[H1] of {what} (expected estimate, per "
+                                                  "line over its bin)", lines, e),
             k=kk, title=f"{a.run.scene}: {title}\nseed {a.run.seed}, {est}, "
                         f"{a.settings.window} window, {frf.n_averages} averages",
             unit=unit, fmin_hz=a.settings.fmin_hz, fmax_hz=a.settings.fmax_hz, what=what,

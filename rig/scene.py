@@ -204,7 +204,8 @@ def preset_text(name: str) -> str:
     return resources.files("rig").joinpath("presets", f"{name}.toml").read_text()
 
 
-def load_scene(scene: str | Path | dict, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+def load_scene(scene: str | Path | dict, overrides: list[str] | tuple[str, ...] = (), *,
+               memo: ResolutionMemo | None = None) -> Scene:
     """Load a scene from a preset name, a TOML file path or plain data, and apply ``key=value``
     overrides; every value is validated here (ConfigError naming the key, the value and what is
     valid).
@@ -221,17 +222,67 @@ def load_scene(scene: str | Path | dict, overrides: list[str] | tuple[str, ...] 
     Overrides use dotted keys (``pendulum.q1=300``), an index for one list element
     (``initial.theta0_rad[2]=0.1``, 1-based like the bodies) and TOML values (a bare word is
     taken as a string: ``pendulum.damping_mode=relative``). They apply after the inheritance.
+
+    ``memo`` (a :class:`ResolutionMemo`) serves many loads of scenes that differ in a few keys (a
+    sweep's plan): the same scenes and errors, the unchanged parts checked once.
     """
     if isinstance(scene, dict):
-        if isinstance(scene.get("settings"), dict):
-            data, origin = copy.deepcopy(scene["settings"]), str(scene.get("origin", "settings"))
-        else:
-            data, origin = copy.deepcopy(scene), "settings"
+        plain = scene["settings"] if isinstance(scene.get("settings"), dict) else scene
+        origin = str(scene.get("origin", "settings")) if plain is not scene else "settings"
+        if memo is None:
+            data = copy.deepcopy(plain)
+        else:  # only the sections the overrides change are copied (deeply if they reach in)
+            touched = {}
+            for item in overrides:
+                head, _, rest = item.strip().partition(".")
+                key = rest.partition("=")[0]
+                touched[head] = touched.get(head, False) or "." in key or "[" in key
+            data = {k: (copy.deepcopy(v) if touched[k] else copy.copy(v)) if k in touched
+                    else v for k, v in plain.items()}
     else:
         data, origin = read_scene_data(scene)
     for item in overrides:
         apply_override(data, item)
-    return resolve_scene(data, origin=origin)
+    return resolve_scene(data, origin=origin, memo=memo)
+
+
+class ResolutionMemo:
+    """The steps of :func:`resolve_scene` (a section's checks, the pendulum's chain, each
+    device) remembered by their inputs, so that resolving many scenes that differ in a few keys
+    checks the rest once. Each step is a function of the inputs it is keyed on (their types
+    and exact values), so a scene resolved with a memo equals one resolved without, and a step
+    that fails fails again with the same message. Holds at most ``size`` steps (then starts
+    afresh)."""
+
+    def __init__(self, size: int = 4096):
+        self.size = size
+        self._steps: dict = {}
+
+    def step(self, key, fn, errors: tuple = (ConfigError,)):
+        """``fn()``, or what it returned (or raised, one of ``errors``) for ``key`` before."""
+        try:
+            ok, value = self._steps[key]
+        except KeyError:
+            try:
+                ok, value = True, fn()
+            except errors as exc:
+                ok, value = False, exc.with_traceback(None)
+            if len(self._steps) >= self.size:
+                self._steps.clear()
+            self._steps[key] = (ok, value)
+        if ok:
+            return value
+        raise value
+
+
+def _frozen(v) -> str:
+    """A key of plain scene data (as parsed from TOML) that tells apart what ``==`` does not
+    (1, 1.0 and True; 0.0 and -0.0): its repr (floats' repr round-trips)."""
+    return repr(v)
+
+
+def _step(memo: ResolutionMemo | None, key, fn):
+    return fn() if memo is None else memo.step(key, fn)
 
 
 #: the most scenes a chain of ``base`` files may hold (a deeper one is refused, not followed)
@@ -313,8 +364,18 @@ def scene_from_settings(settings: dict, origin: str = "settings") -> Scene:
 _OVERRIDE = re.compile(r"^(?P<key>[A-Za-z_][\w-]*(?:\.[A-Za-z_][\w-]*)+)(?:\[(?P<idx>\d+)\])?=(?P<val>.*)$")
 
 
+_TOML_INT = re.compile(r"[+-]?(?:0|[1-9][0-9]*)")
+_TOML_FLOAT = re.compile(r"[+-]?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][+-]?[0-9]+)?")
+
+
 def parse_value(text: str) -> Any:
     """A TOML value (number, bool, string in quotes, list); a bare word becomes a string."""
+    t = text.strip()
+    if len(t) <= 32:  # a plain decimal number (what a sweep writes): read as TOML reads it
+        if _TOML_INT.fullmatch(t):
+            return int(t)
+        if _TOML_FLOAT.fullmatch(t):
+            return float(t)
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
@@ -429,6 +490,8 @@ def _build_chain(p: dict) -> Chain:
                 r1_m=p["r1_m"], r2_m=p["r2_m"], f1_hz=p["f1_hz"], f2_hz=p["f2_hz"], eps=p["eps"],
                 total_mass_kg=p["total_mass_kg"], q1=p["q1"], q2=p["q2"], l_m=p["l_m"],
                 length2_m=p["length2_m"], g_mps2=p["g_mps2"])
+            if chain.damping_mode == p["damping_mode"]:
+                return chain
             return dataclasses.replace(chain, damping_mode=p["damping_mode"])
         if kind == "chain":
             n = len(p["mass_kg"]) if isinstance(p["mass_kg"], list) else 1
@@ -473,8 +536,9 @@ def _build_chain(p: dict) -> Chain:
         raise ConfigError(msg if msg.startswith(("pendulum.", "a rod-chain")) else f"pendulum.{msg}") from None
 
 
-def resolve_scene(data: dict, *, origin: str) -> Scene:
-    """Validate raw scene data (as parsed from TOML) and build the :class:`Scene`."""
+def resolve_scene(data: dict, *, origin: str, memo: ResolutionMemo | None = None) -> Scene:
+    """Validate raw scene data (as parsed from TOML) and build the :class:`Scene` (``memo``:
+    :meth:`load_scene`'s)."""
     if not isinstance(data, dict):
         raise ConfigError(f"scene {origin}: expected a table")
     for section in data:
@@ -488,10 +552,14 @@ def resolve_scene(data: dict, *, origin: str) -> Scene:
     if not isinstance(kind, str) or kind not in PENDULUM_KINDS:
         raise ConfigError(f"pendulum.kind = {kind!r} is invalid: expected one of "
                           f"{', '.join(PENDULUM_KINDS)}")
-    settings = {section: _validate_section(section, data.get(section, {}),
-                                           section_keys(section, kind))
-                for section in SECTIONS}
-    chain = _finite_chain(settings["pendulum"], raw_p)
+    settings = {}
+    for section in SECTIONS:
+        raw = data.get(section, {})
+        settings[section] = dict(_step(
+            memo, ("section", section, kind, _frozen(raw)),
+            lambda: _validate_section(section, raw, section_keys(section, kind))))
+    chain = _step(memo, ("chain", _frozen(settings["pendulum"]), _frozen(raw_p)),
+                  lambda: _finite_chain(settings["pendulum"], raw_p))
     n = chain.n
 
     mirror_body = settings["mirror"]["body"]
@@ -511,14 +579,18 @@ def resolve_scene(data: dict, *, origin: str) -> Scene:
 
     theta0 = _per_body("initial.theta0_rad", settings["initial"]["theta0_rad"], n)
     omega0 = _per_body("initial.omega0_rad_s", settings["initial"]["omega0_rad_s"], n)
-    acquisition = AcquisitionSettings(**settings["acquisition"])
+
+    def device(cls, section, **more):
+        return _step(memo, (section, _frozen(settings[section]), _frozen(more)),
+                     lambda: cls(**settings[section], **more))
+
+    acquisition = device(AcquisitionSettings, "acquisition")
     return Scene(name=settings["scene"]["name"], description=settings["scene"]["description"],
                  origin=origin, settings=settings, chain=chain, mirror=mirror,
                  theta0_rad=tuple(theta0), omega0_rad_s=tuple(omega0),
-                 source=Source(**settings["source"], fs_hz=acquisition.simulation_rate_hz),
-                 stage=Stage(**settings["stage"]),
-                 accelerometer=Accelerometer(**settings["accelerometer"]),
-                 lever=OpticalLever(**settings["psd"]), acquisition=acquisition)
+                 source=device(Source, "source", fs_hz=acquisition.simulation_rate_hz),
+                 stage=device(Stage, "stage"), accelerometer=device(Accelerometer, "accelerometer"),
+                 lever=device(OpticalLever, "psd"), acquisition=acquisition)
 
 
 def section_keys(section: str, kind: str) -> dict[str, Key]:

@@ -28,16 +28,12 @@ import numpy as np
 from rig.validation import positive
 from rig.chain import Chain
 from rig.errors import ConfigError
+from rig.readonly import readonly
 from rig.solvers import HOLDS, PENDULUM, integrate, names_for, output_rows, solver_named
 from rig.solvers.rhs import rhs_algorithm
 
 STEPS_PER_PERIOD = 100  # default fixed-step resolution: steps per period of the fastest linear mode
 _REL = 1e-9  # tolerance for "a whole number of" checks on times
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
 
 
 def _whole(name: str, value: float, unit_name: str, unit: float) -> int:
@@ -112,7 +108,7 @@ class BaseInput:
         if bad.size:
             raise ConfigError(f"{name}[{bad[0]}] = {a[bad[0]]} is invalid: every sample must be "
                               "finite")
-        return _readonly(a)
+        return readonly(a)
 
     @property
     def n_intervals(self) -> int:
@@ -212,7 +208,7 @@ class Trajectory:
     def energy_j(self) -> np.ndarray:
         """(T,) mechanical energy in the base frame [J] (computed on first use: for a long
         linear run it costs as much as the run itself)."""
-        return _readonly(np.asarray(self.chain.energy(self.theta_rad, self.omega_rad_s), float))
+        return readonly(np.asarray(self.chain.energy(self.theta_rad, self.omega_rad_s), float))
 
     @property
     def max_error_rad(self) -> float:
@@ -473,14 +469,14 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     est_wall = time.perf_counter() - tic if estimate_error else 0.0
     n = chain.n
     t = _times(segs, t0, duration)
-    y_out = _readonly(y_out)
+    y_out = readonly(y_out)
     theta, omega = y_out[:, :n], y_out[:, n:]  # read-only views (no copy of a long run)
-    final = SimState(t_s=float(t[-1]), theta_rad=_readonly(theta[-1].copy()),
-                     omega_rad_s=_readonly(omega[-1].copy()), method=method,
-                     native=_readonly(native_end.copy()), h_next_s=float(h_next))
+    final = SimState(t_s=float(t[-1]), theta_rad=readonly(theta[-1].copy()),
+                     omega_rad_s=readonly(omega[-1].copy()), method=method,
+                     native=readonly(native_end.copy()), h_next_s=float(h_next))
     settings = _settings(chain, solver, method, algorithm, duration, t0, rtol_f, atol_f, grid,
                          solver.trajectory_settings(segs, lifted))
-    traj = Trajectory(t_s=_readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
+    traj = Trajectory(t_s=readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
                       method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
                       n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
                       error_estimate_rad_s=err_om, energy_error_estimate_j=err_e,
@@ -570,5 +566,5 @@ def _error_estimate(chain, segs, solvers, solver, y_out, native0, t0, h0):
     diff = np.abs(y_out - ref) * scale
     e_main = chain.energy(y_out[:, :n], y_out[:, n:])
     e_ref = chain.energy(ref[:, :n], ref[:, n:])
-    return (_readonly(diff[:, :n].copy()), _readonly(diff[:, n:].copy()),
-            _readonly(np.abs(e_main - e_ref) * scale), refs[0].how)
+    return (readonly(diff[:, :n].copy()), readonly(diff[:, n:].copy()),
+            readonly(np.abs(e_main - e_ref) * scale), refs[0].how)

@@ -51,6 +51,9 @@ EXCEPTIONS: dict = {
         "the stepped-sine sweep acquires point by point and chooses each next point (auto "
         "resolution, auto level) from the last one's analysis: a composition root like the "
         "dataset runner",
+    ("processing.swept_sine", "daq.sine"):
+        "the swept sine runs the same acquisition chunk by chunk and hands each point's window "
+        "to the sinks as a PointRecord: the stepped sweep's composition root, in its own module",
 }
 
 #: Cycles inside one package, each with what removes it (a new cycle fails).

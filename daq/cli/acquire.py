@@ -270,8 +270,10 @@ def _sine_text(i: dict) -> str:
         f"{i.get('software_version', '?')}",
         f"scene: {i.get('scene_name', '?')}, seed {i.get('seed', '?')}, started "
         f"{i.get('start_time', '?')}",
-        f"status: {i['status']}, {i['points']} points, {band}, "
-        f"{i['bench_s_accepted_points'] / 3600:.2f} h of bench time in the kept points"
+        f"status: {i['status']}, {i.get('mode', 'stepped')} sine, {i['points']} points, "
+        f"{band}, "
+        f"{i['bench_s_accepted_points'] / 3600:.2f} h of bench time"
+        + (" in the kept points" if i.get("mode", "stepped") == "stepped" else "")
         + (", time records kept" if i["records_kept"] else ""),
         f"model: {m.get('model')} ({m.get('reason', 'forced')})",
         f"check: {'OK' if i['check']['ok'] else 'BAD: ' + '; '.join(i['check']['problems'])}",

@@ -87,7 +87,10 @@ def run_cmd(sweep_file, out_dir, workers, scheduler, dry_run, force):
         f"checking the runs' parameter sets: {k} of {n}", err=True))
     with contextlib.ExitStack() as stack:
         if scheduler is not None:
-            executor, slots = stack.enter_context(dask_executor(scheduler))
+            executor, slots, why = stack.enter_context(dask_executor(scheduler))
+            if why:
+                click.echo(f"warning: {why}: keeping {slots} run{'s' if slots != 1 else ''} in "
+                           "flight", err=True)
         else:
             slots, why = worker_limit(workers)
             if why:
@@ -110,10 +113,11 @@ def run_cmd(sweep_file, out_dir, workers, scheduler, dry_run, force):
                        f"complete, {r.failed} failed, {r.missing} missing (listed in {r.table}); "
                        "run the same command again to finish", err=True)
             raise click.exceptions.Exit(exit_status(exc)) from None
-        except SweepStopped as exc:
+        except SweepStopped as exc:  # partly done (a full disk): the partial sweep's status
             bar.close()
             _failures(exc.results)
-            raise click.ClickException(str(exc)) from None
+            click.echo(f"Error: {exc}", err=True)
+            raise click.exceptions.Exit(EXIT_PARTIAL) from None
         bar.close()
     click.echo(f"{result.complete} of {result.total} runs complete ({result.skipped} already "
                f"there), {result.failed} failed, {result.missing} missing in "

@@ -99,11 +99,11 @@ def design(targets_path, out, report_path, plot_path, tradeoffs_dir, tolerances_
                                        "\"ishizaki2009\"")
     if plot_path is not None:
         from processing.design_plots import design_figure
-        from rig.design.report import design_curves
+        from rig.design.report import design_curves, design_grid
 
         f_hi = max([10.0 * d.inputs.f1_hz] + [s.band_hz[1] for s in targets.suppression]
                    + [t.freq_hz * 2 for t in targets.translation])
-        curves = design_curves(d.chain, _grid(0.05 * d.inputs.f2_hz, f_hi))
+        curves = design_curves(d.chain, design_grid(d.chain, 0.05 * d.inputs.f2_hz, f_hi))
         fig = design_figure(d, curves)
         from processing.figure_files import save_figure
 
@@ -153,7 +153,7 @@ def write_tradeoffs(d, folder: Path, *, force: bool) -> list[Path]:
 
     from processing.design_plots import policy_figure, tradeoff_figure
     from rig.output_files import write_columns_csv
-    from rig.design.report import design_curves
+    from rig.design.report import design_curves, design_grid
     from rig.design.tradeoffs import SWEEPS, policy_pair, sweep
     from rig.ishizaki import design_parameters
 
@@ -175,7 +175,7 @@ def write_tradeoffs(d, folder: Path, *, force: bool) -> list[Path]:
         fig.savefig(tmp, dpi=110, format="png")
     out.append(folder / "tradeoffs.png")
     chains = [x.chain() for x in policy_pair(d.inputs)]
-    grid = _grid(0.05 * d.inputs.f2_hz, 20 * d.inputs.f1_hz)
+    grid = design_grid(chains, 0.05 * d.inputs.f2_hz, 20 * d.inputs.f1_hz)
     ci, cii = (design_curves(c, grid) for c in chains)
     s2 = design_parameters(chains[0]).sigma2
     fig = policy_figure(ci, cii, labels=(f"policy (i): σ² = {s2:.3f}",
@@ -238,12 +238,6 @@ def run_tolerances(d, tol, samples, seed, folder, *, force):
             "not_rigid": int((~mc.physical).sum()), "summary": summ,
             "sensitivities": {k: [r.__dict__ for r in rows] for k, rows in sens.items()}}
     return "\n".join(lines) + "\n", data, files
-
-
-def _grid(lo, hi):
-    import numpy as np
-
-    return np.geomspace(lo, hi, 2000)
 
 
 def _summary(d) -> str:

@@ -21,7 +21,8 @@ Exit statuses of every ``daq`` command (:data:`EXIT_CODES`; the README's table a
   :data:`SATURATION_LIMIT` of its samples (a WARNING says which); ``--allow-over-budget`` makes
   that exit 0;
 - 4 (:data:`EXIT_PARTIAL`): partly done: ``daq dataset`` ran, but some runs failed or are
-  missing (a line says how many; the manifest lists them);
+  missing (a line says how many; the manifest lists them), or it stopped part way because its
+  journal or manifest could not be written (a full disk; the line says so);
 - 128 + N (:data:`EXIT_SIGNAL_BASE` + N): ended by signal N (130 Ctrl-C, 143 SIGTERM, 129
   SIGHUP), everything finished kept."""
 
@@ -47,7 +48,8 @@ EXIT_CODES = (
     ("1", "an error, said on one line"),
     ("2", "a usage error (unknown option, bad option value)"),
     ("3", "finished and written but not as asked (over its error budget, or saturated)"),
-    ("4", "partly done (a sweep some of whose runs failed or are missing)"),
+    ("4", "partly done (a sweep some of whose runs failed or are missing, or that stopped "
+          "part way: a full disk)"),
     ("128+N", "ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), all finished work "
               "kept"),
 )

@@ -167,7 +167,7 @@ def view(run, rrd, connect, screenshot_path, size, magnify, force):
         target = rrd if rrd is not None or screenshot_path is None else Path(tmp) / "view.rrd"
         stream = ViewerStream(ViewerOptions(spawn=spawn, connect=connect, rrd=target,
                                             force=force))
-        if sine:  # a stepped-sine run file (daq sine)
+        if sine:  # a stepped- or swept-sine run file (daq sine)
             from processing.live_view import replay_sine
 
             v = replay_sine(run, stream, magnification=magnify or MAGNIFICATION)
@@ -178,7 +178,7 @@ def view(run, rrd, connect, screenshot_path, size, magnify, force):
                                        "warning above says why); --rrd FILE.rrd saves it")
         if sine:
             kept = "with" if v.records_kept else "without"
-            click.echo(f"replayed {v.points} points of the stepped sine {run} ({v.status}; "
+            click.echo(f"replayed {v.points} points of the {v.mode} sine {run} ({v.status}; "
                        f"{kept} records)")
         else:
             click.echo(f"replayed {v.footer.records_complete} of {v.header.plan.records} "

@@ -18,8 +18,8 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 
 from rig.errors import ConfigError
 
-__all__ = ["local_pool", "dask_executor", "default_workers", "worker_limit", "WORKER_BYTES",
-           "DASK_MISSING"]
+__all__ = ["local_pool", "dask_executor", "default_workers", "worker_limit", "cluster_limit",
+           "WORKER_BYTES", "DASK_MISSING"]
 
 #: Seconds a Dask scheduler has to answer (connect and handshake) before it is given up.
 CONNECT_TIMEOUT_S = 10.0
@@ -128,12 +128,38 @@ def _start_resource_tracker() -> None:
         signal.signal(hup, old)
 
 
+def cluster_limit(workers: dict) -> tuple[int, str]:
+    """The runs a Dask cluster can hold at once, and why it is fewer than its threads ("" if
+    not), from its scheduler's worker records (``Client.scheduler_info()["workers"]``: each
+    worker's ``nthreads`` and ``memory_limit`` [bytes], 0 for none). The cluster may be remote,
+    so this machine's cores and memory do not bound it: its own threads are its cores (Dask
+    starts one per core unless told otherwise), and each worker runs at most one run per
+    :data:`WORKER_BYTES` of its memory limit."""
+    threads = slots = 0
+    short = []
+    for w in workers.values():
+        n = max(0, int(w.get("nthreads") or 0))
+        limit = int(w.get("memory_limit") or 0)
+        fit = n if limit <= 0 else min(n, max(1, limit // WORKER_BYTES))
+        threads += n
+        slots += fit
+        if fit < n:
+            short.append(limit)
+    why = ""
+    if short:
+        why = (f"the Dask cluster has {threads} worker threads but the memory limits of "
+               f"{len(short)} of its {len(workers)} workers ({min(short) / 1e9:.2g} GB and up) hold "
+               f"fewer runs than their threads ({WORKER_BYTES / 1e6:.0f} MB each)")
+    return max(1, slots), why
+
+
 @contextlib.contextmanager
 def dask_executor(scheduler, *, timeout_s: float = CONNECT_TIMEOUT_S):
-    """Yield ``(executor, slots)`` for a Dask cluster: ``scheduler`` is an address
-    (``tcp://host:8786``) or a ``distributed.Client``; ``slots`` is its total worker threads.
-    A client made here is closed on exit (the cluster keeps running). An address that does not
-    answer within ``timeout_s`` is a ConfigError."""
+    """Yield ``(executor, slots, why)`` for a Dask cluster: ``scheduler`` is an address
+    (``tcp://host:8786``) or a ``distributed.Client``; ``slots`` the runs to keep in flight,
+    its worker threads capped by its workers' memory (:func:`cluster_limit`, which says
+    ``why`` when it caps). A client made here is closed on exit (the cluster keeps running).
+    An address that does not answer within ``timeout_s`` is a ConfigError."""
     try:
         import distributed
     except ImportError:
@@ -144,8 +170,8 @@ def dask_executor(scheduler, *, timeout_s: float = CONNECT_TIMEOUT_S):
     else:
         client = scheduler
     try:
-        slots = max(1, sum(client.nthreads().values()))
-        yield client.get_executor(pure=False), slots
+        slots, why = cluster_limit(client.scheduler_info(n_workers=-1).get("workers", {}))
+        yield client.get_executor(pure=False), slots, why
     finally:
         if own:
             client.close()

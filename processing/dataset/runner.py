@@ -129,12 +129,15 @@ def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = Non
               every_s: float = 1.0) -> tuple[PlannedRun, ...]:
     """Resolve every run's scene (an invalid parameter set is recorded, not raised) and check the
     analysis settings against its records. ``progress(done, total)`` is called at most once per
-    ``every_s`` seconds while that takes (a few ms per run; at most :data:`MAX_RUNS` runs)."""
+    ``every_s`` seconds while that takes (at most :data:`MAX_RUNS` runs). What the runs share
+    is checked once (:class:`rig.scene.ResolutionMemo`); each run's verdict and message are those
+    of its scene loaded alone."""
     from processing.spectra import SettingsError
-    from rig.scene import load_scene, read_scene_data
+    from rig.scene import ResolutionMemo, load_scene, read_scene_data
 
     settings = sweep.analyzer_settings()
     base, origin = read_scene_data(sweep.scene)  # parsed once, copied per run
+    memo = ResolutionMemo()  # what the runs share is checked once
     out = []
     specs = sweep.runs()
     shown = time.monotonic()
@@ -143,10 +146,12 @@ def plan_runs(sweep: Sweep, *, progress: Callable[[int, int], None] | None = Non
             progress(k, len(specs))
             shown = time.monotonic()
         try:
-            sc = load_scene({"settings": base, "origin": origin}, spec.overrides)
+            sc = load_scene({"settings": base, "origin": origin}, spec.overrides, memo=memo)
             acq = sc.acquisition
             samples = round(acq.record_s * acq.rate_hz)
-            settings.spectral(acq.rate_hz, samples)
+            memo.step(("spectral", acq.rate_hz, samples),
+                      lambda: settings.spectral(acq.rate_hz, samples),
+                      errors=(ConfigError, SettingsError))
         except (ConfigError, SettingsError) as exc:
             out.append(PlannedRun(spec, None, "", str(exc).splitlines()[0], 0.0, 0))
             continue

@@ -65,9 +65,9 @@ RANDOM_KINDS = ("uniform", "loguniform", "normal")
 #: are the run format itself and are always kept).
 KEEP_DEFAULTS = {"truth": True, "spectra": True, "frf": True, "modal": True, "expected": True}
 _TOP = ("seed", "scene", "set", "name", "description", "grid", "random", "analysis", "keep")
-#: The largest sweep accepted: planning checks every run's scene (a few ms each) and keeps its
-#: settings, so 100,000 runs take minutes and about half a GB to plan (BENCHMARKS.md "First
-#: run"); split a larger sweep into several.
+#: The largest sweep accepted: planning checks every run's scene (what the runs share once; a
+#: varied pendulum means its chain and modes per run) and keeps its settings, so 100,000 runs
+#: take a while and memory to plan (BENCHMARKS.md "Analysis and datasets"); split a larger sweep into several.
 MAX_RUNS = 100_000
 
 

@@ -50,7 +50,7 @@ from processing.live_view.sine_replay import SineReplay, replay_sine, sine_bluep
 from processing.live_view.sink import LiveView  # noqa: E402
 from processing.live_view.stream import (MEMORY_LIMIT, TIMELINE, LiveViewError,  # noqa: E402
                                          LiveViewWarning, ViewerOptions, ViewerStream,
-                                         _listening, viewer_executable)
+                                         viewer_executable)
 
 __all__ = ["ViewerOptions", "ViewerStream", "LiveView", "LiveViewWarning", "LiveViewError",
            "acquisition_blueprint", "replay", "show_trajectory", "replay_sine", "SineReplay",

@@ -4,6 +4,8 @@ analyzer's panels on a drawn log-frequency axis (:mod:`processing.bode_canvas`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -27,11 +29,58 @@ def display_unit(unit: str) -> tuple[float, str]:
     """(factor, unit) in which a channel of ``unit`` is plotted (:data:`DISPLAY_UNITS`)."""
     return DISPLAY_UNITS.get(unit, (1.0, unit))
 
+
+#: A signal plot's half-height, in predicted standard deviations of its channel (signal and
+#: noise): a stationary Gaussian signal exceeds 4 sigma in about 6e-5 of its samples.
+SIGNAL_SIGMAS = 4.0
+#: What a signal plot's half-height is rounded up to, times a power of ten. The plots label
+#: their values every power of ten, hide labels closer than 20 px and fade them below 30 px: a
+#: plot from -5 to 5 (x 10^k), 165 px high at 1280x720, is labelled "0" alone. From -3.4 to 3.4
+#: it has seven labels 24 px apart, and the 0.4 left above and below the outer ones keeps them
+#: clear of the plot's edges (and of the time axis's labels).
+HALF_HEIGHT_MANTISSAS = (1.4, 2.4, 3.4, 14.0)
+
+
+def half_height(value: float) -> float:
+    """The smallest ``m x 10^k`` >= ``value`` > 0, m in :data:`HALF_HEIGHT_MANTISSAS`."""
+    k = math.floor(math.log10(value))
+    return next(m * 10.0**k for m in HALF_HEIGHT_MANTISSAS
+                if value <= m * 10.0**k * (1 + 1e-12))
+
+
+def signal_ranges(header) -> dict[str, tuple[float, float]]:
+    """Per channel (a, x, y) the half-heights of its plots, in display units
+    (:func:`display_unit`) and in ADC volts: :data:`SIGNAL_SIGMAS` times the channel's predicted
+    standard deviation (the scene's stationary response to its source,
+    :func:`rig.bench.response.stationary_levels`, with its sensor's noise,
+    :meth:`daq.records.Header.noise_rms`), rounded up by :func:`half_height`. Empty where there is
+    no prediction (a source without a model PSD): those plots fit their data."""
+    from rig.bench.response import stationary_levels
+    from rig.errors import RigError
+
+    try:
+        levels = stationary_levels(header.scene, points=20_001)
+        noise = header.noise_rms()
+    except (RigError, TypeError, ValueError, ArithmeticError):
+        return {}
+    out = {}
+    for c in header.names:
+        if f"{c}_v" not in levels or c not in noise:
+            continue
+        ch = header.channel(c)
+        per = abs(ch.volts_per_unit)
+        sigma = math.hypot(levels[f"{c}_v"] / per, noise[c])  # engineering units
+        if not (math.isfinite(sigma) and sigma > 0):
+            continue
+        out[c] = (half_height(SIGNAL_SIGMAS * sigma * display_unit(ch.unit)[0]),
+                  half_height(SIGNAL_SIGMAS * sigma * per))
+    return out
+
 _FRAME_COLOR = (150, 150, 150)
 _BODY_COLORS = [(255, 170, 40), (255, 90, 40), (230, 60, 120), (160, 90, 230)]
 
 
-def _bench_layout(d: BenchDrawing) -> dict:
+def bench_layout(d: BenchDrawing) -> dict:
     """Static positions of the stage frame, rail, laser and PSD in the side view [mm]."""
     reach = d.reach_mm
     w = max(40.0, 0.6 * reach)
@@ -40,9 +89,11 @@ def _bench_layout(d: BenchDrawing) -> dict:
             "laser": (w * 0.95, d.reach_mm * 0.25), "psd": (w * 0.95, d.reach_mm * 0.75)}
 
 
-def _log_bench_static(s: ViewerStream, d: BenchDrawing, *, moving_stage: bool,
-                      optics: bool) -> None:
-    lay = _bench_layout(d)
+def log_bench_static(s: ViewerStream, d: BenchDrawing, *, moving_stage: bool,
+                     optics: bool) -> None:
+    """Log the bench's fixed parts once under ``/bench``: frame and table, rail (twice as long
+    with a ``moving_stage``), laser and PSD (with ``optics``), the scale note and a scale bar."""
+    lay = bench_layout(d)
     w, floor = lay["half_width"], lay["floor"]
     top = -0.15 * lay["reach"] - 5.0
     frame = [np.array([[-w, floor], [-w, top], [w, top], [w, floor]]),  # posts and top beam
@@ -73,8 +124,10 @@ def _log_bench_static(s: ViewerStream, d: BenchDrawing, *, moving_stage: bool,
                                              labels=[f"{bar:g} mm"], show_labels=True))
 
 
-def _bench_bounds(d: BenchDrawing, moving_stage: bool) -> rrb.VisualBounds2D:
-    lay = _bench_layout(d)
+def bench_bounds(d: BenchDrawing, moving_stage: bool) -> rrb.VisualBounds2D:
+    """The side view's visible area [mm] around :func:`bench_layout` (wider with a
+    ``moving_stage``)."""
+    lay = bench_layout(d)
     w, r = lay["half_width"] * (1.7 if moving_stage else 1.2), lay["reach"]
     return rrb.VisualBounds2D(x_range=(-w, w), y_range=(-0.45 * r - 15, lay["floor"] + 30))
 
@@ -82,13 +135,13 @@ def _bench_bounds(d: BenchDrawing, moving_stage: bool) -> rrb.VisualBounds2D:
 # the moving parts go out as two entities, whatever the number of bodies (each entity costs a
 # send and a time column per record): ``pendulum``, line strips [the bodies, the mirror's face,
 # (the laser beam)]; ``marks``, points [the pivots, the centres of mass]. Their colours and
-# radii are logged once, instance by instance (:func:`_log_chain_style`).
+# radii are logged once, instance by instance (:func:`log_chain_style`).
 PENDULUM, MARKS = "/bench/stage/pendulum", "/bench/stage/marks"
 _PIVOT_COLOR, _COM_COLOR = (255, 255, 255), (255, 90, 40)
 _MIRROR_COLOR, _BEAM_COLOR = (190, 230, 255), (255, 60, 60)
 
 
-def _chain_frames(d: BenchDrawing, theta: np.ndarray):
+def chain_frames(d: BenchDrawing, theta: np.ndarray):
     """The pendulum at frames of the angles ``theta`` (frames, n) [rad], drawn [mm]: the line
     strips (frames, n + 3, 2) of the bodies (n + 1 joints) and the mirror's face (2 points),
     their lengths (n + 1, 2), the marks (frames, 2 n, 2): n pivots then n centres of mass, and
@@ -100,10 +153,10 @@ def _chain_frames(d: BenchDrawing, theta: np.ndarray):
     return lines, (joints.shape[1], 2), marks, centre
 
 
-def _log_chain_style(s: ViewerStream, n: int, *, body: float = 1.2, pivot: float = 1.4,
-                     com: float = 1.0, mirror: float = 1.5, beam: float = 0.4) -> None:
+def log_chain_style(s: ViewerStream, n: int, *, body: float = 1.2, pivot: float = 1.4,
+                    com: float = 1.0, mirror: float = 1.5, beam: float = 0.4) -> None:
     """Colours and radii [mm] of the strips of :data:`PENDULUM` and the points of
-    :data:`MARKS`, per instance (the order of :func:`_chain_frames`)."""
+    :data:`MARKS`, per instance (the order of :func:`chain_frames`)."""
     s.static(PENDULUM, rr.LineStrips2D.from_fields(
         colors=[_BODY_COLORS[0], _MIRROR_COLOR, _BEAM_COLOR], radii=[body, mirror, beam]))
     s.static(MARKS, rr.Points2D.from_fields(colors=[_PIVOT_COLOR] * n + [_COM_COLOR] * n,
@@ -119,7 +172,7 @@ COHERENCE_BOUNDS = ((-bc.LABEL_MARGIN - 2.0, ANALYZER_WIDTH + 12.0), (-16.0, 44.
 LEGEND_Y = -15.0
 
 
-def _analyzer_panels(freqs, model_db, expected_db, branches=None):
+def analyzer_panels(freqs, model_db, expected_db, branches=None):
     """The panels of H_t / Theta_2 (gain, phase) and coherence on a common frequency range; each
     phase panel spans its response's branch (lo, lo + 360] (``branches[key]`` = lo [deg],
     :func:`processing.phase_display.phase_branch`; default -180), named by its tick labels."""
@@ -147,7 +200,8 @@ def legend_row(entries) -> tuple[list, list, list]:
     return ([(x, LEGEND_Y) for x in xs], [c for _, c in entries], [t for t, _ in entries])
 
 
-def _db(h) -> np.ndarray:
+def gain_db(h) -> np.ndarray:
+    """``20 log10 |h|`` [dB], -inf at a zero without a warning."""
     with np.errstate(divide="ignore", invalid="ignore"):
         return 20.0 * np.log10(np.abs(h))
 
@@ -156,7 +210,9 @@ def _deg(h) -> np.ndarray:
     return np.degrees(np.angle(h))
 
 
-def _log_panel_static(s: ViewerStream, entity: str, panels) -> None:
+def log_panel_static(s: ViewerStream, entity: str, panels) -> None:
+    """Log the grids, tick labels (decades under the last panel) and titles of ``panels``
+    (:class:`processing.bode_canvas.Panel`) once under ``entity``."""
     grid, pos, text = [], [], []
     for i, p in enumerate(panels):
         grid += p.grid()
@@ -171,7 +227,7 @@ def _log_panel_static(s: ViewerStream, entity: str, panels) -> None:
                                              colors=(200, 200, 200)))
 
 
-def _bode_strips(gain: bc.Panel, phase: bc.Panel, f, h) -> list:
+def bode_strips(gain: bc.Panel, phase: bc.Panel, f, h) -> list:
     """Gain and phase strips of ``h``; the phase wrapped onto its panel's branch
     (phase.lo, phase.lo + 360]."""
-    return gain.curve(f, _db(h)) + phase.curve(f, wrap_to(_deg(h), phase.lo), wrap=360.0)
+    return gain.curve(f, gain_db(h)) + phase.curve(f, wrap_to(_deg(h), phase.lo), wrap=360.0)

@@ -11,8 +11,8 @@ import rerun.blueprint as rrb
 
 from daq.records import Block, Footer, Record
 from processing.bench_geometry import MAGNIFICATION, BenchDrawing
-from processing.live_view.blueprint import _following
-from processing.live_view.drawing import MARKS, PENDULUM, _chain_frames, _log_chain_style
+from processing.live_view.blueprint import trailing_range
+from processing.live_view.drawing import MARKS, PENDULUM, chain_frames, log_chain_style
 from processing.live_view.sink import LiveView
 from processing.live_view.stream import TIMELINE, ViewerStream
 
@@ -70,7 +70,7 @@ def show_trajectory(traj, scene, stream: ViewerStream) -> Path | None:
                          rrb.TextDocumentView(origin="/status", name="status"),
                          row_shares=[4, 1]),
             rrb.Vertical(rrb.TimeSeriesView(origin="/signals/theta", name="angles [rad]",
-                                            time_ranges=_following(20.0)),
+                                            time_ranges=trailing_range(20.0)),
                          rrb.TimeSeriesView(origin="/signals/energy", name="energy [J]")),
             column_shares=[1, 1]),
         rrb.TimePanel(timeline=TIMELINE, play_state="following", state="collapsed"),
@@ -83,13 +83,13 @@ def show_trajectory(traj, scene, stream: ViewerStream) -> Path | None:
         s.static("/bench/note", rr.Points2D([(-1.2 * r, -1.15 * r)], radii=0.0,
                                             labels=["side view, to scale; free motion on a "
                                                     "fixed base"], show_labels=True))
-        _log_chain_style(s, n, body=max(1.0, 0.008 * r), pivot=max(1.0, 0.01 * r),
-                         com=max(1.0, 0.008 * r), mirror=max(1.0, 0.01 * r))
+        log_chain_style(s, n, body=max(1.0, 0.008 * r), pivot=max(1.0, 0.01 * r),
+                        com=max(1.0, 0.008 * r), mirror=max(1.0, 0.01 * r))
         s.static("/signals/theta", rr.SeriesLines(names=[f"theta_{j + 1}" for j in range(n)]))
         s.queue("/signals/theta", "scalars", t, theta)
         if traj.energy_j is not None:
             s.queue("/signals/energy", "scalars", t, np.asarray(traj.energy_j, float))
-        lines, strips, marks, _ = _chain_frames(d, theta)
+        lines, strips, marks, _ = chain_frames(d, theta)
         s.queue(PENDULUM, "strips", t, lines, strips)
         s.queue(MARKS, "points", t, marks)
         s.send_queued()

@@ -8,7 +8,7 @@ integrate_s`` [s], the time of the sweep's discarded points included). Entities:
 
 - ``/analyzer/H_t``, ``/analyzer/Theta_2``: gain [dB] and phase [deg] panels on a drawn
   log-frequency axis (:mod:`processing.bode_canvas`); ``model`` is the exact whole-chain model
-  (:func:`processing.sampled_bench.resolved_fields`, on the resolving grid of
+  (:meth:`rig.bench.SampledResponse.resolved`, on the resolving grid of
   :func:`rig.response_grid.resolving_grid`, so the sharp modes and the notches are drawn to
   0.1 dB); ``points/gain`` and ``points/phase`` hold every point so far (one row per landing)
   with the file's values beside each instance (``frequency_hz``, ``gain_db``, ``phase_deg``,
@@ -41,12 +41,12 @@ import rerun.blueprint as rrb
 
 from processing import bode_canvas as bc
 from processing.bench_geometry import MAGNIFICATION, MM, BenchDrawing, frame_indices, frame_step
-from processing.live_view.blueprint import _following
+from processing.live_view.blueprint import trailing_range
 from processing.live_view.drawing import (ANALYZER_WIDTH, BODE_BOUNDS, CHANNEL_COLORS, MARKS,
-                                          MEASURED, MODEL, PENDULUM, SIGNALS, _analyzer_panels,
-                                          _bench_bounds, _bench_layout, _bode_strips,
-                                          _chain_frames, _db, _log_bench_static,
-                                          _log_chain_style, _log_panel_static, display_unit,
+                                          MEASURED, MODEL, PENDULUM, SIGNALS, analyzer_panels,
+                                          bench_bounds, bench_layout, bode_strips,
+                                          chain_frames, gain_db, log_bench_static,
+                                          log_chain_style, log_panel_static, display_unit,
                                           legend_row)
 from processing.live_view.stream import TIMELINE, ViewerStream
 from processing.phase_display import phase_branch, wrap_to
@@ -65,19 +65,21 @@ DIFF_BOUNDS = ((-bc.LABEL_MARGIN - 2.0, ANALYZER_WIDTH + 12.0), (-16.0, 44.0))
 @dataclass(frozen=True)
 class SineReplay:
     """What was replayed: ``points`` finished points of the file's ``status``, ``records_kept``,
-    the ``.rrd`` written (or None)."""
+    the ``.rrd`` written (or None), the sweep's ``mode`` ("stepped" or "swept")."""
 
     points: int
     status: str
     records_kept: bool
     path: Path | None
+    mode: str = "stepped"
 
 
 def _tail_samples(rate_hz: float) -> int:
     return max(2, int(round(SIGNAL_TAIL_S * rate_hz)))
 
 
-def sine_blueprint(*, records: bool, units: dict, bench_bounds=None) -> rrb.Blueprint:
+def sine_blueprint(*, records: bool, units: dict, bench_bounds=None,
+                   bias: str = "settling bias") -> rrb.Blueprint:
     """The layout of a sine replay: bench and status on the left, the signals in the middle
     (only with records; ``units`` channel -> engineering unit), the Bode panels and the
     difference from the exact response on the right; the time panel follows the newest data."""
@@ -92,8 +94,8 @@ def sine_blueprint(*, records: bool, units: dict, bench_bounds=None) -> rrb.Blue
         rrb.Spatial2DView(origin="/analyzer/Theta_2", name=names["Theta_2"],
                           visual_bounds=bounds(BODE_BOUNDS)),
         rrb.Spatial2DView(origin="/analyzer/difference",
-                          name="measured - exact steady state, and the stated settling bias "
-                               "[dB]", visual_bounds=bounds(DIFF_BOUNDS)),
+                          name=f"measured - exact steady state, and the stated {bias} [dB]",
+                          visual_bounds=bounds(DIFF_BOUNDS)),
         row_shares=[3, 3, 1.4])
     left = rrb.Vertical(rrb.Spatial2DView(origin="/bench", name="bench (side view, mm)",
                                               visual_bounds=bench_bounds),
@@ -107,7 +109,7 @@ def sine_blueprint(*, records: bool, units: dict, bench_bounds=None) -> rrb.Blue
             views.append(rrb.TimeSeriesView(
                 origin=SIGNALS, name=f"{c} [{display_unit(units.get(c, ''))[1]}]",
                 overrides={SIGNALS: shown}, plot_legend=rrb.PlotLegend(visible=False),
-                time_ranges=_following(SIGNAL_TAIL_S)))
+                time_ranges=trailing_range(SIGNAL_TAIL_S)))
         cols.append(rrb.Vertical(*views, name="signals (engineering units)"))
         shares.append(0.8)
     cols.append(right)
@@ -156,6 +158,7 @@ class _Replay:
         self.drawing = BenchDrawing.from_scene(self.scene, magnification)
         self.has_spot = self.drawing.psd_gain_vpm is not None
         self.t_end = self.c["t0_s"] + self.c["settle_s"] + self.c["integrate_s"]
+        self.bias_name = "sweep bias" if self.d["mode"] == "swept" else "settling bias"
         self.h = {name: self.c[f"{name}_real"] + 1j * self.c[f"{name}_imag"]
                   for _, name, _ in RESPONSES}
         self.exact = {name: self.c[f"{name}_exact_real"] + 1j * self.c[f"{name}_exact_imag"]
@@ -165,14 +168,16 @@ class _Replay:
 
     # -- static: bench, model, panels -------------------------------------------------------
     def start(self) -> None:
-        from processing.sampled_bench import resolved_fields
+        from rig.bench import sampled_response
 
         st = self.d["settings"]
         fmin, fmax = float(st["fmin_hz"]), float(st["fmax_hz"])
-        self.model_f, fields = resolved_fields(self.scene, fmin, fmax)
-        self.model = {"H_t": fields["h_t"], "Theta_2": fields["theta_2"]}
-        measured_db = {k: _db(self.h[name]) for k, name, _ in RESPONSES}
-        self.panels = _analyzer_panels(self.model_f, {k: _db(v) for k, v in self.model.items()},
+        self.bench = sampled_response(self.scene)
+        resolved = self.bench.resolved(fmin, fmax)
+        self.model_f = resolved.freqs_hz
+        self.model = {"H_t": resolved.h_t, "Theta_2": resolved.theta_2}
+        measured_db = {k: gain_db(self.h[name]) for k, name, _ in RESPONSES}
+        self.panels = analyzer_panels(self.model_f, {k: gain_db(v) for k, v in self.model.items()},
                                        measured_db,
                                        {k: phase_branch((self.model_f, v))
                                         for k, v in self.model.items()})
@@ -186,8 +191,8 @@ class _Replay:
             lo = gain.hi - step * math.ceil((gain.hi - lo) / step)
             self.panels[key] = (replace(gain, lo=lo, ticks=bc.ticks(lo, gain.hi, step)), phase)
         upd = self.panels["H_t"][0].units_per_decade
-        self.diff_db = {name: _db(self.h[name] / self.exact[name]) for _, name, _ in RESPONSES}
-        self.bias_db = {name: _db(self.biased[name] / self.exact[name])
+        self.diff_db = {name: gain_db(self.h[name] / self.exact[name]) for _, name, _ in RESPONSES}
+        self.bias_db = {name: gain_db(self.biased[name] / self.exact[name])
                         for _, name, _ in RESPONSES}
         sigma = {name: 20 / math.log(10) * self.c[f"{name}_rel_error"]
                  for _, name, _ in RESPONSES}
@@ -199,16 +204,16 @@ class _Replay:
         self.diff = bc.Panel(fmin, fmax, -lim, lim, (-lim, 0.0, lim), "dB", 0.0, 30.0, "", upd)
         units = self.records["units"] if self.records else {}
         s = self.stream
-        s.open(sine_blueprint(records=self.records is not None, units=units,
-                             bench_bounds=_bench_bounds(self.drawing, True)))
+        s.open(sine_blueprint(records=self.records is not None, units=units, bias=self.bias_name,
+                             bench_bounds=bench_bounds(self.drawing, True)))
         self._log_bench()
         self._log_analyzer()
 
     def _log_bench(self) -> None:
         s, d = self.stream, self.drawing
-        _log_bench_static(s, d, moving_stage=True, optics=self.has_spot)
-        _log_chain_style(s, len(d.lengths_mm))
-        lines, strips, marks, centre = _chain_frames(d, np.zeros((1, len(d.lengths_mm))))
+        log_bench_static(s, d, moving_stage=True, optics=self.has_spot)
+        log_chain_style(s, len(d.lengths_mm))
+        lines, strips, marks, centre = chain_frames(d, np.zeros((1, len(d.lengths_mm))))
         s.queue(PENDULUM, "strips", np.zeros(1), lines, strips)
         s.queue(MARKS, "points", np.zeros(1), marks)
         if self.records is not None:
@@ -217,9 +222,6 @@ class _Replay:
             s.static(SIGNALS, rr.SeriesLines(
                 names=[f"{c} [{display_unit(u.get(c, ''))[1]}]" for c in ("a", "x", "y")],
                 colors=colors, widths=[1.0] * 3))
-            from processing.sampled_bench import SampledBench
-
-            self.bench = SampledBench(self.scene)
         s.send_queued()
 
     def _log_analyzer(self) -> None:
@@ -227,19 +229,19 @@ class _Replay:
         for key, _, _ in RESPONSES:
             gain, phase = self.panels[key]
             base = f"/analyzer/{key}"
-            _log_panel_static(s, base, (gain, phase))
+            log_panel_static(s, base, (gain, phase))
             s.static(f"{base}/model", rr.LineStrips2D(
-                _bode_strips(gain, phase, self.model_f, self.model[key]), colors=MODEL,
+                bode_strips(gain, phase, self.model_f, self.model[key]), colors=MODEL,
                 radii=0.35, draw_order=10.0))
             pos, colors, texts = legend_row([("exact model", MODEL),
-                                             ("stepped sine", MEASURED),
+                                             (f"{self.d['mode']} sine", MEASURED),
                                              ("latest point", LATEST)])
             s.static(f"{base}/legend", rr.Points2D(pos, radii=1.6, colors=colors, labels=texts,
                                                    show_labels=True))
-        _log_panel_static(s, "/analyzer/difference", (self.diff,))
+        log_panel_static(s, "/analyzer/difference", (self.diff,))
         pos, colors, texts = legend_row([("H_t", CHANNEL_COLORS["x"]),
                                          ("Theta_2", CHANNEL_COLORS["y"]),
-                                         ("stated settling bias", BIAS)])
+                                         (f"stated {self.bias_name}", BIAS)])
         s.static("/analyzer/difference/legend", rr.Points2D(pos, radii=1.6, colors=colors,
                                                             labels=texts, show_labels=True))
         # zero line of the difference panel
@@ -256,7 +258,7 @@ class _Replay:
         for key, name, c in RESPONSES:
             gain, phase = self.panels[key]
             f, h = self.f[: k + 1], self.h[name][: k + 1]
-            g_db = _db(h)
+            g_db = gain_db(h)
             p_deg = np.degrees(np.angle(h))
             shown = wrap_to(p_deg, phase.lo)
             extra = {"frequency_hz": f, "settling_bias_db": self.bias_db[name][: k + 1],
@@ -290,7 +292,8 @@ class _Replay:
         volts = {c: rec["volts"][c][k] for c in ("a", "x", "y")}
         nw = volts["a"].size
         g0 = int(m - nw)
-        t = self.c["t0_s"][k] + (g0 + np.arange(nw)) / self.rate
+        # the record ends with the point's window (stepped: settle + window; swept: the window)
+        t = self.t_end[k] - (m - g0 - np.arange(nw)) / self.rate
         eng = {c: volts[c] / rec["volts_per_unit"][c] for c in volts}
         values = np.stack([eng[c] * display_unit(rec["units"].get(c, ""))[0]
                            for c in ("a", "x", "y")], axis=1)
@@ -302,19 +305,19 @@ class _Replay:
         if idx.size:
             tf = t[idx]
             fields = self.bench(np.array([f]))
-            a_eng = fields["a"][0] / self.bench.cal["a"]
+            a_eng = fields.a[0] / self.bench.volts_per_unit["a"]
             p = _phasor(eng["a"], t - t[0], f)
             rot = np.exp(2j * math.pi * f * (tf - t[0]))
-            theta = np.real(np.outer(rot * p / a_eng, fields["theta"][0]))
-            stage = np.real(rot * p * fields["stage_accel"][0] / a_eng) / -(2 * math.pi * f) ** 2
+            theta = np.real(np.outer(rot * p / a_eng, fields.theta[0]))
+            stage = np.real(rot * p * fields.stage_accel[0] / a_eng) / -(2 * math.pi * f) ** 2
             tr = np.zeros((idx.size, 3))
             tr[:, 0] = d.stage_magnification * MM * stage
             s.queue("/bench/stage", "translation", tf, tr)
-            lines, strips, marks, centre = _chain_frames(d, theta)
+            lines, strips, marks, centre = chain_frames(d, theta)
             s.queue(MARKS, "points", tf, marks)
             if self.has_spot:
                 spot = d.spot_mm(volts["x"][idx], volts["y"][idx])
-                lay = _bench_layout(d)
+                lay = bench_layout(d)
                 laser, psd = np.array(lay["laser"]), np.array(lay["psd"])
                 hit = psd + np.stack([np.zeros(idx.size), spot[:, 1] * d.magnification], -1)
                 beam = np.stack([np.broadcast_to(laser, centre.shape), centre, hit], axis=1)
@@ -333,15 +336,15 @@ class _Replay:
                  f"{self.t_end[k] / 3600:.3g} h  ",
                  "",
                  "| dB, deg | H_t | Theta_2 |", "|---|---|---|"]
-        cells = {"measured": [], "- exact": [], "settling bias": [],
+        cells = {"measured": [], "- exact": [], self.bias_name: [],
                  "random error (1 sigma)": []}
         for key, name, _ in RESPONSES:
             h, ex, bi = self.h[name][k], self.exact[name][k], self.biased[name][k]
             e = float(c[f"{name}_rel_error"][k])
             dd, bb = h / ex, bi / ex
-            cells["measured"].append(f"{_db(h):.3f}, {math.degrees(np.angle(h)):.2f}")
-            cells["- exact"].append(f"{_db(dd):+.4f}, {math.degrees(np.angle(dd)):+.3f}")
-            cells["settling bias"].append(f"{_db(bb):+.4f}, {math.degrees(np.angle(bb)):+.3f}")
+            cells["measured"].append(f"{gain_db(h):.3f}, {math.degrees(np.angle(h)):.2f}")
+            cells["- exact"].append(f"{gain_db(dd):+.4f}, {math.degrees(np.angle(dd)):+.3f}")
+            cells[self.bias_name].append(f"{gain_db(bb):+.4f}, {math.degrees(np.angle(bb)):+.3f}")
             cells["random error (1 sigma)"].append(f"{20 / math.log(10) * e:.4f}, "
                                                    f"{math.degrees(e):.3f}")
         lines += [f"| {row} | {' | '.join(v)} |" for row, v in cells.items()]
@@ -386,4 +389,5 @@ def replay_sine(path, stream: ViewerStream, *, magnification: float = MAGNIFICAT
             status = r.stop()
         finally:
             out = stream.close()
-    return SineReplay(points=r.n, status=status, records_kept=r.records is not None, path=out)
+    return SineReplay(points=r.n, status=status, records_kept=r.records is not None, path=out,
+                      mode=r.d["mode"])

@@ -12,12 +12,13 @@ from daq.sinks import Sink
 from processing.bench_geometry import (MAGNIFICATION, MM, BenchDrawing, StagePosition,
                                        frame_indices, frame_step)
 from processing.errors import ProcessingError, SettingsError
+from processing.line_steps import line_steps
 from processing.live_view.blueprint import acquisition_blueprint
 from processing.live_view.drawing import (CHANNEL_COLORS, EXPECTED, MARKS, MEASURED, MODEL,
-                                          PENDULUM, SIGNALS, VOLTS, _analyzer_panels, display_unit, legend_row,
-                                          _bench_layout, _bode_strips, _chain_frames, _db,
-                                          _log_bench_static, _log_chain_style,
-                                          _log_panel_static)
+                                          PENDULUM, SIGNALS, VOLTS, analyzer_panels, bench_layout,
+                                          bode_strips, chain_frames, display_unit, gain_db,
+                                          legend_row, log_bench_static, log_chain_style,
+                                          log_panel_static)
 from processing.live_view.stream import ViewerStream
 from processing.running_average import RunningAverage
 
@@ -84,8 +85,8 @@ class LiveView(Sink):
         s.static(VOLTS, rr.SeriesLines(
             names=[f"{ch.name} [V] (ADC +-{ch.range_v:g} V)" for ch in chans], colors=colors,
             widths=[1.0] * len(chans)))
-        _log_bench_static(s, self.drawing, moving_stage=True, optics=self.has_spot)
-        _log_chain_style(s, len(self.drawing.lengths_mm))
+        log_bench_static(s, self.drawing, moving_stage=True, optics=self.has_spot)
+        log_chain_style(s, len(self.drawing.lengths_mm))
         if self.has_spot:
             h = self.drawing.psd_half_mm
             s.static("/psd/detector", rr.Boxes2D(half_sizes=[(h, h)], centers=[(0, 0)],
@@ -121,27 +122,28 @@ class LiveView(Sink):
             self.expected = {"H_t": e.h_t[idx], "Theta_2": e.theta_2[idx]}
         except ProcessingError:  # no E[H1] for this source (e.g. a sine): the model alone
             pass
-        self.panels = _analyzer_panels(f, {k: _db(v) for k, v in self.model.items()},
-                                       {k: _db(v) for k, v in self.expected.items()},
-                                       {k: phase_branch((self.model_f, v))
-                                        for k, v in self.model.items()})
+        self.panels = analyzer_panels(f, {k: gain_db(v) for k, v in self.model.items()},
+                                      {k: gain_db(v) for k, v in self.expected.items()},
+                                      {k: phase_branch((self.model_f, v))
+                                       for k, v in self.model.items()})
 
     def _log_analyzer_static(self) -> None:
         s, f = self.stream, self.average.freqs_hz
         for key in ("H_t", "Theta_2"):
             gain, phase = self.panels[key]
             base = f"/analyzer/{key}"
-            _log_panel_static(s, base, (gain, phase))
+            log_panel_static(s, base, (gain, phase))
             # three curves that agree where the run does: drawn as nested bands, the measured
             # widest (bottom), E[H1] inside it, the model a thin line on top
-            s.static(f"{base}/model", rr.LineStrips2D(_bode_strips(gain, phase, self.model_f,
-                                                                   self.model[key]),
+            s.static(f"{base}/model", rr.LineStrips2D(bode_strips(gain, phase, self.model_f,
+                                                                  self.model[key]),
                                                       colors=MODEL, radii=0.35,
                                                       draw_order=30.0))
             legend = [("model (exact)", MODEL), ("measured (average)", MEASURED)]
             if key in self.expected:
-                s.static(f"{base}/expected", rr.LineStrips2D(
-                    _bode_strips(gain, phase, f, self.expected[key]), colors=EXPECTED,
+                s.static(f"{base}/expected", rr.LineStrips2D(  # per line, over its bin
+                    bode_strips(gain, phase, *line_steps(f, self.expected[key])),
+                    colors=EXPECTED,
                     radii=0.8, draw_order=20.0))
                 legend.insert(1, ("E[H1] (expected)", EXPECTED))
             pos, colors, texts = legend_row(legend)
@@ -154,7 +156,7 @@ class LiveView(Sink):
             s.static(f"/analyzer/coherence/{c}", rr.LineStrips2D.from_fields(
                 colors=CHANNEL_COLORS[c], radii=0.6))
         (coh,) = self.panels["coherence"]
-        _log_panel_static(s, "/analyzer/coherence", (coh,))
+        log_panel_static(s, "/analyzer/coherence", (coh,))
         pos, colors, texts = legend_row([("x (H_t)", CHANNEL_COLORS["x"]),
                                          ("y (Theta_2)", CHANNEL_COLORS["y"])])
         s.static("/analyzer/coherence/legend", rr.Points2D(pos, radii=1.6, colors=colors,
@@ -201,13 +203,13 @@ class LiveView(Sink):
         lines = None
         if self.has_angles and idx.size:
             theta = np.asarray(block.truth["theta_rad"][i:j])[idx]
-            lines, strips, marks, centre = _chain_frames(d, theta.reshape(idx.size, -1))
+            lines, strips, marks, centre = chain_frames(d, theta.reshape(idx.size, -1))
             s.queue(MARKS, "points", tf, marks)
         if self.has_spot and idx.size:
             spot = d.spot_mm(volts["x"][idx], volts["y"][idx])
             s.queue("/psd/spot", "points", tf, spot[:, None, :])
             if lines is not None:
-                lay = _bench_layout(d)
+                lay = bench_layout(d)
                 laser, psd = np.array(lay["laser"]), np.array(lay["psd"])
                 # the reflected beam's end on the PSD icon moves with the spot (magnified)
                 hit = psd + np.stack([np.zeros(idx.size), spot[:, 1] * d.magnification], -1)
@@ -256,7 +258,7 @@ class LiveView(Sink):
             s, f = self.stream, est.freqs_hz
             for key, h in (("H_t", est.h_t), ("Theta_2", est.theta_2)):
                 gain, phase = self.panels[key]
-                s.strips_at(t_end, f"/analyzer/{key}/measured", _bode_strips(gain, phase, f, h))
+                s.strips_at(t_end, f"/analyzer/{key}/measured", bode_strips(gain, phase, f, h))
             (coh,) = self.panels["coherence"]
             for c, g2 in (("x", est.coherence_x), ("y", est.coherence_y)):
                 s.strips_at(t_end, f"/analyzer/coherence/{c}", coh.curve(f, g2))

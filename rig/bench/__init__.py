@@ -44,11 +44,11 @@ from rig.bench.selection import (FIRST_ORDER_LIMIT, PREDICTOR_BATCHES, PREDICTOR
                                  SPREAD_CALIBRATION, predict_linearisation_error, select_model)
 from rig.bench.model import (COUPLED_METHODS, DEFAULT_METHOD, MODELS, NONLINEAR_METHODS,
                              PRESCRIBED_STAGE_METHODS, BenchModel, build_model, linear_scene)
-from rig.bench.run import (STREAMS, BenchState, _spawn, advance, stage_fine_kernel, start)
+from rig.bench.run import (STREAMS, BenchState, advance, stage_fine_kernel, start)
 from rig.bench.response import (BenchResponse, calibrations, expected_response,
                                 signal_to_noise, stationary_levels)
 from rig.bench.sampled import SampledResponse, sampled_response
-from rig.bench.estimates import _kernel_theta, linear_method, model_info, model_seed
+from rig.bench.estimates import linear_method, model_info, model_seed
 from rig.bench.fused import fused_model_info
 from rig.model_info import ModelInfo
 from rig.bench.simulation import BenchSimulation

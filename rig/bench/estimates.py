@@ -33,7 +33,7 @@ from rig.scene import Scene
 from rig.devices.source import generate, start_source
 from rig.model_info import ModelInfo
 from rig.bench.model import BenchModel, build_model, linear_scene
-from rig.bench.run import _spawn, advance, stage_fine_kernel, start
+from rig.bench.run import spawn_streams, advance, stage_fine_kernel, start
 from rig.bench.selection import select_model
 
 
@@ -41,9 +41,9 @@ def model_info(scene: Scene, *, seed=0, probe_s: float = 20.0, method: str | Non
                oversample: int = 8, substeps: int = 1, every: int | None = None) -> ModelInfo:
     """Which model runs, why, how, and its error estimate (measured on a ``probe_s`` run of the
     scene's own drive from rest); see :meth:`BenchSimulation.model_info`."""
-    return _model_info(build_model(scene, method=method, oversample=oversample,
-                                   substeps=substeps, every=every), probe_s=probe_s,
-                       seed=seed)
+    return model_info_of(build_model(scene, method=method, oversample=oversample,
+                                     substeps=substeps, every=every), probe_s=probe_s,
+                         seed=seed)
 
 
 def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
@@ -52,7 +52,7 @@ def _probe_theta(model: BenchModel, n: int, seed) -> np.ndarray:
     return blk.truth["theta_rad"]
 
 
-def _kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarray:
+def kernel_theta(model: BenchModel, v: np.ndarray, z0: np.ndarray) -> np.ndarray:
     """Angles at the DAC instants of the linear, lawson4 or etdab kernel alone (no sensors)."""
     z_out, _, _ = model.solver.advance_bench(model, z0.copy(), None, v)
     return z_out[:, model.slices["theta_rad"]]
@@ -63,12 +63,12 @@ def _richardson_estimate(scene, model: BenchModel, v: np.ndarray, z0: np.ndarray
     of its solver's :meth:`~rig.solvers.bench_base.BenchSolver.refined` (Richardson: the same
     method with twice the steps per DAC sample, ``|theta - theta_fine| 2^p / (2^p - 1)`` [rad],
     p its order), and the nonlinear-minus-linear model difference on the probe."""
-    theta = _kernel_theta(model, v, z0)
+    theta = kernel_theta(model, v, z0)
     ref = model.solver.refined()
     fine = build_model(scene, method=ref.solver.name, substeps=ref.solver.substeps,
                        every=model.every, selection=model.selection)
-    diff = (theta - _kernel_theta(fine, v, z0)) * ref.scale
-    lin = _kernel_theta(build_model(linear_scene(scene)), v, z0)
+    diff = (theta - kernel_theta(fine, v, z0)) * ref.scale
+    lin = kernel_theta(build_model(linear_scene(scene)), v, z0)
     return {
         "max_abs_theta_rad": float(np.max(np.abs(diff))),
         "relative_rms_theta": _rel_rms(diff, theta),
@@ -124,14 +124,14 @@ class _Estimate:
     remainder_every_steps: int | None = None
 
 
-def _model_info(model: BenchModel, *, probe_s: float, seed, probe_v=None) -> ModelInfo:
+def model_info_of(model: BenchModel, *, probe_s: float, seed, probe_v=None) -> ModelInfo:
     scene = model.scene
     fs = model.fs_hz
     n = max(1, int(round(probe_s * fs)))
     tic = time.perf_counter()
     sel = model.selection if model.selection is not None else select_model(scene)
     budget = sel["error_budget"]
-    root, children = _spawn(seed)
+    root, children = spawn_streams(seed)
     if probe_v is not None and probe_v.shape == (n,):  # the run's own first samples, made ahead
         v = probe_v
     else:
@@ -181,8 +181,8 @@ def _linear_estimate(model: BenchModel, v: np.ndarray, z0: np.ndarray, pred: dic
                      probe_s: float) -> _Estimate:
     """The linear model: the predicted linearisation error plus the discretisation's (one
     exact step against two exact half steps per DAC sample: round-off only)."""
-    theta = _kernel_theta(model, v, z0)
-    theta2 = _kernel_theta(_half_step_model(model), v, z0)
+    theta = kernel_theta(model, v, z0)
+    theta2 = kernel_theta(_half_step_model(model), v, z0)
     e_disc = float(np.max(np.abs(theta - theta2)))
     rel_disc = _rel_rms(theta - theta2, theta)
     e_lin = pred["max"]
@@ -299,7 +299,7 @@ def _prescribed_stage_estimate(model: BenchModel, v: np.ndarray, n: int, seed,
 
 def model_seed(model: BenchModel, seed) -> object:
     """The seed as recorded: the root SeedSequence's entropy (an int, or a list of ints)."""
-    root, _ = _spawn(seed)
+    root, _ = spawn_streams(seed)
     return root.entropy
 
 

@@ -122,7 +122,7 @@ class _LiftedParams(NamedTuple):
     body: int
 
 
-class _MirrorLayout(NamedTuple):
+class MirrorLayout(NamedTuple):
     """Where the nonlinear kernel finds the mirror and the accelerometer's state in the
     bench's states: the first angle's column ``th0``, the high-pass state's ``hp_col`` (-1:
     none), the links' ``lengths`` [m], the mirror's ``body`` and its position on it ``s_m``
@@ -434,7 +434,7 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
     :func:`rig.sosfilt.lift_sections` of its ``sos`` (as :func:`advance_decimated` takes it).
 
     The bench state at every DAC sample is :func:`rig.bench.run.bench_states` (what
-    :func:`rig.bench.advance` steps); then one compiled kernel (:func:`_nonlinear_kernel`):
+    :func:`rig.bench.advance` steps); then one compiled kernel (:func:`nonlinear_fused_kernel`):
     per sample the mirror's exact kinematics (:func:`rig.bench.run.mirror_point`), the
     accelerometer (:func:`rig.devices.accelerometer.accelerometer_row`) and the lever
     (:func:`rig.devices.optical_lever.lever_row`) with their noise, clipping and flags, then
@@ -465,9 +465,9 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
     th = sl["theta_rad"]
     acc = model.accelerometer
     scene = model.scene
-    layout = _MirrorLayout(th.start, sl["accel_highpass_q_mps"].start if acc.n_states else -1,
-                           np.asarray(scene.chain.length_m, dtype=float), scene.mirror.body,
-                           float(scene.mirror.position_m))
+    layout = MirrorLayout(th.start, sl["accel_highpass_q_mps"].start if acc.n_states else -1,
+                          np.asarray(scene.chain.length_m, dtype=float), scene.mirror.body,
+                          float(scene.mirror.position_m))
     accel = np.ascontiguousarray(accel, dtype=float)
     generators = sensor_generators(state)
     s_aa = np.array(chain.zi, dtype=float)
@@ -476,9 +476,9 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
     volts = np.empty((3, j))
     sat = np.empty((3, j), dtype=np.bool_)
     mx, mrot = np.empty(j), np.empty(j)
-    _nonlinear_kernel(z_out, accel, layout, acc.row_params(fs), model.lever.row_params(fs),
-                      *generators, sections, s_aa, carry, (volts, sat, mx, mrot), q,
-                      CHUNK_INTERVALS)
+    nonlinear_fused_kernel(z_out, accel, layout, acc.row_params(fs), model.lever.row_params(fs),
+                           *generators, sections, s_aa, carry, (volts, sat, mx, mrot), q,
+                           CHUNK_INTERVALS)
     t0 = state.index / fs
     truth = {"stage_accel_mps2": accel[::q].copy(), "theta_rad": z_out[::q, th].copy(),
              "mirror_x_m": mx, "mirror_rot_rad": mrot, "source_v": v[::q].copy()}
@@ -487,10 +487,10 @@ def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sec
 
 
 @njit(cache=True, nogil=True)
-def _nonlinear_kernel(z_out, accel, layout, acc, lever, rng_a, rng_x, rng_y, sections, s_aa,
-                      carry, out, q, chunk):
+def nonlinear_fused_kernel(z_out, accel, layout, acc, lever, rng_a, rng_x, rng_y, sections, s_aa,
+                           carry, out, q, chunk):
     """Per DAC sample k of the bench states ``z_out`` (n, nz) and ``accel`` (n,) (``layout``:
-    :class:`_MirrorLayout`): the mirror's kinematics (:func:`rig.bench.run.mirror_point`), the
+    :class:`MirrorLayout`): the mirror's kinematics (:func:`rig.bench.run.mirror_point`), the
     accelerometer and the lever, a row of samples at a time
     (:func:`rig.devices.accelerometer.accelerometer_row`,
     :func:`rig.devices.optical_lever.lever_row`; ``acc``, ``lever``: their row parameters),

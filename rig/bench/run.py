@@ -22,12 +22,12 @@ from rig.blocks import AnalogBlock
 from rig.errors import ConfigError, DivergenceError
 from rig.solvers import COUPLED_BENCH, integrate
 from rig.jit import njit
+from rig.readonly import readonly
 from rig.scene import Scene
 from rig.devices.source import SourceState, generate, start_source
 from rig.bench.model import COUPLED_METHODS, BenchModel
 
 STREAMS = ("source", "accelerometer", "psd_x", "psd_y")
-_REL = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,7 +54,7 @@ class BenchState:
     seed_entropy: int | None = None
 
 
-def _spawn(seed) -> tuple[np.random.SeedSequence, list[np.random.SeedSequence]]:
+def spawn_streams(seed) -> tuple[np.random.SeedSequence, list[np.random.SeedSequence]]:
     """The root sequence and one child per stream. A SeedSequence argument is copied first (its
     own ``spawn`` counter is not advanced), so the same seed always gives the same streams."""
     if isinstance(seed, np.random.SeedSequence):
@@ -69,13 +69,13 @@ def source_seed(seed) -> np.random.SeedSequence:
     """The seed of the source's stream in a run of seed ``seed`` (what :func:`start` gives the
     source): a reader of a run file can rebuild what the source drew, e.g. a multisine's
     phases."""
-    return _spawn(seed)[1][STREAMS.index("source")]
+    return spawn_streams(seed)[1][STREAMS.index("source")]
 
 
 def start(model: BenchModel, seed=0) -> BenchState:
     """The state at t = 0: stage at rest, pendulum at the scene's initial state, fresh streams
     spawned from ``seed`` (an int or a SeedSequence)."""
-    root, children = _spawn(seed)
+    root, children = spawn_streams(seed)
     sc = model.scene
     z = np.zeros(model.n_states)
     z[model.slices["theta_rad"]] = sc.theta0_rad
@@ -87,13 +87,8 @@ def start(model: BenchModel, seed=0) -> BenchState:
     if model.model == "nonlinear" and model.method not in COUPLED_METHODS:
         native = model.solver.init(model.chain, np.concatenate([sc.theta0_rad, sc.omega0_rad_s]))
     entropy = root.entropy if isinstance(root.entropy, int) else None
-    return BenchState(index=0, z=_readonly(z), source=src, rng_states=rngs, native=native,
+    return BenchState(index=0, z=readonly(z), source=src, rng_states=rngs, native=native,
                       seed_entropy=entropy)
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
 
 
 def _rng(state: dict) -> np.random.Generator:
@@ -119,9 +114,9 @@ def state_after(state: BenchState, n: int, z: np.ndarray, source: SourceState, g
     order; fresh snapshots) and a nonlinear integrator's ``native`` state (copied) and next
     step."""
     rng_states = {k: g.bit_generator.state for k, g in zip(SENSOR_STREAMS, generators)}
-    return BenchState(index=state.index + n, z=_readonly(z), source=source,
+    return BenchState(index=state.index + n, z=readonly(z), source=source,
                       rng_states=rng_states,
-                      native=None if native is None else _readonly(np.array(native)),
+                      native=None if native is None else readonly(np.array(native)),
                       h_next_s=float(h_next_s), seed_entropy=state.seed_entropy)
 
 
@@ -154,7 +149,7 @@ def stage_fine_kernel(phi, gamma, row, v, m, z, z_out, a_fine):
     a_fine[n * m] = acc
 
 
-def _mirror_kinematics(scene: Scene, theta: np.ndarray, exact: bool):
+def mirror_kinematics(scene: Scene, theta: np.ndarray, exact: bool):
     """Mirror-centre displacement relative to the stage (x along +x, z up) and rotation, each
     (n,), from the angles ``theta`` (n, bodies) [rad]; ``exact``: the chain's geometry
     (:func:`mirror_kinematics_kernel`), else its linearisation ``theta @ mirror_weights``."""
@@ -305,7 +300,7 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     q = z_out[:, sl["accel_highpass_q_mps"]][:, 0] if acc.n_states else None
     rng_a, rng_x, rng_y = sensor_generators(state)
     sensed, a_v, a_over = acc.sense_and_output(accel, q, fs, rng_a)
-    mx, mz, mrot = _mirror_kinematics(model.scene, theta, exact=model.model == "nonlinear")
+    mx, mz, mrot = mirror_kinematics(model.scene, theta, exact=model.model == "nonlinear")
     reading = model.lever.measure(mx, mrot, fs, rng_x, rng_y, mirror_z_m=mz)
 
     truth = {
@@ -328,33 +323,3 @@ def advance(model: BenchModel, state: BenchState, n: int, source_block=None
     block = AnalogBlock(t0_s=t0, fs_hz=fs, volts={"a": a_v, "x": reading.x_v, "y": reading.y_v},
                         truth=truth)
     return block, state_after(state, n, z, src, (rng_a, rng_x, rng_y), native, h_next)
-
-
-def _block_sizes(fs: float, decimation: int, block_s, duration_s) -> list[int]:
-    """Samples per block for :meth:`BenchSimulation.blocks` (one block if ``duration_s`` is
-    None), or :class:`ConfigError` naming the bad value."""
-    r = block_s * fs if isinstance(block_s, (int, float)) and not isinstance(block_s, bool) \
-        else float("nan")
-    n = int(round(r)) if math.isfinite(r) else 0
-    if n < 1 or abs(r - n) > _REL * max(1.0, r) or n % decimation:
-        raise ConfigError(f"block_s = {block_s!r} s is invalid: expected a whole number (>= 1)"
-                          f" of ADC samples at acquisition.rate_hz = {fs / decimation:g} Hz")
-    if duration_s is None:
-        return [n]
-    total = duration_s * fs if isinstance(duration_s, (int, float)) else float("nan")
-    if not (math.isfinite(total) and total >= 1 and abs(total - round(total)) <= _REL * total):
-        raise ConfigError(f"duration_s = {duration_s!r} s is invalid: expected a whole number "
-                          f"(>= 1) of samples at {fs:g} Hz")
-    left = int(round(total))
-    sizes = []
-    while left > 0:
-        sizes.append(min(n, left))
-        left -= sizes[-1]
-    return sizes
-
-
-def _source_blocks(source, state, sizes):
-    """``generate(source, ., k)`` for each k of ``sizes`` in turn, from ``state``."""
-    for k in sizes:
-        v, state = generate(source, state, k)
-        yield v, state

@@ -7,6 +7,7 @@ calibrations and the model information (:func:`rig.bench.estimates.model_info`) 
 
 from __future__ import annotations
 
+import math
 from typing import Iterator
 
 import numpy as np
@@ -16,13 +17,15 @@ from rig.errors import ConfigError
 from rig.threads import Prefetch
 from rig.sosfilt import lift_sections
 from rig.scene import Scene
-from rig.devices.source import start_source
-from rig.bench.estimates import _model_info
+from rig.devices.source import generate, start_source
+from rig.bench.estimates import model_info_of
 from rig.model_info import ModelInfo
 from rig.bench.fused import advance_decimated, advance_decimated_nonlinear, lift, start_decimated
 from rig.bench.model import build_model
 from rig.bench.response import calibrations
-from rig.bench.run import _REL, _block_sizes, _source_blocks, _spawn, advance, start
+from rig.bench.run import spawn_streams, advance, start
+
+_REL = 1e-9
 
 
 class _Replay:
@@ -43,6 +46,36 @@ class _Replay:
     def close(self) -> None:
         self._taken = []
         self._rest.close()
+
+
+def _block_sizes(fs: float, decimation: int, block_s, duration_s) -> list[int]:
+    """Samples per block for :meth:`BenchSimulation.blocks` (one block if ``duration_s`` is
+    None), or :class:`ConfigError` naming the bad value."""
+    r = block_s * fs if isinstance(block_s, (int, float)) and not isinstance(block_s, bool) \
+        else float("nan")
+    n = int(round(r)) if math.isfinite(r) else 0
+    if n < 1 or abs(r - n) > _REL * max(1.0, r) or n % decimation:
+        raise ConfigError(f"block_s = {block_s!r} s is invalid: expected a whole number (>= 1)"
+                          f" of ADC samples at acquisition.rate_hz = {fs / decimation:g} Hz")
+    if duration_s is None:
+        return [n]
+    total = duration_s * fs if isinstance(duration_s, (int, float)) else float("nan")
+    if not (math.isfinite(total) and total >= 1 and abs(total - round(total)) <= _REL * total):
+        raise ConfigError(f"duration_s = {duration_s!r} s is invalid: expected a whole number "
+                          f"(>= 1) of samples at {fs:g} Hz")
+    left = int(round(total))
+    sizes = []
+    while left > 0:
+        sizes.append(min(n, left))
+        left -= sizes[-1]
+    return sizes
+
+
+def _source_blocks(source, state, sizes):
+    """``generate(source, ., k)`` for each k of ``sizes`` in turn, from ``state``."""
+    for k in sizes:
+        v, state = generate(source, state, k)
+        yield v, state
 
 
 class BenchSimulation:
@@ -74,7 +107,7 @@ class BenchSimulation:
     def __init__(self, scene: Scene, seed=0, *, method: str | None = None, oversample: int = 8,
                  substeps: int = 1, every: int | None = None, rtol: float = 1e-10,
                  atol: float = 1e-12, ahead: tuple[float, float] | None = None):
-        root, children = _spawn(seed)
+        root, children = spawn_streams(seed)
         self.seed = root  # seed=None draws OS entropy once; root.entropy is then the record
         self._ahead = None
         if ahead is not None:
@@ -179,9 +212,9 @@ class BenchSimulation:
         """What runs, why, and how accurate it is (computed once, cached).
 
         Fields (:class:`rig.model_info.ModelInfo`): ``model`` ("linear" or "nonlinear": what
-        runs), ``requested_model`` (``acquisition.model``), ``error_budget``, ``reason`` (a sentence: the choice and the
-        numbers behind it), ``budget_met`` (the estimated error of the model that runs is within
-        the budget), ``selection`` (:func:`select_model`, with the predictor's ``how``),
+        runs), ``requested_model`` (``acquisition.model``), ``error_budget``, ``reason`` (a
+        sentence: the choice and the numbers behind it), ``budget_met`` (the estimated error of
+        the model that runs is within the budget), ``selection`` (:func:`select_model`, with the predictor's ``how``),
         ``method`` (how it is integrated; etdab also ``remainder_every_steps``: the steps
         between its remainder's evaluations), ``error_estimate`` (``max_abs_theta_rad`` first,
         ``relative_rms_theta``: the total relative RMS angle error, and its parts),
@@ -192,8 +225,8 @@ class BenchSimulation:
         """
         if self._info is None or self._info.probe_s != probe_s:
             n = max(1, int(round(probe_s * self.model.fs_hz)))
-            self._info = _model_info(self.model, probe_s=probe_s, seed=self.seed,
-                                     probe_v=self._first_samples(n))
+            self._info = model_info_of(self.model, probe_s=probe_s, seed=self.seed,
+                                       probe_v=self._first_samples(n))
         return self._info
 
     def _first_samples(self, n: int):

@@ -350,10 +350,17 @@ class SineBench:
     def run(self, point: SinePoint):
         """Run ``point`` whole (settle and integrate): its :class:`rig.blocks.DecimatedBlock`
         (``point.samples`` output samples) and the source's phase at its first sample."""
-        model = self.model
-        n = point.samples * model.decimation
+        n = point.samples * self.model.decimation
         phase0 = self.source.phase_cycles
-        v, self.source = sine_samples(point, self.source, n, model.fs_hz)
+        v, self.source = sine_samples(point, self.source, n, self.model.fs_hz)
+        return self.run_samples(v), phase0
+
+    def run_samples(self, v: np.ndarray):
+        """Run the DAC samples ``v`` [V] (a whole number of output intervals; any source, the
+        swept one's too, :mod:`rig.devices.swept_sine`): their
+        :class:`rig.blocks.DecimatedBlock`."""
+        model = self.model
+        n = int(v.shape[0])
         src = dataclasses.replace(self.state.source, index=self.state.source.index + n)
         if self._lifted is not None:
             block, self.state, self._chain = advance_decimated(
@@ -361,4 +368,4 @@ class SineBench:
         else:
             block, self.state, self._chain = advance_decimated_nonlinear(
                 model, self.state, self._chain, n, self._sections, (v, src))
-        return block, phase0
+        return block

@@ -19,7 +19,7 @@ from rig.ishizaki import (antiresonances_hz, closed_form, resonances_hz, rotatio
 from rig.scene_toml import toml_value
 
 __all__ = ["design_dict", "design_scene_toml", "paper_comparison", "design_markdown",
-           "design_curves"]
+           "design_curves", "design_grid"]
 
 
 def _finite(x):
@@ -147,6 +147,36 @@ def design_markdown(d: Design, *, figure: str | None = None) -> str:
     if figure:
         out += ["", f"![design]({figure})"]
     return "\n".join(out) + "\n"
+
+
+def design_grid(chains, fmin_hz: float, fmax_hz: float, points: int = 2000) -> np.ndarray:
+    """The frequencies [Hz] at which :func:`design_curves` of 2-body ``chains`` (one or a
+    sequence, drawn on one grid) show every mode, notch and peak of x, theta1, theta2 and the
+    ratio theta2/theta1 within 0.1 dB: ``points`` log-spaced ones plus those
+    :func:`rig.response_grid.resolving_grid` adds, for each chain, around its modes and the
+    zeros of theta1 (x = l theta1's notches, the ratio's peaks) and theta2 (the ratio's
+    notches)."""
+    from rig.design.model import Pendulums
+    from rig.response_grid import resolving_grid
+
+    chains = [chains] if not isinstance(chains, (list, tuple)) else list(chains)
+    grids = []
+    for chain in chains:
+        p = Pendulums.from_chain(chain)
+
+        def response(f, p=p):
+            t1, t2 = p.angles(f)
+            ratio = p.rotation_ratio(f)[0]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                # 1/ratio: its notches (the ratio's peaks) are searched like the others'
+                return np.stack([p.translation(f)[0], t1[0], t2[0], ratio, 1.0 / ratio], axis=-1)
+
+        f_modes, q = chain.modes()
+        notches = np.concatenate([chain.antiresonances_hz(w) for w in np.eye(chain.n)])
+        grids.append(resolving_grid(response, fmin_hz, fmax_hz, points,
+                                    modes=tuple(zip(f_modes, q)),
+                                    notches=tuple(float(f) for f in np.unique(notches))))
+    return np.unique(np.concatenate(grids))
 
 
 def design_curves(chain, freqs_hz) -> dict:

@@ -53,6 +53,7 @@ from rig.devices import multisine as _ms
 from rig.errors import ConfigError
 from rig.jit import njit
 from rig.params import param
+from rig.readonly import readonly
 
 SOURCE_TYPES = ("random", "burst-random", "periodic-chirp", "pink", "sine", "multisine")
 NOISE_TYPES = ("random", "burst-random", "pink")
@@ -235,21 +236,21 @@ class Source:
     @property
     def taps(self) -> np.ndarray:
         """The normalised FIR (``sum taps^2 = 1``), shape (n_taps,), read-only (noise types)."""
-        return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
-                       self.fs_hz)[0]
+        return noise_fir(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                         self.fs_hz)[0]
 
     @property
     def _taps_spectrum(self) -> np.ndarray:
         """rfft of the taps over one frame (the path of one real FFT a frame, made when first
         asked for)."""
-        return _real_spectrum(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+        return noise_fir_rfft(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
                               self.fs_hz)
 
     @property
     def _taps_spectrum_full(self) -> np.ndarray:
         """The complex FFT of the taps over one frame (both halves)."""
-        return _design(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
-                       self.fs_hz)[1]
+        return noise_fir(self.type == "pink", self.fmin_hz, self.fmax_hz, self.shelf_hz,
+                         self.fs_hz)[1]
 
     def design_psd(self, freqs_hz) -> np.ndarray:
         """Design one-sided PSD of the DAC samples [V^2/Hz] for the noise types (random, pink;
@@ -310,7 +311,7 @@ def _amplitude(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
 
 
 @lru_cache(maxsize=8)
-def _design(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: float):
+def noise_fir(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: float):
     """(taps, the complex FFT of the taps over one frame) of the noise-shaping FIR (module
     docstring); cached by its parameters, both read-only."""
     n = 1 << int(math.ceil(math.log2(FILTER_SPAN_S * fs_hz)))
@@ -327,10 +328,10 @@ def _design(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float, fs_hz: 
 
 
 @lru_cache(maxsize=8)
-def _real_spectrum(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
+def noise_fir_rfft(pink: bool, fmin_hz: float, fmax_hz: float, shelf_hz: float,
                    fs_hz: float) -> np.ndarray:
-    """rfft over one frame of :func:`_design`'s taps for these parameters, read-only (cached)."""
-    taps = _design(pink, fmin_hz, fmax_hz, shelf_hz, fs_hz)[0]
+    """rfft over one frame of :func:`noise_fir`'s taps for these parameters, read-only (cached)."""
+    taps = noise_fir(pink, fmin_hz, fmax_hz, shelf_hz, fs_hz)[0]
     spec = np.fft.rfft(taps, n=FRAME_FACTOR * taps.size)
     spec.setflags(write=False)
     return spec
@@ -405,14 +406,8 @@ def start_source(source: Source, seed) -> SourceState:
         history = standard_normals(rng, source.n_taps - 1)  # primes the FIR: stationary from t = 0
     elif source.type == "multisine":  # the key of its phases and grid (rig.devices.multisine)
         history = np.array([rng.integers(0, 2 ** 63 - 1)], dtype=np.int64)
-    return SourceState(index=0, rng_state=_copy_state(rng), history=_readonly(history),
-                       buffer=_readonly(np.empty(0)), offset=0)
-
-
-def _readonly(a):
-    if a is not None:
-        a.setflags(write=False)
-    return a
+    return SourceState(index=0, rng_state=_copy_state(rng), history=readonly(history),
+                       buffer=readonly(np.empty(0)), offset=0)
 
 
 def _noise(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, SourceState]:
@@ -437,7 +432,7 @@ def _noise(source: Source, state: SourceState, n: int) -> tuple[np.ndarray, Sour
             y, history = _frame_pair(history, fresh, source._taps_spectrum_full)
         else:
             y, history = _frame_real(history, fresh, source._taps_spectrum)
-        buffer, history = _readonly(y), _readonly(history)
+        buffer, history = readonly(y), readonly(history)
         offset = 0
     if len(parts) == 1:
         out = parts[0].copy()

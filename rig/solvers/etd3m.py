@@ -110,9 +110,10 @@ class Etd3mCoefficients(NamedTuple):
     bw: np.ndarray
 
 
-def _piece_integral(a: np.ndarray, n: int, t_end: float, s_a: float, s_b: float, poly):
+def piece_integral(a: np.ndarray, n: int, t_end: float, s_a: float, s_b: float, poly):
     """int_{s_a}^{s_b} e^{A(t_end - s)} E p(s) ds for a polynomial p (numpy Polynomial in s),
-    (2n, n): e^{A(t_end - s_b)} sum_k p~_k K_k(s_b - s_a), p~ p in x = (s - s_a)/(s_b - s_a)."""
+    (2n, n): e^{A(t_end - s_b)} sum_k p~_k K_k(s_b - s_a), p~ p in x = (s - s_a)/(s_b - s_a).
+    The weights of the held input's polynomial pieces, here and in :mod:`rig.solvers.etd4m`."""
     length = s_b - s_a
     coef = poly(np.polynomial.Polynomial([s_a, length])).coef
     _, ks = monomial_integrals(a, np.arange(n, 2 * n), length, max(coef.size - 1, 0) + 1)
@@ -147,10 +148,10 @@ def staircase_weights(a: np.ndarray, n: int, h_in: float, m: int, la: int, nodes
             pieces = [(qq, poly([1.0]))]
         for tap, bas in pieces:
             for i in range(k):
-                wt[tap, i] += _piece_integral(a, n, big_h, s_a, s_b, lag[i] * bas)
+                wt[tap, i] += piece_integral(a, n, big_h, s_a, s_b, lag[i] * bas)
                 ci = nodes[i] * big_h
                 if s_a < ci:
-                    wt[tap, 2 * k - 1 - i] += _piece_integral(a, n, ci, s_a, min(s_b, ci), bas)
+                    wt[tap, 2 * k - 1 - i] += piece_integral(a, n, ci, s_a, min(s_b, ci), bas)
     return wt
 
 

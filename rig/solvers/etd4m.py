@@ -55,7 +55,7 @@ from rig.solvers.primitives import NONFINITE, OK, chain_args, sincos6, sincos_pa
 from rig.solvers.remainder import n2_at, nsplit2, nsplit2h, nsplit_n
 from rig.solvers.base import Refinement, multisample_refinement
 from rig.solvers.dop853 import Dop853
-from rig.solvers.etd3m import (MultiSample, _piece_integral, check_hold_and_m,
+from rig.solvers.etd3m import (MultiSample, piece_integral, check_hold_and_m,
                                check_samples_per_step, linear_parts, sawtooth_corrections,
                                staircase_weights)
 
@@ -153,7 +153,7 @@ def etd4m_coefficients(chain: Chain, h_in: float, m: int, hold: str) -> Etd4mCoe
     wt = staircase_weights(a, n, h_in, m, la, c, lag)
     prev = tuple(ci - 1.0 for ci in c)
     lprev = [_lagrange(prev, j, big_h) for j in range(3)]
-    pn = np.array([[_piece_integral(a, n, ci * big_h, 0.0, ci * big_h, lprev[j])
+    pn = np.array([[piece_integral(a, n, ci * big_h, 0.0, ci * big_h, lprev[j])
                     for j in range(3)] for ci in c])
     xp = np.array([[lprev[j](0.5 * ci * big_h) for j in range(3)] for ci in c])
     phic = np.array([expm(a * (ci * big_h)) for ci in c])

@@ -96,3 +96,55 @@ def test_verify_measures_what_was_designed():
     assert abs(v.suppression_db - v.suppression_model_db) <= 5 * v.suppression_std_db
     assert v.band_hz[0] > d.notch_hz and v.band_hz[1] == 20.0
     assert any("source span raised" in n for n in v.notes)
+
+
+def test_design_curves_are_sampled_so_no_peak_or_notch_is_missed_by_a_tenth_of_a_db(tmp_path):
+    """policies.csv (written by the real CLI) against the exact responses of both policies:
+    every extremum the model has (the modes' peaks, the notches of x and theta2, the ratio's
+    peak at theta1's zero) is read off the table within 0.1 dB, and so is every geometric
+    midpoint between its rows by linear interpolation (the drawn line on a log axis). The
+    design figure (--plot) is sampled on the same kind of grid (rig.design.report.design_grid)."""
+    import csv
+    import subprocess
+    import sys
+
+    import numpy as np
+    from scipy.optimize import minimize_scalar
+
+    from rig.design import design as make_design
+    from rig.design import parse_targets
+    from rig.design.report import design_curves
+    from rig.design.tradeoffs import policy_pair
+
+    res = subprocess.run([sys.executable, "-m", "daq.cli", "design", str(PAPER), "--tradeoffs",
+                          str(tmp_path / "t")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    with open(tmp_path / "t" / "policies.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    f = np.array([float(r["frequency_hz"]) for r in rows])
+    d = make_design(parse_targets(PAPER.read_text(), source=str(PAPER)))
+    columns = (("x_db", "x", 1.0), ("theta2_db", "theta2", 1.0), ("suppression_db", "ratio", -1.0))
+    for tag, chain in zip(("i", "ii"), (p.chain() for p in policy_pair(d.inputs))):
+
+        def exact_db(ff, key, sign):
+            with np.errstate(divide="ignore"):
+                return sign * 20 * np.log10(np.abs(design_curves(chain, np.atleast_1d(ff))[key]))
+
+        fm = np.sqrt(f[1:] * f[:-1])
+        features = list(chain.modes()[0]) + [float(z) for w in np.eye(2)
+                                             for z in chain.antiresonances_hz(w)]
+        for col, key, sign in columns:
+            table = np.array([float(r[f"{col}_{tag}"]) for r in rows])
+            dev = np.abs(0.5 * (table[1:] + table[:-1]) - exact_db(fm, key, sign))
+            assert np.nanmax(dev) <= 0.1, (tag, col, f[np.nanargmax(dev)])
+            for f0 in (x for x in features if f[0] < x < f[-1]):
+                for s in (1.0, -1.0):  # the peak and the dip near each feature
+                    lo, hi = f0 * (1 - 2e-2), f0 * (1 + 2e-2)
+                    r = minimize_scalar(lambda x: -s * exact_db(x, key, sign)[0],
+                                        bounds=(lo, hi), method="bounded",
+                                        options={"xatol": 1e-10 * f0})
+                    if not lo * (1 + 1e-6) < r.x < hi * (1 - 1e-6):
+                        continue  # no extremum of that sign inside (the window's edge)
+                    near = (f >= lo) & (f <= hi)
+                    seen = (table[near].max() if s > 0 else table[near].min())
+                    assert abs(seen - (-r.fun * s)) <= 0.1, (tag, col, f0, s)

@@ -50,7 +50,9 @@ def files(tmp_path_factory):
     daq("dataset", "sweep.toml", "--out", "ds", "--workers", "1", cwd=d)
     daq("sine", "ishizaki2009", "--fmin", "1", "--fmax", "2", "--points", "2",
         "--keep-records", "--random-error", "0", "--out", "sine.h5", "-q", cwd=d)
-    out = {k: d / f"{k}.h5" for k in ("run", "spectra", "trajectory", "sine")}
+    daq("sine", "ishizaki2009", "--mode", "swept", "--fmin", "1", "--fmax", "1.2", "--points",
+        "3", "--sweep-tolerance", "0.05", "--keep-records", "--out", "swept.h5", "-q", cwd=d)
+    out = {k: d / f"{k}.h5" for k in ("run", "spectra", "trajectory", "sine", "swept")}
     out["dataset run"] = d / "ds" / "runs" / "run_000000.h5"
     out["dataset manifest"] = d / "ds" / "manifest.h5"
     return out

@@ -403,6 +403,59 @@ def test_simulate_shows_free_motion_to_scale(tmp_path):
     np.testing.assert_allclose(np.hypot(*(joints[:, 2] - joints[:, 1]).T), 1000.0, rtol=1e-6)
 
 
+def blueprint_y_ranges(rrd) -> list[tuple[float, float]]:
+    """The value-axis ranges the .rrd's blueprint sets on its views."""
+    r = RrdReader(str(rrd))
+    out = []
+    for ch in r.stream(store=r.blueprints()[0]).to_chunks():
+        rb = ch.to_record_batch()
+        if "ScalarAxis:range" in rb.schema.names:
+            out += [tuple(v[0]) for v in rb.column("ScalarAxis:range").to_pylist()]
+    return out
+
+
+def test_signal_plots_span_their_data_with_labelled_ticks_on_both_sides_of_zero(run):
+    """Each signal plot (engineering units and volts) runs from -h to h, h from the channel's
+    predicted spread: every sample of the run fits, and the plot's value labels (every power of
+    ten, hidden when they crowd) number 3 to 7 with at least 0.4 of their step to the edges,
+    never a "0" alone (what 5 x 10^k gave at 1280x720)."""
+    from processing.live_view.drawing import HALF_HEIGHT_MANTISSAS, signal_ranges
+
+    out, rrd = run
+    rec = read_run(out)
+    ranges = signal_ranges(rec.header)
+    assert set(ranges) == set(rec.header.names)
+    want = sorted((-h, h) for c in rec.header.names for h in ranges[c])
+    np.testing.assert_allclose(sorted(blueprint_y_ranges(rrd)), want, rtol=1e-12)
+    for c in rec.header.names:
+        shown, volts = ranges[c]
+        assert np.abs(rec.values(c)).max() * DISPLAY[rec.header.channel(c).unit] <= shown
+        assert np.abs(rec.volts(c)).max() <= volts
+        for h in (shown, volts):
+            step = 10.0 ** np.floor(np.log10(h))
+            labels = 2 * np.floor(h / step) + 1
+            assert 3 <= labels <= 7 and h / step - np.floor(h / step) >= 0.4 - 1e-9, (c, h)
+            assert round(h / step, 9) in HALF_HEIGHT_MANTISSAS
+
+
+def test_the_live_views_expected_estimate_is_drawn_per_line_over_its_bin(run):
+    """E[H1] on the analyzer screen: flat over each line's bin, vertical at its edges, never a
+    slope between lines (a value no line reads)."""
+    _, rrd = run
+    for key in ("H_t", "Theta_2"):
+        entity = f"/analyzer/{key}/expected"
+        strips = []
+        for ch in RrdReader(str(rrd)).stream().filter(content=entity,
+                                                      is_static=True).to_chunks():
+            if str(ch.entity_path) == entity:
+                for row in ch.to_record_batch().column("LineStrips2D:strips").to_pylist():
+                    strips += [np.asarray(s, float) for s in row]
+        assert strips and sum(len(s) for s in strips) > 100
+        for s in strips:
+            d = np.diff(s, axis=0)
+            assert np.all((d[:, 0] == 0) | (d[:, 1] == 0)), key
+
+
 def test_screenshot_renders_the_layout_to_a_png(run, tmp_path):
     out, _ = run
     try:
@@ -438,7 +491,7 @@ def test_viewer_going_away_mid_run_warns_once_and_the_run_goes_on(tmp_path):
                               env=dict(os.environ, WGPU_BACKEND="vulkan", RUST_LOG="off"),
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        if not lv._listening("127.0.0.1", port, wait_s=30.0):
+        if not lv.stream._listening("127.0.0.1", port, wait_s=30.0):
             pytest.skip("the headless viewer did not start here")
 
         class KillViewer(Sink):

@@ -34,7 +34,7 @@ from processing.leakage import expected_h1_taps, impulse_expected_h1
 from rig.linear import LinearSystem
 from processing.frf import MeasuredResponse, frequency_response
 from processing.modal import FitError, fit_modes
-from processing.modal_model import InputSpectrum, _InputLeakage, _LagInputLeakage, _WhiteLeakage
+from processing.modal_model import InputSpectrum, InputLeakage, LagInputLeakage, WhiteLeakage
 from processing.rotation import rotation_reading
 from processing.spectra import SpectralSettings, segment_ffts
 from rig.ishizaki import design_parameters, rotation_isolation
@@ -327,11 +327,11 @@ def test_input_aware_model_with_a_flat_input_is_the_white_input_model(window, np
     fq = [(0.8268, 100.0), (2.4794, 529.0)]
     z = np.exp(np.array([2 * np.pi * f * (-0.5 / q + 1j) for f, q in fq]) / FS)
     if window == "uniform":
-        got = _LagInputLeakage(s, lines, flat)(z, jac=True)
+        got = LagInputLeakage(s, lines, flat)(z, jac=True)
     else:
-        fine = _InputLeakage.fine_for(s, max(q / (np.pi * f) for f, q in fq))
-        got = _InputLeakage(s, lines, flat, fine)(z, jac=True)
-    ref = _WhiteLeakage(s, lines)(z, jac=True)
+        fine = InputLeakage.fine_for(s, max(q / (np.pi * f) for f, q in fq))
+        got = InputLeakage(s, lines, flat, fine)(z, jac=True)
+    ref = WhiteLeakage(s, lines)(z, jac=True)
     for i, (a, b) in enumerate(zip(got, ref)):
         assert np.max(np.abs(a - b)) < (1e-8 if i < 2 else 1e-6) * np.max(np.abs(b)), i
 

@@ -120,19 +120,19 @@ def test_each_point_states_its_settling_bias_and_random_error(sine_file, viewed)
 
 
 def test_the_drawn_model_is_the_files_exact_steady_state_at_the_points(sine_file):
-    """The curve is :class:`processing.sampled_bench.SampledBench` on the resolving grid; at
+    """The curve is :func:`rig.bench.sampled_response` on the resolving grid; at
     the points it is the file's exact steady state to round-off (1e-9 relative: the modal
     form's round-off is far below that away from 0 Hz and the notches)."""
     from daq.sine_file import read_sine
-    from processing.sampled_bench import SampledBench
+    from rig.bench import sampled_response
     from rig.scene import scene_from_settings
 
     d = read_sine(sine_file)
     c = d["columns"]
-    model = SampledBench(scene_from_settings(d["scene_settings"]))(c["frequency"])
+    model = sampled_response(scene_from_settings(d["scene_settings"]))(c["frequency"])
     for name in ("h_t", "theta_2"):
         exact = c[f"{name}_exact_real"] + 1j * c[f"{name}_exact_imag"]
-        np.testing.assert_allclose(model[name], exact, rtol=1e-9)
+        np.testing.assert_allclose(getattr(model, name), exact, rtol=1e-9)
 
 
 def test_kept_records_give_the_signals_of_each_point_in_engineering_units(sine_file, viewed):
@@ -153,6 +153,32 @@ def test_kept_records_give_the_signals_of_each_point_in_engineering_units(sine_f
         end = first[k] + samples[k]
         np.testing.assert_allclose(shown, micro_m[end - shown.size:end], rtol=1e-12)
     assert rows(rrd, "/bench/stage/pendulum").num_rows > POINTS  # the bench moves
+
+
+def test_each_points_signals_end_where_its_point_lands_stepped_or_swept(sine_file, viewed,
+                                                                        tmp_path):
+    """The kept record ends with the point's window in both modes (stepped: settle + window;
+    swept: the window alone), so its last sample is drawn one sample before the point lands."""
+    swept = tmp_path / "swept.h5"
+    p = daq("sine", "ishizaki2009", "--mode", "swept", "--fmin", "2", "--fmax", "3", "--points",
+            str(POINTS), "--sweep-s", "400", "--level", "0.1", "--set", "acquisition.model=linear",
+            "--keep-records", "--out", swept, "-q")
+    assert p.returncode == 0, p.stderr
+    for path, (rrd, out) in ((sine_file, viewed), (swept, view_rrd(swept))):
+        mode = "swept" if path == swept else "stepped"
+        assert f"points of the {mode} sine" in out
+        with h5py.File(path, "r") as f:
+            g = f["entry/sweep"]
+            t_end = g["t0_s"][()] + g["settle_s"][()] + g["integrate_s"][()]
+        t = rows(rrd, "/signals")
+        times = t.column("time").cast(pa.int64()).to_numpy() * 1e-9
+        v = np.stack([np.asarray(x) for x in t.column("Scalars:scalars").to_pylist()])
+        gaps = np.flatnonzero(np.isnan(v[:, 0]))  # one after each point's samples
+        assert gaps.size == POINTS
+        last = times[gaps - 1]
+        assert np.all(last < t_end) and np.all(last > t_end - 0.1), (mode, last, t_end)
+        if mode == "swept":
+            assert "sweep bias" in statuses(rrd)[-1]
 
 
 def test_without_records_the_status_says_so_and_no_signals_are_drawn(sine_file, tmp_path):

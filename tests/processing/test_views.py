@@ -189,6 +189,41 @@ def test_a_band_from_zero_hz_plots_every_view_on_its_log_axis(run_file, runner, 
     assert len(list(tmp_path.glob("z-*.png"))) == 3
 
 
+def test_the_expected_estimate_is_drawn_per_line_over_its_bin_not_between_lines(
+        run_file, analysis, tmp_path):
+    """E[H1] exists at the analyzer's lines only: drawn as each line's value held over its bin
+    (flat, then a vertical step at the bin edge), never a slope from line to line that would
+    show values no line reads. Through the real CLI its SVG elements are there by id."""
+    import subprocess
+    import sys
+
+    from processing.line_steps import line_steps
+
+    a = analysis
+    lines = a.freqs_hz
+    for fig, e in zip(bode_figures(a), (a.expected.h_t, a.expected.theta_2)):
+        gain = [ln for ln in fig.axes[0].get_lines() if ln.get_gid() == "expected-estimate-gain"]
+        assert len(gain) == 1
+        f, db = gain[0].get_xdata(), gain[0].get_ydata()
+        f_want, h_want = line_steps(lines, e)
+        keep = (f_want >= a.settings.fmin_hz) & (f_want <= a.settings.fmax_hz)
+        np.testing.assert_array_equal(f, f_want[keep])
+        np.testing.assert_array_equal(db, 20 * np.log10(np.abs(h_want[keep])))
+        # every segment is flat (within a line's bin) or vertical (at a bin edge)
+        flat = np.diff(db) == 0
+        vertical = np.diff(f) == 0
+        assert np.all(flat | vertical) and flat.sum() >= np.sum(
+            (lines > a.settings.fmin_hz) & (lines < a.settings.fmax_hz)) - 1
+        plt.close(fig)
+    svg = tmp_path / "b.svg"
+    res = subprocess.run([sys.executable, "-m", "daq.cli", "analyze", str(run_file), "--plot",
+                          str(svg)], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    text = svg.read_text()
+    assert text.count('id="expected-estimate-gain"') == 2  # H_t and Theta_2
+    assert text.count('id="expected-estimate-phase"') == 2
+
+
 def test_views_draw_the_analysis_model_curves_and_build_no_bench_model(analysis, monkeypatch,
                                                                         tmp_path):
     import rig.bench.model

@@ -148,3 +148,31 @@ def test_unknown_scene_and_malformed_override_are_explained(tmp_path):
     bad.write_text("[pendulum\nkind=1")
     with pytest.raises(ConfigError, match=r"invalid TOML"):
         load_scene(bad)
+
+
+def test_a_resolution_memo_gives_the_scenes_and_errors_of_loads_without_it():
+    """Overrides that compare equal but are not the same value (2, 2.0, true; 0.0, -0.0), in
+    both orders through one memo, and a failing step met twice: each result is that of a load
+    without the memo."""
+    from rig.errors import ConfigError
+    from rig.scene import ResolutionMemo
+
+    sets = [["acquisition.records=2"], ["acquisition.records=2.0"], ["acquisition.records=true"],
+            ["stage.reaction=true"], ["stage.reaction=1"], ["initial.theta0_rad=-0.0"],
+            ["initial.theta0_rad=0.0"], ["pendulum.f2_hz=20.0"], ["pendulum.q2=1e400"],
+            ["initial.theta0_rad[2]=0.1"], ["initial.theta0_rad=[0.0, 0.1]"],
+            ["source.level_vrms=-0.1"], ["source.level_vrms=0.2", "pendulum.q1=300"]]
+
+    def outcome(overrides, memo):
+        try:
+            sc = load_scene("ishizaki2009", overrides, memo=memo)
+        except ConfigError as exc:
+            return str(exc)
+        return repr(sc.settings), sc.chain, sc.source, sc.stage, sc.acquisition, sc.theta0_rad
+
+    memo = ResolutionMemo()
+    for order in (sets, sets[::-1], sets):
+        for o in order:
+            assert outcome(o, memo) == outcome(o, None), o
+    base = load_scene("ishizaki2009", memo=memo)
+    assert base == load_scene("ishizaki2009")

@@ -304,7 +304,7 @@ def test_no_kernel_of_the_fused_chain_takes_more_than_15_arguments():
             func = getattr(obj, "py_func", None)  # a lazy kernel or numba's dispatcher
             if func is not None and func.__module__ == mod.__name__:
                 counts[f"{mod.__name__}.{name}"] = len(inspect.signature(func).parameters)
-    assert {"rig.bench.fused._fused_chunk", "rig.bench.fused._nonlinear_kernel",
+    assert {"rig.bench.fused._fused_chunk", "rig.bench.fused.nonlinear_fused_kernel",
             "rig.sosfilt.lifted_sections_pass",
             "rig.devices.optical_lever.lever_row"} <= set(counts)
     assert {k: v for k, v in counts.items() if v > 15} == {}
