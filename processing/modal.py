@@ -285,7 +285,7 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
     terms = _terms(method, f, domain, fs, settings, lines, input_spectrum,
                    _slowest(input_spectrum, starts, [2.0 if b else 1.0 for b in broadened])
                    if input_spectrum is not None else None)
-    model = _Model(terms, _poly_basis(f, n_residual, fc, fh), m, domain, fs)
+    model = LineModel(terms, poly_basis(f, n_residual, fc, fh), m, domain, fs)
     # A decay over a thousand records is indistinguishable from none: Q is bounded there.
     q_max = max(1e3 * math.pi * hi / df, 10.0 * max(q for _, q in starts))
     model, params, n_iter, converged = _solve(model, h, sigma, np.array(starts, float), lo, hi,
@@ -293,10 +293,10 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
     terms = model.terms
     fitted, cov = _covariance(model, params, h, sigma, lines, corr if correlated else None,
                               cov_factor)
-    r = _real_stack((fitted - h) / sigma)
+    r = real_stack((fitted - h) / sigma)
     chi2 = float(r @ r)
     dof = 2 * f.size - n_par
-    fq, c, a_res = _split(params, m, n_residual)
+    fq, c, a_res = unpack_params(params, m, n_residual)
     input_txt = "white input" if input_spectrum is None else f"input: {input_spectrum.label}"
     modes, notes = _modes(fq, c, cov, domain, fs, df, method, input_txt)
     fit = ModalFit(
@@ -310,7 +310,7 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
         line_correlated=correlated, notes=(), input_spectrum=input_spectrum,
         iterations=n_iter)
     notes.extend(_fit_notes(fit, converged, terms, _slowest(input_spectrum, fq)
-                            if isinstance(terms, _InputLeakage) else None))
+                            if isinstance(terms, InputLeakage) else None))
     object.__setattr__(fit, "notes", tuple(notes))
     return fit
 
@@ -320,14 +320,14 @@ def _terms(method: str, f, domain: str, fs, settings, lines, input_spectrum,
     """The model's terms: the modal model itself (direct), or its expected H1 under a white or
     coloured input (leakage); ``tau_start``: the slowest decay [s] of the starting modes."""
     if method == "direct":
-        return _DirectTerms(f, domain, fs)
+        return DirectTerms(f, domain, fs)
     if input_spectrum is None:
-        return _WhiteLeakage(settings, lines)
-    if _input_terms(settings) is _LagInputLeakage:
-        return _LagInputLeakage(settings, lines, input_spectrum)
+        return WhiteLeakage(settings, lines)
+    if coloured_input_terms(settings) is LagInputLeakage:
+        return LagInputLeakage(settings, lines, input_spectrum)
     # a Q read off a leakage-broadened peak is about half the mode's (module notes)
-    return _InputLeakage(settings, lines, input_spectrum,
-                         _InputLeakage.fine_for(settings, tau_start))
+    return InputLeakage(settings, lines, input_spectrum,
+                         InputLeakage.fine_for(settings, tau_start))
 
 
 def _solve(model, h, sigma, starts, lo: float, hi: float, q_max: float, settings, lines,
@@ -335,14 +335,14 @@ def _solve(model, h, sigma, starts, lo: float, hi: float, q_max: float, settings
     """The variable-projection fit from ``starts``; a coloured-input model whose fitted modes
     decay more slowly than the start said is refitted once on the finer grid they need.
     Returns ``(model, params, iterations, converged)``."""
-    theta, beta, n_iter, converged = _varpro(model, h, sigma, starts, lo, hi - lo, q_max)
+    theta, beta, n_iter, converged = varpro(model, h, sigma, starts, lo, hi - lo, q_max)
     terms = model.terms
-    if isinstance(terms, _InputLeakage):
-        fine = _InputLeakage.fine_for(settings, _slowest(input_spectrum, theta))
+    if isinstance(terms, InputLeakage):
+        fine = InputLeakage.fine_for(settings, _slowest(input_spectrum, theta))
         if fine > terms.fine:
-            terms = _InputLeakage(settings, lines, input_spectrum, fine)
-            model = _Model(terms, model.basis, model.m, model.domain, model.fs)
-            theta, beta, more, converged = _varpro(model, h, sigma, theta, lo, hi - lo, q_max)
+            terms = InputLeakage(settings, lines, input_spectrum, fine)
+            model = LineModel(terms, model.basis, model.m, model.domain, model.fs)
+            theta, beta, more, converged = varpro(model, h, sigma, theta, lo, hi - lo, q_max)
             n_iter += more
     return model, np.concatenate([theta.ravel(), beta]), n_iter, converged
 
@@ -490,7 +490,7 @@ def _fit_notes(fit: ModalFit, converged: bool, terms, tau: float | None) -> list
     notes = []
     if not converged:
         notes.append(f"least squares did not converge in {fit.iterations} iterations")
-    if isinstance(terms, _InputLeakage):
+    if isinstance(terms, InputLeakage):
         bound = terms.alias_bound(tau)
         if bound > 10 * KERNEL_TOL:
             notes.append(f"the coloured-input model's fine grid ({terms.fine} points per line, "
