@@ -88,8 +88,8 @@ def main(argv=None):
         for n in names:
             w, c, s = one_run(n, out, args.set)
             info = s.model_info
-            est = info.get("error_estimate", {}).get("relative_rms_theta")
-            print(f"warm-up {n}: model {info['model']}, method {info['method'][:60]}..., "
+            est = (info.error_estimate or {}).get("relative_rms_theta")
+            print(f"warm-up {n}: model {info.model}, method {info.method[:60]}..., "
                   f"error estimate {est:.2g}; wall {w:.2f} s, CPU {c:.2f} s", flush=True)
         walls, cpus = interleaved(names, args.rounds, lambda n: one_run(n, out, args.set))
     print(f"\n{args.rounds} rounds, interleaved; medians [quartiles]")

@@ -47,6 +47,7 @@ from rig.threads import prefetch, single_threaded_blas
 from rig.acquisition_settings import AcquisitionSettings
 from rig.blocks import DecimatedBlock
 from rig.errors import ConfigError
+from rig.model_info import ModelInfo
 from rig.scene import Scene
 
 #: re-exported here: the bench interface and the error of a broken block stream
@@ -129,7 +130,7 @@ class AcquisitionSummary:
     rate_hz: float
     channels: tuple
     clip_counts: np.ndarray
-    model_info: dict
+    model_info: ModelInfo
     seed: int
     wall_s: float
     path: Path | None = None

@@ -28,6 +28,7 @@ import numpy as np
 from daq.antialias import AntiAliasFilter
 from daq.records import RecordPlan
 from rig import bench as rb
+from rig.model_info import ModelInfo
 from rig.validation import positive
 from rig.blocks import AnalogBlock, Calibration, DecimatedBlock
 from rig.errors import ConfigError, RigError
@@ -46,7 +47,8 @@ class Bench(Protocol):
     ``expected_response(freqs_hz)`` gives exact complex responses (name -> (nf,) array): those
     named like a channel are the analog chain up to that channel's ADC input (the anti-alias
     filter is applied by the acquisition); ``units`` and ``long_names`` (optional dicts) say what
-    they are. ``model_info()`` says what was simulated (model, method, error estimate...) and,
+    they are. ``model_info()`` says what was simulated (a :class:`rig.model_info.ModelInfo`: model,
+    method, error estimate...) and,
     for the rig, why (``reason``, ``selection``: the model chosen for the scene's error budget).
 
     Optional members (the acquisition reads them with these defaults when a bench lacks them):
@@ -73,7 +75,7 @@ class Bench(Protocol):
 
     def expected_response(self, freqs_hz: np.ndarray) -> dict: ...
 
-    def model_info(self) -> dict: ...
+    def model_info(self) -> ModelInfo: ...
 
 
 @runtime_checkable
@@ -124,7 +126,7 @@ class Decimator:
     def expected_response(self, freqs_hz) -> dict:
         return self.bench.expected_response(freqs_hz)
 
-    def model_info(self) -> dict:
+    def model_info(self) -> ModelInfo:
         return self.bench.model_info()
 
     def decimated_blocks(self, aa: AntiAliasFilter) -> Iterator[DecimatedBlock]:
@@ -196,17 +198,18 @@ class FunctionBench:
     seed : seeds ``rng``.
     block_samples : samples per block.
     response : optional ``response(freqs_hz) -> dict`` of exact responses (see :class:`Bench`).
-    info : model description returned by :meth:`model_info`.
+    info : model description returned by :meth:`model_info` (a dict of its keys is made a
+        :class:`rig.model_info.ModelInfo`).
     """
 
     def __init__(self, fs_hz: float, signals: Callable, calibrations: dict[str, Calibration], *,
                  seed: int = 0, block_samples: int = 1000, response: Callable | None = None,
-                 info: dict | None = None, units: dict | None = None):
+                 info: ModelInfo | dict | None = None, units: dict | None = None):
         self.fs_hz = float(fs_hz)
         self._signals, self._cal, self._seed = signals, dict(calibrations), seed
         self._block, self._response = int(block_samples), response
-        self._info = dict(info or {"model": "function", "method": "exact",
-                                   "error_estimate": 0.0})
+        self._info = (info if isinstance(info, ModelInfo) else ModelInfo.from_dict(
+            info or {"model": "function", "method": "exact", "error_estimate": 0.0}))
         self.units = dict(units or {})
 
     def blocks(self) -> Iterator[AnalogBlock]:
@@ -224,8 +227,8 @@ class FunctionBench:
     def expected_response(self, freqs_hz) -> dict:
         return {} if self._response is None else self._response(np.asarray(freqs_hz, float))
 
-    def model_info(self) -> dict:
-        return dict(self._info)
+    def model_info(self) -> ModelInfo:
+        return self._info
 
 
 
@@ -293,8 +296,8 @@ class _RigBench:
         out["theta_2_pendulum_continuous"] = cont.theta_2_pendulum
         return out
 
-    def model_info(self) -> dict:
-        return dict(self._sim.model_info())
+    def model_info(self) -> ModelInfo:
+        return self._sim.model_info()
 
 
 class _FusedRigBench(_RigBench):
@@ -311,10 +314,8 @@ class _FusedRigBench(_RigBench):
         sos = np.zeros((0, 6)) if aa.kind == "none" else aa.sos
         return self._sim.decimated_blocks(self._block_s, self._duration_s, sos)
 
-    def model_info(self) -> dict:
-        info = super().model_info()
-        info.update(rb.fused_model_info(self._sim.model))
-        return info
+    def model_info(self) -> ModelInfo:
+        return rb.fused_model_info(self._sim.model, super().model_info())
 
 
 def _as_dict(obj) -> dict:

@@ -48,6 +48,7 @@ from daq.repair import open_hdf5, write_flags, writer_alive
 from daq.sinks import Sink
 from rig.output_files import check_writable, not_a_file, umask_mode
 from rig.errors import ConfigError
+from rig.model_info import ModelInfo
 
 try:
     import fcntl
@@ -56,9 +57,11 @@ except ImportError:  # pragma: no cover - not POSIX
 
 FORMAT = "pendulum-daq run"
 #: 1.1: HDF5 1.10 format bounds, fletcher32 on every chunked dataset, the anti-alias sections
-#: as the dataset entry/instrument/antialias/sos (1.0: an attribute). Both are read.
-FORMAT_VERSION = "1.1"
-READABLE_FORMAT_VERSIONS = ("1.0", "1.1")
+#: as the dataset entry/instrument/antialias/sos (1.0: an attribute). 1.2: the model info's
+#: text names the current modules (rig.solvers, rig.solvers.coupled, rig.bench.fused,
+#: rig.describe); the layout is 1.1's. All three are read.
+FORMAT_VERSION = "1.2"
+READABLE_FORMAT_VERSIONS = ("1.0", "1.1", "1.2")
 RUN_SUFFIXES = (".h5", ".hdf5", ".nxs")
 #: HDF5 format bounds of every file the project writes: the oldest that has SWMR (superblock
 #: v3, HDF5 1.10), so HDF5 1.10 and 1.14 read the files too ("latest" under HDF5 2.0 writes a
@@ -413,7 +416,7 @@ class Hdf5Sink(Sink):
                     extra=[extra[d] for d in t.dims], units=t.unit, long_name=t.long_name)
 
         # model response
-        info = _without_timings(h.model_info)
+        info = _without_timings(h.model_info.to_dict())
         m = _group(f, layout.MODEL, "NXcollection",
                    model_info_json=json.dumps(info, default=_json_default),
                    **_flat_scalars(info))
@@ -658,7 +661,8 @@ def read_run(path: str | Path, records=None) -> Recording:
                         [len("real part of "):] for k in values})
         header = Header(scene=scene, seed=int(e.attrs["seed"]), plan=plan, channels=channels,
                         antialias=aa, truth=tuple(truth_fields),
-                        model_info=json.loads(attr_text(m.attrs["model_info_json"])),
+                        model_info=ModelInfo.from_dict(
+                            json.loads(attr_text(m.attrs["model_info_json"]))),
                         response=response, software_version=attr_text(e.attrs["software_version"]),
                         start_time=attr_text(e.attrs["start_time"]))
         codes = {c: data[c][rows] for c in names}

@@ -36,6 +36,7 @@ import numpy as np
 from daq.antialias import AntiAliasFilter
 from daq.channels import Channel
 from rig.acquisition_settings import AcquisitionSettings, whole_samples
+from rig.model_info import ModelInfo
 from rig.scene import Scene
 
 STATUSES = ("acquiring", "complete", "interrupted", "failed")
@@ -176,7 +177,7 @@ class Header:
     channels: tuple
     antialias: AntiAliasFilter
     truth: tuple
-    model_info: dict
+    model_info: ModelInfo
     response: ModelResponse
     software_version: str
     start_time: str

@@ -482,6 +482,20 @@ def compare(measured: MeasuredResponse, model, *, expected=None,
     f = meas.freqs_hz
     df = float(np.median(np.diff(f_all))) if f_all.size > 1 else math.nan
     res = [(float(fr), float(q)) for fr, q in resonances]
+    masks = _band_masks(f, df, res, antiresonances_hz, near_lines, near_bandwidths)
+    cmp = Comparison(meas, readonly(mod), None if exp_ is None else readonly(exp_), float(k),
+                     (), (), masks, df, settings)
+    bands = tuple(_stats(name, m, cmp) for name, m in masks.items())
+    peaks = [p for fr, q in res
+             if (p := _peak_bias(fr, q, cmp, model_fn)) is not None]
+    return Comparison(meas, cmp.model, cmp.expected, float(k), bands, tuple(peaks),
+                      MappingProxyType(masks), df, settings)
+
+
+def _band_masks(f, df: float, res, antiresonances_hz, near_lines: float,
+                near_bandwidths: float) -> dict:
+    """The compared bands as read-only masks over the lines ``f``: "away" first, then "near"
+    each resonance and "notch" at each anti-resonance (see :func:`compare`)."""
     masks = {}
     for fr, q in res:
         half = max(near_lines * df, near_bandwidths * fr / q)
@@ -494,43 +508,44 @@ def compare(measured: MeasuredResponse, model, *, expected=None,
     masks = {"away": away, **masks}
     for m in masks.values():
         m.setflags(write=False)
-    cmp = Comparison(meas, readonly(mod), None if exp_ is None else readonly(exp_), float(k),
-                     (), (), masks, df, settings)
-    bands = tuple(_stats(name, m, cmp) for name, m in masks.items())
+    return masks
+
+
+def _peak_bias(fr: float, q: float, cmp: Comparison, model_fn) -> PeakBias | None:
+    """The :class:`PeakBias` at the line nearest the resonance ``(fr, q)``, or None if it lies
+    outside the compared lines; the true peak from ``model_fn`` on a fine grid if given."""
+    meas, mod, exp_, df = cmp.measured, cmp.model, cmp.expected, cmp.resolution_hz
+    f = meas.freqs_hz
     eps = meas.relative_error
     sig_abs = cmp.sigma_abs
-    peaks = []
-    for fr, q in res:
-        j = int(np.argmin(np.abs(f - fr)))
-        if abs(f[j] - fr) > df:
-            continue  # the resonance lies outside the compared lines
-        win = slice(max(j - 2, 0), j + 3)
-        if model_fn is not None:
-            fine = np.linspace(fr - 3 * fr / q, fr + 3 * fr / q, 2001)
-            true_peak = _db(np.max(np.abs(np.asarray(model_fn(fine)))))
-        else:
-            true_peak = _db(np.max(np.abs(mod[win])))
-        if exp_ is not None:
-            e = exp_[j]
-            zg, zp = _projected(meas.h[j], e, sig_abs[j])
-            exp_vals = dict(expected_db=_db(e), bias_db=_db(e / mod[j]),
-                            bias_deg=float(np.degrees(np.angle(e / mod[j]))),
-                            random_db=_db(meas.h[j] / e),
-                            random_deg=float(np.degrees(np.angle(meas.h[j] / e))),
-                            bias_sigma=float(abs(e - mod[j]) / sig_abs[j]),
-                            random_z_gain=float(zg), random_z_phase=float(zp),
-                            expected_peak_db=_db(np.max(np.abs(exp_[win]))))
-        else:
-            exp_vals = dict.fromkeys(("expected_db", "bias_db", "bias_deg", "random_db",
-                                      "random_deg", "bias_sigma", "random_z_gain",
-                                      "random_z_phase", "expected_peak_db"), math.nan)
-        peaks.append(PeakBias(
-            f_hz=fr, q=q, half_power_bw_hz=fr / q, lines_per_bw=fr / q / df,
-            leakage_limited=bool(fr / q / df < 8.0), line_hz=float(f[j]),
-            model_db=_db(mod[j]), measured_db=_db(meas.h[j]),
-            sigma_db=float(_DB * eps[j]), sigma_deg=float(np.degrees(eps[j])),
-            coherence=float(meas.coherence[j]), true_peak_db=true_peak,
-            measured_peak_db=_db(np.max(np.abs(meas.h[win]))),
-            peak_deficit_db=exp_vals["expected_peak_db"] - true_peak, **exp_vals))
-    return Comparison(meas, cmp.model, cmp.expected, float(k), bands, tuple(peaks),
-                      MappingProxyType(masks), df, settings)
+    j = int(np.argmin(np.abs(f - fr)))
+    if abs(f[j] - fr) > df:
+        return None  # the resonance lies outside the compared lines
+    win = slice(max(j - 2, 0), j + 3)
+    if model_fn is not None:
+        fine = np.linspace(fr - 3 * fr / q, fr + 3 * fr / q, 2001)
+        true_peak = _db(np.max(np.abs(np.asarray(model_fn(fine)))))
+    else:
+        true_peak = _db(np.max(np.abs(mod[win])))
+    if exp_ is not None:
+        e = exp_[j]
+        zg, zp = _projected(meas.h[j], e, sig_abs[j])
+        exp_vals = dict(expected_db=_db(e), bias_db=_db(e / mod[j]),
+                        bias_deg=float(np.degrees(np.angle(e / mod[j]))),
+                        random_db=_db(meas.h[j] / e),
+                        random_deg=float(np.degrees(np.angle(meas.h[j] / e))),
+                        bias_sigma=float(abs(e - mod[j]) / sig_abs[j]),
+                        random_z_gain=float(zg), random_z_phase=float(zp),
+                        expected_peak_db=_db(np.max(np.abs(exp_[win]))))
+    else:
+        exp_vals = dict.fromkeys(("expected_db", "bias_db", "bias_deg", "random_db",
+                                  "random_deg", "bias_sigma", "random_z_gain",
+                                  "random_z_phase", "expected_peak_db"), math.nan)
+    return PeakBias(
+        f_hz=fr, q=q, half_power_bw_hz=fr / q, lines_per_bw=fr / q / df,
+        leakage_limited=bool(fr / q / df < 8.0), line_hz=float(f[j]),
+        model_db=_db(mod[j]), measured_db=_db(meas.h[j]),
+        sigma_db=float(_DB * eps[j]), sigma_deg=float(np.degrees(eps[j])),
+        coherence=float(meas.coherence[j]), true_peak_db=true_peak,
+        measured_peak_db=_db(np.max(np.abs(meas.h[win]))),
+        peak_deficit_db=exp_vals["expected_peak_db"] - true_peak, **exp_vals)

@@ -152,6 +152,33 @@ class ExpectedEstimate:
     input_spectrum: InputSpectrum | None = None
 
 
+def _check_expected(scene, fs: float, settings: SpectralSettings) -> None:
+    """A SettingsError unless E[H1] applies: the analyzer's rate is the run's, power averaging,
+    a stationary noise source."""
+    if abs(settings.fs - fs) > 1e-9 * fs:
+        raise SettingsError(f"settings.fs = {settings.fs} Hz differs from the run's rate {fs} Hz")
+    if settings.averaging == "vector":
+        raise SettingsError("averaging = 'vector' averages complex spectra: E[H1] as a ratio of "
+                            "averaged powers does not apply; expected rms or exponential")
+    if scene.source.type not in ("random", "pink"):
+        raise SettingsError(f"source.type = {scene.source.type!r}: E[H1] is modelled for "
+                            "stationary noise sources (random, pink) only")
+
+
+def _input_notches(lines, g_in, modes_hz, fmin_hz: float, fmax_hz: float) -> dict:
+    """The input PSD at each mode in the band, in dB relative to its median over the band
+    (:attr:`ExpectedEstimate.input_notch_db`)."""
+    disp = (lines >= fmin_hz) & (lines <= fmax_hz)
+    notch = {}
+    if np.any(disp):
+        med = float(np.median(g_in[disp]))
+        for fm in modes_hz:
+            j = int(np.argmin(np.abs(lines - fm)))
+            if disp[j]:
+                notch[float(fm)] = float(10 * np.log10(g_in[j] / med))
+    return notch
+
+
 def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None = None,
                       fmin_hz: float = 0.1, fmax_hz: float = 10.0,
                       bench: SampledResponse | None = None) -> ExpectedEstimate:
@@ -174,17 +201,9 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
         averaging (whose expectation is not a ratio of averaged powers), or a rate mismatch.
     """
     scene = header.scene
-    plan = header.plan
-    fs = plan.rate_hz
-    if abs(settings.fs - fs) > 1e-9 * fs:
-        raise SettingsError(f"settings.fs = {settings.fs} Hz differs from the run's rate {fs} Hz")
-    if settings.averaging == "vector":
-        raise SettingsError("averaging = 'vector' averages complex spectra: E[H1] as a ratio of "
-                            "averaged powers does not apply; expected rms or exponential")
+    fs = header.plan.rate_hz
+    _check_expected(scene, fs, settings)
     source = scene.source
-    if source.type not in ("random", "pink"):
-        raise SettingsError(f"source.type = {source.type!r}: E[H1] is modelled for stationary "
-                            "noise sources (random, pink) only")
     acc = scene.accelerometer
     if bench is None:
         from rig.bench.sampled import sampled_response
@@ -233,14 +252,7 @@ def expected_estimate(header, settings: SpectralSettings, *, n_fft: int | None =
     # The tapered sum of the one-sided PSD's correlation is (n_fft / 2) E[G] (irfft's 1/n_fft and
     # the two-sided density S/2): E[G_aa] in (m/s^2)^2/Hz, window-averaged.
     g_in = g_aa.real * 2.0 * fs / n_fft
-    disp = (lines >= fmin_hz) & (lines <= fmax_hz)
-    notch = {}
-    if np.any(disp):
-        med = float(np.median(g_in[disp]))
-        for fm in scene.chain.modes()[0]:
-            j = int(np.argmin(np.abs(lines - fm)))
-            if disp[j]:
-                notch[float(fm)] = float(10 * np.log10(g_in[j] / med))
+    notch = _input_notches(lines, g_in, scene.chain.modes()[0], fmin_hz, fmax_hz)
     bound = math.exp(-(n_fft - n) / (fs * tau)) if tau > 0 else 0.0
 
     # The same input for the leakage-aware fits of the pendulum's own response (the measured

@@ -262,6 +262,95 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
     FitError
         For invalid arguments, too few lines, or a singular fit.
     """
+    lo, hi, fs = _check_fit_arguments(band_hz, method, domain, weighting, n_residual, settings,
+                                      fs, input_spectrum)
+    sel, f, h, df, lines = _fit_lines(frf, lo, hi, weighting, settings)
+    n_fit = len(initial) if initial is not None else (n_modes or 0)
+    if n_fit and 2 * f.size <= 4 * n_fit + 2 * n_residual:  # checked again below, once known
+        raise FitError(f"{f.size} lines in {band_hz} Hz for {4 * n_fit + 2 * n_residual} real "
+                       "parameters: widen the band, fit fewer modes or use finer lines")
+    starts = _initial_modes(f, h, n_modes, initial, df)
+    broadened = [not given for _, _, given in starts]
+    starts = [(f0, q0) for f0, q0, _ in starts]
+    m = len(starts)
+    n_par = 2 * m + 2 * m + 2 * n_residual
+    if 2 * f.size <= n_par:
+        raise FitError(f"{f.size} lines in {band_hz} Hz for {n_par} real parameters: widen the "
+                       "band, fit fewer modes or use finer lines")
+    fc, fh = 0.5 * (f[0] + f[-1]), max(0.5 * (f[-1] - f[0]), df)
+    sigma, cov_factor, expected_chi2 = _weights(frf, sel, h, weighting)
+    # Line correlation of the errors (each of Re, Im): R_ij = c_|k_i - k_j| (window only).
+    corr = line_correlation(settings) if settings is not None else np.ones(1)
+    correlated = corr.size > 1
+    terms = _terms(method, f, domain, fs, settings, lines, input_spectrum,
+                   _slowest(input_spectrum, starts, [2.0 if b else 1.0 for b in broadened])
+                   if input_spectrum is not None else None)
+    model = LineModel(terms, poly_basis(f, n_residual, fc, fh), m, domain, fs)
+    # A decay over a thousand records is indistinguishable from none: Q is bounded there.
+    q_max = max(1e3 * math.pi * hi / df, 10.0 * max(q for _, q in starts))
+    model, params, n_iter, converged = _solve(model, h, sigma, np.array(starts, float), lo, hi,
+                                              q_max, settings, lines, input_spectrum)
+    terms = model.terms
+    fitted, cov = _covariance(model, params, h, sigma, lines, corr if correlated else None,
+                              cov_factor)
+    r = real_stack((fitted - h) / sigma)
+    chi2 = float(r @ r)
+    dof = 2 * f.size - n_par
+    fq, c, a_res = unpack_params(params, m, n_residual)
+    input_txt = "white input" if input_spectrum is None else f"input: {input_spectrum.label}"
+    modes, notes = _modes(fq, c, cov, domain, fs, df, method, input_txt)
+    fit = ModalFit(
+        modes=tuple(modes), residual_coeffs=readonly(a_res), method=method, domain=domain,
+        weighting=weighting, band_hz=(lo, hi), f_centre_hz=fc, f_half_hz=fh,
+        freqs_hz=readonly(f), data=readonly(h), fitted=readonly(fitted),
+        sigma=readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
+        n_lines=int(f.size), n_params=n_par, dof=dof, chi2=chi2, reduced_chi2=chi2 / dof,
+        expected_reduced_chi2=expected_chi2, covariance=readonly(cov), params=readonly(params),
+        fs=float(fs) if fs is not None else math.nan, resolution_hz=df, settings=settings,
+        line_correlated=correlated, notes=(), input_spectrum=input_spectrum,
+        iterations=n_iter)
+    notes.extend(_fit_notes(fit, converged, terms, _slowest(input_spectrum, fq)
+                            if isinstance(terms, InputLeakage) else None))
+    object.__setattr__(fit, "notes", tuple(notes))
+    return fit
+
+
+def _terms(method: str, f, domain: str, fs, settings, lines, input_spectrum,
+           tau_start: float | None):
+    """The model's terms: the modal model itself (direct), or its expected H1 under a white or
+    coloured input (leakage); ``tau_start``: the slowest decay [s] of the starting modes."""
+    if method == "direct":
+        return DirectTerms(f, domain, fs)
+    if input_spectrum is None:
+        return WhiteLeakage(settings, lines)
+    if coloured_input_terms(settings) is LagInputLeakage:
+        return LagInputLeakage(settings, lines, input_spectrum)
+    # a Q read off a leakage-broadened peak is about half the mode's (module notes)
+    return InputLeakage(settings, lines, input_spectrum,
+                         InputLeakage.fine_for(settings, tau_start))
+
+
+def _solve(model, h, sigma, starts, lo: float, hi: float, q_max: float, settings, lines,
+           input_spectrum):
+    """The variable-projection fit from ``starts``; a coloured-input model whose fitted modes
+    decay more slowly than the start said is refitted once on the finer grid they need.
+    Returns ``(model, params, iterations, converged)``."""
+    theta, beta, n_iter, converged = varpro(model, h, sigma, starts, lo, hi - lo, q_max)
+    terms = model.terms
+    if isinstance(terms, InputLeakage):
+        fine = InputLeakage.fine_for(settings, _slowest(input_spectrum, theta))
+        if fine > terms.fine:
+            terms = InputLeakage(settings, lines, input_spectrum, fine)
+            model = LineModel(terms, model.basis, model.m, model.domain, model.fs)
+            theta, beta, more, converged = varpro(model, h, sigma, theta, lo, hi - lo, q_max)
+            n_iter += more
+    return model, np.concatenate([theta.ravel(), beta]), n_iter, converged
+
+
+def _check_fit_arguments(band_hz, method, domain, weighting, n_residual, settings, fs,
+                         input_spectrum) -> tuple[float, float, float | None]:
+    """:func:`fit_modes`'s arguments checked (a FitError naming the bad one); returns the band
+    ``(lo, hi)`` [Hz] and the sample rate ``fs`` (default ``settings.fs``)."""
     if method not in METHODS:
         raise FitError(f"method = {method!r} is invalid: expected one of {METHODS}")
     if domain not in DOMAINS:
@@ -290,6 +379,12 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
         if not isinstance(input_spectrum, InputSpectrum):
             raise FitError(f"input_spectrum = {input_spectrum!r} is invalid: expected an "
                            "InputSpectrum")
+    return lo, hi, fs
+
+
+def _fit_lines(frf, lo: float, hi: float, weighting: str, settings):
+    """The lines fitted: ``(sel, f, h, df, lines)``: the mask over ``frf``'s lines, their
+    frequencies [Hz] and values, the line spacing [Hz] and the line indices ``f / df``."""
     f_all = np.asarray(frf.freqs_hz, dtype=float)
     sel = (f_all >= lo) & (f_all <= hi) & np.isfinite(frf.h)
     if weighting == "coherence":
@@ -305,64 +400,34 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
         lines = np.round(kk).astype(int)
     else:
         lines = np.round(f / df).astype(int)
-    n_fit = len(initial) if initial is not None else (n_modes or 0)
-    if n_fit and 2 * f.size <= 4 * n_fit + 2 * n_residual:  # checked again below, once known
-        raise FitError(f"{f.size} lines in {band_hz} Hz for {4 * n_fit + 2 * n_residual} real "
-                       "parameters: widen the band, fit fewer modes or use finer lines")
-    starts = _initial_modes(f, h, n_modes, initial, df)
-    broadened = [not given for _, _, given in starts]
-    starts = [(f0, q0) for f0, q0, _ in starts]
-    m = len(starts)
-    n_lin = 2 * m + 2 * n_residual
-    n_par = 2 * m + n_lin
-    if 2 * f.size <= n_par:
-        raise FitError(f"{f.size} lines in {band_hz} Hz for {n_par} real parameters: widen the "
-                       "band, fit fewer modes or use finer lines")
-    fc, fh = 0.5 * (f[0] + f[-1]), max(0.5 * (f[-1] - f[0]), df)
+    return sel, f, h, df, lines
+
+
+def _weights(frf, sel, h, weighting: str) -> tuple[np.ndarray, float, float]:
+    """``(sigma, cov_factor, expected_chi2)``: each line's standard error, the covariance's
+    scale and the expected reduced chi^2 (NaN where the weighting states no error)."""
     nd = float(frf.n_effective)
     if weighting == "coherence":
         sigma = np.asarray(frf.relative_error)[sel] * np.abs(h)
         cov_factor = nd / (nd - 2.0) if nd > 2 else math.inf
-        expected_chi2 = cov_factor
-    elif weighting == "relative":
-        sigma = np.abs(h)
-        cov_factor, expected_chi2 = 1.0, math.nan
-    else:
-        sigma = np.ones(f.size)
-        cov_factor, expected_chi2 = 1.0, math.nan
-    # Line correlation of the errors (each of Re, Im): R_ij = c_|k_i - k_j| (window only).
-    corr = line_correlation(settings) if settings is not None else np.ones(1)
-    correlated = corr.size > 1
+        return sigma, cov_factor, cov_factor
+    if weighting == "relative":
+        return np.abs(h), 1.0, math.nan
+    return np.ones(h.size), 1.0, math.nan
 
-    def slowest(fq, factors=None) -> float:  # decay time [s] the fine grid must hold
-        factors = [1.0] * len(fq) if factors is None else factors
-        return max([float(input_spectrum.decay_s)]
-                   + [c * q / (math.pi * fr) for (fr, q), c in zip(fq, factors)])
 
-    if method == "direct":
-        terms = DirectTerms(f, domain, fs)
-    elif input_spectrum is None:
-        terms = WhiteLeakage(settings, lines)
-    elif coloured_input_terms(settings) is LagInputLeakage:
-        terms = LagInputLeakage(settings, lines, input_spectrum)
-    else:  # a Q read off a leakage-broadened peak is about half the mode's (module notes)
-        terms = InputLeakage(settings, lines, input_spectrum, InputLeakage.fine_for(
-            settings, slowest(starts, [2.0 if b else 1.0 for b in broadened])))
-    basis = poly_basis(f, n_residual, fc, fh)
-    model = LineModel(terms, basis, m, domain, fs)
-    span = hi - lo
-    # A decay over a thousand records is indistinguishable from none: Q is bounded there.
-    q_max = max(1e3 * math.pi * hi / df, 10.0 * max(q for _, q in starts))
-    theta, beta, n_iter, converged = varpro(model, h, sigma, np.array(starts, float), lo, span,
-                                            q_max)
-    if isinstance(terms, InputLeakage):
-        fine = InputLeakage.fine_for(settings, slowest(theta))
-        if fine > terms.fine:  # the modes decay more slowly than the start said: once more, on
-            terms = InputLeakage(settings, lines, input_spectrum, fine)  # the grid they need
-            model = LineModel(terms, basis, m, domain, fs)
-            theta, beta, more, converged = varpro(model, h, sigma, theta, lo, span, q_max)
-            n_iter += more
-    params = np.concatenate([theta.ravel(), beta])
+def _slowest(input_spectrum, fq, factors=None) -> float:
+    """The slowest decay time [s] the coloured-input model's fine grid must hold: the input's
+    and each mode's ``Q / (pi f)`` (times its factor)."""
+    factors = [1.0] * len(fq) if factors is None else factors
+    return max([float(input_spectrum.decay_s)]
+               + [c * q / (math.pi * fr) for (fr, q), c in zip(fq, factors)])
+
+
+def _covariance(model, params, h, sigma, lines, corr, cov_factor):
+    """The fitted values and the parameters' covariance: ``A^-1`` (``A = J^T J`` of the
+    weighted Jacobian), or the sandwich ``A^-1 (J^T R J) A^-1`` with the lines' correlation
+    ``corr`` (R acting on the Re and Im halves alike), times ``cov_factor``."""
     fitted, jac = model.full(params)
     jw = real_stack(jac / sigma[:, None])
     try:
@@ -370,23 +435,22 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
     except np.linalg.LinAlgError:
         raise FitError("the fit's normal matrix is singular: a mode is not determined by the "
                        "data (too few lines near it, or two modes at one frequency)") from None
-    if correlated:  # sandwich: A^-1 (J^T R J) A^-1, R acting on the Re and Im halves alike
-        nl = f.size
+    if corr is not None:
+        nl = h.size
         rj = np.concatenate([_correlate_lines(lines, corr, jw[:nl]),
                              _correlate_lines(lines, corr, jw[nl:])], axis=0)
-        cov = a_inv @ (jw.T @ rj) @ a_inv * cov_factor
-    else:
-        cov = a_inv * cov_factor
-    r = real_stack((fitted - h) / sigma)
-    chi2 = float(r @ r)
-    dof = 2 * f.size - n_par
-    fq, c, a_res = unpack_params(params, m, n_residual)
+        return fitted, a_inv @ (jw.T @ rj) @ a_inv * cov_factor
+    return fitted, a_inv * cov_factor
+
+
+def _modes(fq, c, cov, domain: str, fs, df: float, method: str,
+           input_txt: str) -> tuple[list, list]:
+    """The fitted :class:`Mode` s in increasing frequency (continuous-equivalent residues with
+    their standard deviations) and a note for each leakage-limited one."""
+    m = len(fq)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    notes = []
-    modes = []
-    order = np.argsort(fq[:, 0])
-    input_txt = "white input" if input_spectrum is None else f"input: {input_spectrum.label}"
-    for r_i in order:
+    notes, modes = [], []
+    for r_i in np.argsort(fq[:, 0]):
         fr, q = (float(v) for v in fq[r_i])
         p, dpf, dpq = mode_pole_derivs(fr, q)
         # Continuous-equivalent residue and its Jacobian w.r.t. (f, Q, Re c, Im c).
@@ -417,20 +481,16 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
                           q_std=float(std[2 * r_i + 1]), residue=complex(res),
                           residue_std=res_std, bandwidth_hz=bw, lines_per_bw=lpb,
                           leakage_limited=limited, reliable=reliable))
-    fit = ModalFit(
-        modes=tuple(modes), residual_coeffs=readonly(a_res), method=method, domain=domain,
-        weighting=weighting, band_hz=(lo, hi), f_centre_hz=fc, f_half_hz=fh,
-        freqs_hz=readonly(f), data=readonly(h), fitted=readonly(fitted),
-        sigma=readonly(sigma if weighting != "uniform" else np.full(f.size, np.nan)),
-        n_lines=int(f.size), n_params=n_par, dof=dof, chi2=chi2, reduced_chi2=chi2 / dof,
-        expected_reduced_chi2=expected_chi2, covariance=readonly(cov), params=readonly(params),
-        fs=float(fs) if fs is not None else math.nan, resolution_hz=df, settings=settings,
-        line_correlated=correlated, notes=(), input_spectrum=input_spectrum,
-        iterations=n_iter)
+    return modes, notes
+
+
+def _fit_notes(fit: ModalFit, converged: bool, terms, tau: float | None) -> list[str]:
+    """What limits ``fit``: no convergence, the coloured-input model's aliasing (``tau``: its
+    slowest decay [s]), the lag grid's truncation, a misfit, lines taken as independent."""
+    notes = []
     if not converged:
-        notes.append(f"least squares did not converge in {n_iter} iterations")
+        notes.append(f"least squares did not converge in {fit.iterations} iterations")
     if isinstance(terms, InputLeakage):
-        tau = slowest(fq)
         bound = terms.alias_bound(tau)
         if bound > 10 * KERNEL_TOL:
             notes.append(f"the coloured-input model's fine grid ({terms.fine} points per line, "
@@ -440,11 +500,11 @@ def fit_modes(frf: MeasuredResponse, band_hz: tuple[float, float], *, initial=No
         notes.append(f"the input's correlation is not negligible at half the lag grid "
                      f"({terms.alias:.1e} of its peak): give input_spectrum.decay_s")
     if not fit.adequate:
-        notes.append(f"reduced chi^2 = {fit.reduced_chi2:.3g} (expected {expected_chi2:.3g} +- "
-                     f"{math.sqrt(2 / dof):.2g}): systematic misfit; uncertainties understate "
-                     f"the error (Birge factor {fit.birge_factor:.3g})")
-    if not correlated and weighting == "coherence" and settings is None:
+        notes.append(f"reduced chi^2 = {fit.reduced_chi2:.3g} (expected "
+                     f"{fit.expected_reduced_chi2:.3g} +- {math.sqrt(2 / fit.dof):.2g}): "
+                     "systematic misfit; uncertainties understate the error (Birge factor "
+                     f"{fit.birge_factor:.3g})")
+    if not fit.line_correlated and fit.weighting == "coherence" and fit.settings is None:
         notes.append("no settings: lines taken as independent (uncertainties understated for "
                      "windows that correlate neighbouring lines)")
-    object.__setattr__(fit, "notes", tuple(notes))
-    return fit
+    return notes

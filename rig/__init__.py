@@ -23,6 +23,7 @@ _EXPORTS = {
     "preset_names": ("rig.scene", "preset_names"),
     "scene_from_settings": ("rig.scene", "scene_from_settings"),
     "Chain": ("rig.chain", "Chain"),
+    "ModelInfo": ("rig.model_info", "ModelInfo"),
     "simulate_pendulum": ("rig.simulate", "simulate"),
     "SOLVERS": ("rig.solvers", "SOLVERS"),
     "solver_named": ("rig.solvers", "solver_named"),

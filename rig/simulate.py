@@ -453,6 +453,58 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
     DivergenceError : the state became non-finite or the solver could not continue; it carries
         the time and the last finite state.
     """
+    duration, rtol_f, atol_f, solver, dt_s, output_dt_s = _checked_arguments(
+        chain, duration_s, base, method, rtol, atol, dt_s, output_dt_s, algorithm)
+    t0, native0, h0 = _initial_state(chain, solver, method, theta0, omega0, start)
+    segs, grid = _plan(chain, duration, base, solver, dt_s, output_dt_s)
+    solvers = [solver.on_grid(sg.substeps, sg.per_step) for sg in segs]
+    tic = time.perf_counter()
+    y_out, native_end, h_next, (n_steps, n_rej, n_fev, n_newton), lifted = _execute(
+        chain, segs, solvers, native0.copy(), t0, h0)
+    wall = time.perf_counter() - tic
+    tic = time.perf_counter()
+    err_th, err_om, err_e, error_method = (
+        _error_estimate(chain, segs, solvers, solver, y_out, native0, t0, h0) if estimate_error
+        else (None, None, None, "not estimated (estimate_error=False)"))
+    est_wall = time.perf_counter() - tic if estimate_error else 0.0
+    n = chain.n
+    t = _times(segs, t0, duration)
+    y_out = readonly(y_out)
+    theta, omega = y_out[:, :n], y_out[:, n:]  # read-only views (no copy of a long run)
+    final = SimState(t_s=float(t[-1]), theta_rad=readonly(theta[-1].copy()),
+                     omega_rad_s=readonly(omega[-1].copy()), method=method,
+                     native=readonly(native_end.copy()), h_next_s=float(h_next))
+    settings = _settings(chain, solver, method, algorithm, duration, t0, rtol_f, atol_f, grid,
+                         solver.trajectory_settings(segs, lifted))
+    traj = Trajectory(t_s=readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
+                      method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
+                      n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
+                      error_estimate_rad_s=err_om, energy_error_estimate_j=err_e,
+                      error_method=error_method,
+                      estimate_wall_time_s=est_wall, final_state=final)
+    from rig.sim_checks import simulation_warnings
+
+    found = simulation_warnings(traj, fixed_base=base is None)
+    return dataclasses.replace(traj, warnings=found) if found else traj
+
+
+def _settings(chain, solver, method, algorithm, duration, t0, rtol, atol, grid,
+              solver_settings) -> dict:
+    """The trajectory's ``settings``: the method, its order and kind, the run, the tolerances
+    (adaptive only), the right-hand side's algorithm, the grid and the solver's own."""
+    rhs_name = (("n=2 scalar", "dense", "recursive")[rhs_algorithm(chain, algorithm)]
+                if solver.selectable_rhs else None)
+    settings = dict(method=method, order=solver.order, kind=solver.kind, duration_s=duration,
+                    t0_s=t0, rtol=rtol if solver.adaptive else None,
+                    atol=atol if solver.adaptive else None, rhs=rhs_name, **grid)
+    settings.update(solver_settings)
+    return settings
+
+
+def _checked_arguments(chain, duration_s, base, method, rtol, atol, dt_s, output_dt_s,
+                       algorithm):
+    """:func:`simulate`'s arguments checked (a ConfigError naming the bad one); returns
+    ``(duration, rtol, atol, solver, dt_s, output_dt_s)``."""
     if not isinstance(chain, Chain):
         raise ConfigError(f"chain = {chain!r} is invalid: expected a rig.chain.Chain")
     duration = positive("duration_s", duration_s)
@@ -477,73 +529,42 @@ def simulate(chain: Chain, duration_s: float, *, theta0=None, omega0=None,
         output_dt_s = positive("output_dt_s", output_dt_s)
     if base is not None and not isinstance(base, BaseInput):
         raise ConfigError(f"base = {base!r} is invalid: expected a BaseInput or None")
+    return duration, rtol_f, atol_f, solver, dt_s, output_dt_s
+
+
+def _initial_state(chain, solver, method, theta0, omega0, start):
+    """``(t0, native0, h0)``: the start time [s], the solver's native state and its first step
+    (NaN: its own choice), from ``theta0``/``omega0`` or a previous run's ``start``."""
     n = chain.n
     if start is not None:
         if theta0 is not None or omega0 is not None:
             raise ConfigError("theta0/omega0 and start are both given: expected one of them")
         if not isinstance(start, SimState):
             raise ConfigError(f"start = {start!r} is invalid: expected a SimState")
-        t0 = float(start.t_s)
         th0 = _vector("start.theta_rad", start.theta_rad, n)
         om0 = _vector("start.omega_rad_s", start.omega_rad_s, n)
         same = start.method == method
         native0 = (np.array(start.native, float) if same else
                    solver.init(chain, np.concatenate([th0, om0])))
-        h0 = float(start.h_next_s) if same else float("nan")
-    else:
-        if theta0 is None:
-            raise ConfigError("theta0 is missing: expected n initial angles [rad] (or start)")
-        t0 = 0.0
-        th0 = _vector("theta0", theta0, n)
-        om0 = np.zeros(n) if omega0 is None else _vector("omega0", omega0, n)
-        native0 = solver.init(chain, np.concatenate([th0, om0]))
-        h0 = float("nan")
+        return float(start.t_s), native0, float(start.h_next_s) if same else float("nan")
+    if theta0 is None:
+        raise ConfigError("theta0 is missing: expected n initial angles [rad] (or start)")
+    th0 = _vector("theta0", theta0, n)
+    om0 = np.zeros(n) if omega0 is None else _vector("omega0", omega0, n)
+    return 0.0, solver.init(chain, np.concatenate([th0, om0])), float("nan")
 
-    segs, grid = _plan(chain, duration, base, solver, dt_s, output_dt_s)
-    solvers = [solver.on_grid(sg.substeps, sg.per_step) for sg in segs]
-    tic = time.perf_counter()
-    y_out, native_end, h_next, (n_steps, n_rej, n_fev, n_newton), lifted = _execute(
-        chain, segs, solvers, native0.copy(), t0, h0)
-    wall = time.perf_counter() - tic
 
-    err_th = err_om = err_e = None
-    est_wall = 0.0
-    if estimate_error:
-        tic = time.perf_counter()
-        refs = [s.refined() for s in solvers]
-        ref_start = refs[0].solver.start_from(chain, native0, solver)
-        ref, *_ = _execute(chain, segs, [r.solver for r in refs], ref_start, t0,
-                           h0 if refs[0].keep_h0 else float("nan"))
-        scale, how = refs[0].scale, refs[0].how
-        diff = np.abs(y_out - ref) * scale
-        err_th, err_om = readonly(diff[:, :n].copy()), readonly(diff[:, n:].copy())
-        e_main = chain.energy(y_out[:, :n], y_out[:, n:])
-        e_ref = chain.energy(ref[:, :n], ref[:, n:])
-        err_e = readonly(np.abs(e_main - e_ref) * scale)
-        est_wall = time.perf_counter() - tic
-        error_method = how
-    else:
-        error_method = "not estimated (estimate_error=False)"
-
-    t = _times(segs, t0, duration)
-    y_out = readonly(y_out)
-    theta, omega = y_out[:, :n], y_out[:, n:]  # read-only views (no copy of a long run)
-    final = SimState(t_s=float(t[-1]), theta_rad=readonly(theta[-1].copy()),
-                     omega_rad_s=readonly(omega[-1].copy()), method=method,
-                     native=readonly(native_end.copy()), h_next_s=float(h_next))
-    rhs_name = (("n=2 scalar", "dense", "recursive")[rhs_algorithm(chain, algorithm)]
-                if solver.selectable_rhs else None)
-    settings = dict(method=method, order=solver.order, kind=solver.kind, duration_s=duration,
-                    t0_s=t0, rtol=rtol_f if solver.adaptive else None,
-                    atol=atol_f if solver.adaptive else None, rhs=rhs_name, **grid)
-    settings.update(solver.trajectory_settings(segs, lifted))
-    traj = Trajectory(t_s=readonly(t), theta_rad=theta, omega_rad_s=omega, chain=chain,
-                      method=method, settings=settings, n_steps=n_steps, n_rejected=n_rej,
-                      n_fev=n_fev, n_newton=n_newton, wall_time_s=wall, error_estimate_rad=err_th,
-                      error_estimate_rad_s=err_om, energy_error_estimate_j=err_e,
-                      error_method=error_method,
-                      estimate_wall_time_s=est_wall, final_state=final)
-    from rig.sim_checks import simulation_warnings
-
-    found = simulation_warnings(traj, fixed_base=base is None)
-    return dataclasses.replace(traj, warnings=found) if found else traj
+def _error_estimate(chain, segs, solvers, solver, y_out, native0, t0, h0):
+    """The run's error estimate against its solvers' refined reference (see :func:`simulate`):
+    ``(angles [rad], angular velocities [rad/s], energy [J], how)``, per output row."""
+    n = chain.n
+    refs = [s.refined() for s in solvers]
+    ref_start = refs[0].solver.start_from(chain, native0, solver)
+    ref, *_ = _execute(chain, segs, [r.solver for r in refs], ref_start, t0,
+                       h0 if refs[0].keep_h0 else float("nan"))
+    scale = refs[0].scale
+    diff = np.abs(y_out - ref) * scale
+    e_main = chain.energy(y_out[:, :n], y_out[:, n:])
+    e_ref = chain.energy(ref[:, :n], ref[:, n:])
+    return (readonly(diff[:, :n].copy()), readonly(diff[:, n:].copy()),
+            readonly(np.abs(e_main - e_ref) * scale), refs[0].how)

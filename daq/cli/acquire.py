@@ -12,6 +12,7 @@ import click
 from daq.cli.common import (fmt, force_option, model_lines, note_cold_kernels, repair_file,
                             run_check, set_option, size_text)
 from daq.cli.live import live_options, live_sinks, rrd_preflight
+from rig.model_info import ModelInfo
 from rig.output_files import check_writable
 
 
@@ -178,11 +179,11 @@ def _not_as_asked(s) -> list[str]:
 
     out = []
     info = s.model_info
-    if info.get("budget_met") is False:
-        est = info.get("error_estimate")
+    if info.budget_met is False:
+        est = info.error_estimate
         est = est.get("relative_rms_theta") if isinstance(est, dict) else est
         out.append(f"the run's estimated error {fmt(est)} (relative RMS of the angles) exceeds "
-                   f"its error budget {fmt(info.get('error_budget'))} (acquisition."
+                   f"its error budget {fmt(info.error_budget)} (acquisition."
                    "error_budget): the data are not as accurate as asked")
     n = max(1, s.records * s.samples_per_record)
     for what, totals in (("clipped by the ADC", s.clip_totals()),
@@ -317,7 +318,7 @@ def _inspect_text(i: dict) -> str:
             f"{fmt(c['volts_per_unit'])} V per {c['engineering_unit']}, +-{fmt(c['range_v'])} V, "
             f"{c['bits']} bit (LSB {fmt(c['lsb_v'])} V), clipped {sum(per)} samples in {hit} "
             f"of {len(per)} records, sensor saturated in {sum(sat)} samples")
-    lines.extend(model_lines(i["model_info"]))
+    lines.extend(model_lines(ModelInfo.from_dict(i["model_info"])))
     lines.append(f"model responses: {', '.join(i['responses'])}")
     lines.append(f"ground truth: {', '.join(i['truth']) if i['truth'] else 'not recorded'}")
     if i["writer_flag_set"]:

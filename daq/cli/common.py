@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from rig.model_info import ModelInfo
+
 
 def set_option(fn):
     return click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
@@ -86,16 +88,16 @@ def size_text(n: int | None) -> str:
     return str(n)
 
 
-def model_lines(info: dict) -> list[str]:
+def model_lines(info: ModelInfo) -> list[str]:
     """Which model ran, how, and its error estimate (the rest is in ``inspect --json``)."""
-    est = info.get("error_estimate", "-")
+    est = "-" if info.error_estimate is None else info.error_estimate
     if isinstance(est, dict):
         est = ", ".join(f"{k} {fmt(v)}" for k, v in est.items())
-    lines = [f"model: {info.get('model', '-')}", f"  method: {info.get('method', '-')}",
+    lines = [f"model: {info.model or '-'}", f"  method: {info.method or '-'}",
              f"  error estimate: {fmt(est)}"]
-    if info.get("reason"):
-        lines.append(f"  why this model: {info['reason']}")
-    per = info.get("per_sample")
+    if info.reason:
+        lines.append(f"  why this model: {info.reason}")
+    per = info.per_sample
     if isinstance(per, dict) and per.get("what"):
         rate = per.get("rate_hz")
         at = f" (at {fmt(rate)} Hz)" if rate else ""

@@ -33,9 +33,9 @@ class _SweepProgressLine:
 
 def _failures(results: dict) -> None:
     """One line per failed run."""
-    for r in sorted(results.values(), key=lambda r: r["index"]):
-        if r["status"] == "failed":
-            click.echo(f"  run {r['index']} failed: {r['error']}")
+    for r in sorted(results.values(), key=lambda r: r.index):
+        if r.status == "failed":
+            click.echo(f"  run {r.index} failed: {r.error}")
 
 
 class _SweepOrSubcommand(click.Group):

@@ -54,13 +54,17 @@ _SCALE_SOURCES = {"record": layout.member(layout.DATA, layout.RECORD),
 
 
 def _rows(specs, results: dict) -> list[dict]:
+    """One row per planned run; ``results`` ({index: JobResult}) has those that finished."""
     rows = []
     for s in specs:
-        r = results.get(s.index, {})
-        rows.append({"run": s.index, "status": r.get("status", "missing"),
-                     "error": r.get("error", ""), "seed": s.seed, "file": r.get("file", s.name)
-                     if r.get("status") == "complete" else "", "sha256": r.get("sha256", ""),
-                     "model": r.get("model", ""), **s.params})
+        r = results.get(s.index)
+        if r is None:
+            rows.append({"run": s.index, "status": "missing", "error": "", "seed": s.seed,
+                         "file": "", "sha256": "", "model": "", **s.params})
+            continue
+        rows.append({"run": s.index, "status": r.status, "error": r.error, "seed": s.seed,
+                     "file": r.file if r.status == "complete" else "", "sha256": r.sha256,
+                     "model": r.model, **s.params})
     return rows
 
 

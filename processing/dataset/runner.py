@@ -45,6 +45,7 @@ from rig.errors import ConfigError, ForceRequired
 from processing.dataset.manifest import MANIFEST, TABLE, write_manifest, write_table
 from processing.dataset.runfile import check_run_file
 from processing.dataset.sweep import MAX_RUNS, RunSpec, Sweep  # noqa: F401 (docs)
+from processing.dataset.task import Job, JobResult
 
 try:
     import fcntl
@@ -94,7 +95,7 @@ class SweepProgress:
 @dataclass(frozen=True)
 class SweepResult:
     """What :func:`run_sweep` left in ``out_dir``: counts, the manifest files and every run's
-    result ({index: dict of :func:`processing.dataset.task.run_task`}); ``removed``: the names
+    result ({index: :class:`processing.dataset.task.JobResult`}); ``removed``: the names
     of run files of an earlier plan that the new one does not list (removed with ``force``)."""
 
     out_dir: Path
@@ -357,7 +358,7 @@ def _clean_partials(runs_dir: Path) -> None:
 
 class SweepStopped(ConfigError):
     """The sweep stopped because its journal or manifest could not be written (a full disk);
-    ``results`` holds every run's result so far ({index: dict})."""
+    ``results`` holds every run's result so far ({index: JobResult})."""
 
     def __init__(self, message: str, results: dict):
         super().__init__(message)
@@ -372,7 +373,7 @@ def _stopped(exc: OSError, out_dir: Path, total: int, results: dict, manifest) -
             or "No space left on device" in str(exc))
     what = ("the disk is full" if full else
             f"{getattr(exc, 'filename', None) or out_dir}: {exc.strerror or exc}")
-    done = sum(r["status"] == "complete" for r in results.values())
+    done = sum(r.status == "complete" for r in results.values())
     index = "the manifest lists them" if manifest is not None else "no manifest was written"
     return SweepStopped(f"the sweep stopped after {done} of {total} runs complete because {what}"
                         f" ({index}); the finished run files are kept: free some space in "
@@ -380,13 +381,12 @@ def _stopped(exc: OSError, out_dir: Path, total: int, results: dict, manifest) -
                         dict(results))
 
 
-def _job(sweep: Sweep, p: PlannedRun, runs_dir: Path, replace: bool) -> dict:
+def _job(sweep: Sweep, p: PlannedRun, runs_dir: Path, replace: bool) -> Job:
     s = p.spec
-    return {"index": s.index, "seed": s.seed, "sweep_seed": sweep.seed, "params": s.params,
-            "overrides": list(s.overrides), "spec_hash": s.spec_hash, "settings": p.settings,
-            "scene_source": p.scene_source, "analysis": dict(sweep.analysis),
-            "keep": dict(sweep.keep), "runs_dir": str(runs_dir.resolve()), "file": s.name,
-            "replace": replace}
+    return Job(index=s.index, seed=s.seed, sweep_seed=sweep.seed, params=s.params,
+               overrides=tuple(s.overrides), spec_hash=s.spec_hash, settings=p.settings,
+               scene_source=p.scene_source, analysis=dict(sweep.analysis), keep=dict(sweep.keep),
+               runs_dir=str(runs_dir.resolve()), file=s.name, replace=replace)
 
 
 def run_sweep(sweep: Sweep, out_dir: str | Path, *,
@@ -412,168 +412,210 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *,
     ConfigError : before any run, for a directory that holds something else or another sweep.
     SweepInterrupted : on KeyboardInterrupt, after the manifest is written.
     """
-    from processing.dataset.engines import default_workers, local_pool
-    from processing.dataset.task import failure_text, run_task
+    from processing.dataset.engines import default_workers
 
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
     planned = plan_runs(sweep) if planned is None else planned
     workers = workers or default_workers()
-    if executor is None:
-        def factory():
-            return local_pool(workers)
-        own = True
-    elif callable(executor) and not isinstance(executor, Executor):
-        factory, own = executor, True
-    else:
-        fixed = executor
-
-        def factory():
-            return fixed
-        own = False
-
+    factory, own = _executor_factory(executor, workers)
     with _locked(out_dir):
         changes = _prepare(out_dir, sweep, planned, force)
         runs_dir = out_dir / RUNS
         _clean_partials(runs_dir)
         removed = _remove_unlisted(runs_dir, planned) if changes else ()
-        journal_path = out_dir / JOURNAL
-        journal = _read_journal(out_dir)
-        results: dict[int, dict] = {}
-        todo = collections.deque()
-        skipped = 0
-        for p in planned:
-            s = p.spec
-            if p.error:
-                results[s.index] = {"index": s.index, "status": "failed", "error": p.error,
-                                    "file": "", "sha256": "", "model": ""}
-                continue
-            final = runs_dir / s.name
-            replace = False
-            if final.exists():
-                j = journal.get(s.index)
-                known = (j["sha256"] if j and j.get("status") == "complete"
-                         and j.get("spec_hash") == s.spec_hash else None)
-                chk = check_run_file(final, sha256=known, spec_hash=s.spec_hash)
-                if chk.ok:
-                    results[s.index] = {"index": s.index, "status": "complete", "error": "",
-                                        "file": s.name, "sha256": chk.sha256,
-                                        "model": (j or {}).get("model", "")}
-                    skipped += 1
-                    continue
-                if chk.spec_hash and chk.spec_hash != s.spec_hash and force:
-                    replace = True  # a finished file of the old plan: --force replaces it
-                else:  # damaged or unfinished under the final name: kept aside, redone
-                    k = 0
-                    while final.with_name(f"{s.name}.invalid-{k}").exists():
-                        k += 1
-                    shutil.move(final, final.with_name(f"{s.name}.invalid-{k}"))
-            todo.append(_job(sweep, p, runs_dir, replace))
-
-        state = {"done": skipped, "failed": sum(r["status"] == "failed" for r in results.values()),
-                 "finished_now": 0}
+        results, todo, skipped = _triage(sweep, planned, runs_dir, force,
+                                         _read_journal(out_dir))
         total = len(planned)
-
-        def record(res: dict, spec_hash: str) -> None:
-            results[res["index"]] = res
-            with open(journal_path, "a") as fh:
-                fh.write(json.dumps({**res, "spec_hash": spec_hash}) + "\n")
-                fh.flush()
-                os.fsync(fh.fileno())
-            state["done" if res["status"] == "complete" else "failed"] += 1
-            state["finished_now"] += 1
-            if progress is not None:
-                el = time.perf_counter() - t0
-                rate = state["finished_now"] / el * 60 if el > 0 else 0.0
-                left = total - state["done"] - state["failed"]
-                progress(SweepProgress(total=total, done=state["done"], failed=state["failed"],
-                                       skipped=skipped, running=len(inflight),
-                                       elapsed_s=el, rate_per_min=rate,
-                                       eta_s=left / rate * 60 if rate > 0 else None))
-
-        inflight: dict = {}
-        interrupted, signum, stopped_by = False, 2, None
-        ex = factory() if todo else None
-        window = workers  # in flight = running: a dead worker charges only the runs it could hold
-        attempts = collections.Counter()
+        record = _Recorder(out_dir / JOURNAL, results, total, skipped, progress, t0)
+        outcome = _Outcome()
         try:
-            while todo or inflight:
-                while todo and len(inflight) < window:
-                    job = todo.popleft()
-                    inflight[ex.submit(run_task, job)] = job
-                done, _ = wait(list(inflight), timeout=1.0, return_when=FIRST_COMPLETED)
-                broken = []
-                for fut in done:
-                    job = inflight.pop(fut)
-                    try:
-                        res = fut.result()
-                    except BrokenProcessPool:
-                        broken.append(job)
-                        continue
-                    except KeyboardInterrupt:
-                        raise
-                    except Exception as exc:  # e.g. Dask's KilledWorker after its retries
-                        res = {"index": job["index"], "status": "failed", "file": "",
-                               "sha256": "", "model": "",
-                               "error": failure_text(exc)[:500]}
-                    record(res, job["spec_hash"])
-                if broken:
-                    # the pool is dead: every run in flight went with it
-                    for fut in list(inflight):
-                        broken.append(inflight.pop(fut))
-                    with contextlib.suppress(Exception):
-                        ex.shutdown(wait=False, cancel_futures=True)
-                    ex = factory() if own else ex
-                    for job in sorted(broken, key=lambda j: j["index"]):
-                        attempts[job["index"]] += 1
-                        if attempts[job["index"]] > max_retries or not own:
-                            record({"index": job["index"], "status": "failed", "file": "",
-                                    "sha256": "", "model": "",
-                                    "error": f"BrokenProcessPool: the worker running it died "
-                                             f"{attempts[job['index']]} times (killed or out "
-                                             "of memory)"}, job["spec_hash"])
-                        else:
-                            todo.appendleft(job)
-        except OSError as exc:  # the journal cannot be written (a full disk): stop here
-            stopped_by = exc
-            todo.clear()
-            for fut in list(inflight):
-                fut.cancel()
-        except KeyboardInterrupt as exc:
-            interrupted, signum = True, getattr(exc, "signum", 2)
-            for fut in list(inflight):
-                fut.cancel()
-            if ex is not None:
-                with contextlib.suppress(BaseException):
-                    ex.shutdown(wait=True, cancel_futures=True)
-            for fut, job in list(inflight.items()):
-                if fut.done() and not fut.cancelled():
-                    with contextlib.suppress(BaseException):
-                        res = fut.result()
-                        if res.get("status") == "complete":
-                            record(res, job["spec_hash"])
+            _execute(todo, record, factory, own, workers, max_retries, outcome)
         finally:
-            if ex is not None and own and not interrupted:
-                ex.shutdown(wait=True)  # runs in flight end (and remove their temporary files)
             _clean_partials(runs_dir)  # and those of workers that died
             try:
                 manifest = write_manifest(out_dir, sweep, [p.spec for p in planned], results)
                 table = write_table(out_dir / TABLE, [p.spec for p in planned], results,
                                     sweep.parameter_keys)
             except OSError as exc:
-                if stopped_by is None and not interrupted:
-                    stopped_by = exc
+                if outcome.stopped_by is None and not outcome.interrupted:
+                    outcome.stopped_by = exc
                 manifest = table = None
-        if stopped_by is not None:
-            raise _stopped(stopped_by, out_dir, len(planned), results, manifest)
-        counts = collections.Counter(r["status"] for r in results.values())
+        if outcome.stopped_by is not None:
+            raise _stopped(outcome.stopped_by, out_dir, total, results, manifest)
+        counts = collections.Counter(r.status for r in results.values())
         result = SweepResult(out_dir=out_dir, total=total, complete=counts["complete"],
                              failed=counts["failed"],
                              missing=total - counts["complete"] - counts["failed"],
                              skipped=skipped, manifest=manifest, table=table,
                              results=dict(results), wall_s=time.perf_counter() - t0,
-                             interrupted=interrupted, removed=tuple(removed))
-    if interrupted:
-        raise SweepInterrupted(result, signum)
+                             interrupted=outcome.interrupted, removed=tuple(removed))
+    if outcome.interrupted:
+        raise SweepInterrupted(result, outcome.signum)
     return result
 
+
+def _executor_factory(executor, workers: int) -> tuple[Callable[[], Executor], bool]:
+    """A function making the executor of :func:`run_sweep`'s ``executor`` argument, and whether
+    the sweep owns it (shuts it down, rebuilds it when broken)."""
+    from processing.dataset.engines import local_pool
+
+    if executor is None:
+        return (lambda: local_pool(workers)), True
+    if callable(executor) and not isinstance(executor, Executor):
+        return executor, True
+    return (lambda: executor), False
+
+
+def _triage(sweep: Sweep, planned, runs_dir: Path, force: bool,
+            journal: dict) -> tuple[dict, collections.deque, int]:
+    """The results known before any run (failed plans, valid finished files: skipped) and the
+    jobs to run; a damaged or unfinished file under a final name is moved aside, a finished file
+    of an earlier plan replaced with ``force``. Returns ``(results, todo, skipped)``."""
+    results: dict[int, JobResult] = {}
+    todo = collections.deque()
+    skipped = 0
+    for p in planned:
+        s = p.spec
+        if p.error:
+            results[s.index] = JobResult.failed(s.index, p.error)
+            continue
+        final = runs_dir / s.name
+        replace = False
+        if final.exists():
+            j = journal.get(s.index)
+            known = (j["sha256"] if j and j.get("status") == "complete"
+                     and j.get("spec_hash") == s.spec_hash else None)
+            chk = check_run_file(final, sha256=known, spec_hash=s.spec_hash)
+            if chk.ok:
+                results[s.index] = JobResult(index=s.index, status="complete", file=s.name,
+                                             sha256=chk.sha256, model=(j or {}).get("model", ""))
+                skipped += 1
+                continue
+            if chk.spec_hash and chk.spec_hash != s.spec_hash and force:
+                replace = True  # a finished file of the old plan: --force replaces it
+            else:  # damaged or unfinished under the final name: kept aside, redone
+                k = 0
+                while final.with_name(f"{s.name}.invalid-{k}").exists():
+                    k += 1
+                shutil.move(final, final.with_name(f"{s.name}.invalid-{k}"))
+        todo.append(_job(sweep, p, runs_dir, replace))
+    return results, todo, skipped
+
+
+@dataclass
+class _Outcome:
+    """How :func:`_execute` ended: interrupted (and by which signal), or stopped by an error
+    writing the journal."""
+
+    interrupted: bool = False
+    signum: int = 2
+    stopped_by: OSError | None = None
+
+
+class _Recorder:
+    """Records a finished run: into ``results``, one journal line (flushed and synced), and the
+    progress callback; ``inflight`` is the executor's futures of the runs in flight."""
+
+    def __init__(self, path: Path, results: dict, total: int, skipped: int, progress, t0: float):
+        self.path, self.results, self.total, self.skipped = path, results, total, skipped
+        self.progress, self.t0 = progress, t0
+        self.done = skipped
+        self.failed = sum(r.status == "failed" for r in results.values())
+        self.finished_now = 0
+        self.inflight: dict = {}
+
+    def __call__(self, res: JobResult, spec_hash: str) -> None:
+        self.results[res.index] = res
+        with open(self.path, "a") as fh:
+            fh.write(json.dumps({**res.to_dict(), "spec_hash": spec_hash}) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        if res.status == "complete":
+            self.done += 1
+        else:
+            self.failed += 1
+        self.finished_now += 1
+        if self.progress is not None:
+            el = time.perf_counter() - self.t0
+            rate = self.finished_now / el * 60 if el > 0 else 0.0
+            left = self.total - self.done - self.failed
+            self.progress(SweepProgress(total=self.total, done=self.done, failed=self.failed,
+                                        skipped=self.skipped, running=len(self.inflight),
+                                        elapsed_s=el, rate_per_min=rate,
+                                        eta_s=left / rate * 60 if rate > 0 else None))
+
+
+def _execute(todo: collections.deque, record: _Recorder, factory: Callable[[], Executor],
+             own: bool, window: int, max_retries: int, outcome: _Outcome) -> None:
+    """Run the jobs of ``todo``, at most ``window`` in flight (in flight = running: a dead
+    worker charges only the runs it could hold), recording each result; a broken pool is
+    rebuilt (if owned) and its runs resubmitted up to ``max_retries`` times. A journal that
+    cannot be written or a KeyboardInterrupt ends it (``outcome`` says which)."""
+    from processing.dataset.task import failure_text, run_task
+
+    inflight = record.inflight
+    ex = factory() if todo else None
+    attempts = collections.Counter()
+    try:
+        while todo or inflight:
+            while todo and len(inflight) < window:
+                job = todo.popleft()
+                inflight[ex.submit(run_task, job)] = job
+            done, _ = wait(list(inflight), timeout=1.0, return_when=FIRST_COMPLETED)
+            broken = []
+            for fut in done:
+                job = inflight.pop(fut)
+                try:
+                    res = fut.result()
+                except BrokenProcessPool:
+                    broken.append(job)
+                    continue
+                except KeyboardInterrupt:
+                    raise
+                except Exception as exc:  # e.g. Dask's KilledWorker after its retries
+                    res = JobResult.failed(job.index, failure_text(exc)[:500])
+                record(res, job.spec_hash)
+            if broken:
+                # the pool is dead: every run in flight went with it
+                for fut in list(inflight):
+                    broken.append(inflight.pop(fut))
+                with contextlib.suppress(Exception):
+                    ex.shutdown(wait=False, cancel_futures=True)
+                ex = factory() if own else ex
+                for job in sorted(broken, key=lambda j: j.index):
+                    attempts[job.index] += 1
+                    if attempts[job.index] > max_retries or not own:
+                        record(JobResult.failed(
+                            job.index, f"BrokenProcessPool: the worker running it died "
+                                       f"{attempts[job.index]} times (killed or out of memory)"),
+                               job.spec_hash)
+                    else:
+                        todo.appendleft(job)
+    except OSError as exc:  # the journal cannot be written (a full disk): stop here
+        outcome.stopped_by = exc
+        todo.clear()
+        for fut in list(inflight):
+            fut.cancel()
+    except KeyboardInterrupt as exc:
+        outcome.interrupted, outcome.signum = True, getattr(exc, "signum", 2)
+        _keep_finished(inflight, ex, record)
+    finally:
+        if ex is not None and own and not outcome.interrupted:
+            ex.shutdown(wait=True)  # runs in flight end (and remove their temporary files)
+
+
+def _keep_finished(inflight: dict, ex, record: _Recorder) -> None:
+    """After a KeyboardInterrupt: cancel what has not started, shut the executor down, and
+    record the runs that completed meanwhile."""
+    for fut in list(inflight):
+        fut.cancel()
+    if ex is not None:
+        with contextlib.suppress(BaseException):
+            ex.shutdown(wait=True, cancel_futures=True)
+    for fut, job in list(inflight.items()):
+        if fut.done() and not fut.cancelled():
+            with contextlib.suppress(BaseException):
+                res = fut.result()
+                if res.status == "complete":
+                    record(res, job.spec_hash)

@@ -1,7 +1,8 @@
 """One run of a sweep, as a task any worker can execute: acquire, analyse, keep, publish.
 
-:func:`run_task` takes plain data (picklable, no open files) and returns plain data, so the same
-function runs in a local process pool or on a Dask worker. It writes the run under a temporary
+:func:`run_task` takes a :class:`Job` and returns a :class:`JobResult`, frozen dataclasses of
+plain data (picklable, no open files), so the same function runs in a local process pool or on a
+Dask worker. It writes the run under a temporary
 name beside the final one (``.run_000042.h5.<host>.<pid>.<token>.partial.h5``), adds the analysis
 outputs (:func:`processing.dataset.runfile.write_outputs`), flushes it to disk and publishes it
 with a hard link, which fails if the final name exists: a finished file is never overwritten
@@ -16,12 +17,82 @@ import os
 import sys
 import socket
 import time
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 from rig.errors import ForceRequired
 from rig.output_files import atomic_output
 
-__all__ = ["run_task", "worker_init", "failure_text"]
+__all__ = ["Job", "JobResult", "run_task", "worker_init", "failure_text"]
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run of a sweep, as :func:`processing.dataset.runner.run_sweep` hands it to a worker.
+
+    Attributes
+    ----------
+    index : the run's index in the plan.
+    seed : the run's seed (a child of the sweep's).
+    sweep_seed : the sweep's seed.
+    params : the run's parameters (key -> value).
+    overrides : the run's ``--set``-style overrides of the base scene.
+    spec_hash : the hash of the run's specification (stored in the file, checked on resume).
+    settings : the resolved scene settings (:func:`rig.scene.scene_from_settings`).
+    scene_source : where the base scene came from.
+    analysis : :class:`processing.analyzer.AnalyzerSettings` fields.
+    keep : which outputs the run file keeps (``truth``, ``spectra``, ``analysis`` ...).
+    runs_dir : the directory of the run files (absolute).
+    file : the run file's name in ``runs_dir``.
+    replace : a finished file of an earlier plan is there and is replaced (``--force``).
+    """
+
+    index: int
+    seed: int
+    sweep_seed: int
+    params: dict
+    overrides: tuple
+    spec_hash: str
+    settings: dict
+    scene_source: str
+    analysis: dict
+    keep: dict
+    runs_dir: str
+    file: str
+    replace: bool = False
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """What became of one run: ``status`` "complete" (the final ``file`` exists, valid, with
+    that ``sha256``) or "failed" (``error`` says why, one line); ``model`` that ran; for a run
+    a worker executed, ``wall_s`` and ``cpu_s`` (the worker's CPU time) [s] and its ``host``."""
+
+    index: int
+    status: str
+    error: str = ""
+    file: str = ""
+    sha256: str = ""
+    model: str = ""
+    wall_s: float | None = None
+    host: str | None = None
+    cpu_s: float | None = None
+
+    @classmethod
+    def failed(cls, index: int, error: str) -> JobResult:
+        """A run that failed before or outside its task."""
+        return cls(index=index, status="failed", error=error)
+
+    def to_dict(self) -> dict:
+        """The journal's record (the fields that are not None)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)
+                if getattr(self, f.name) is not None}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> JobResult:
+        """The result of a journal record (keys it does not name are ignored)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
 
 
 _BUSY = False  # this worker is running a task (SIGINT interrupts it; an idle worker ignores it)
@@ -61,48 +132,42 @@ def worker_init() -> None:
         pass
 
 
-def run_task(job: dict) -> dict:
-    """Run one job (made by :func:`processing.dataset.runner.run_sweep`) and return its result.
-
-    Returns ``{"index", "status": "complete" | "failed", "error", "file", "sha256", "model",
-    "wall_s", "cpu_s", "host"}`` (``cpu_s``: the worker's CPU time for the run); "complete"
-    means the final file exists, valid, with that sha256.
-    """
+def run_task(job: Job) -> JobResult:
+    """Run one job (made by :func:`processing.dataset.runner.run_sweep`) and return its result
+    (:class:`JobResult`: "complete" means the final file exists, valid, with that sha256)."""
     global _BUSY
     from processing.dataset.runfile import check_run_file, sha256_file
 
     _BUSY = True
     t0, c0 = time.perf_counter(), time.process_time()
-    final = Path(job["runs_dir"]) / job["file"]
-    out = {"index": job["index"], "status": "failed", "error": "", "file": job["file"],
-           "sha256": "", "model": "", "wall_s": 0.0, "host": socket.gethostname()}
+    final = Path(job.runs_dir) / job.file
+    status, error, model, sha256 = "failed", "", "", ""
     try:
         try:  # a hard link publishes it: a finished file is never overwritten without replace
-            with atomic_output(final, force=bool(job.get("replace")), suffix=".partial.h5",
+            with atomic_output(final, force=job.replace, suffix=".partial.h5",
                                reserve=False) as tmp:
-                out["model"] = _run(job, tmp)
+                model = _run(job, tmp)
         except ForceRequired:
             # finished meanwhile by another worker of an earlier, killed sweep: keep that one
             # if it is this run, valid
-            chk = check_run_file(final, spec_hash=job["spec_hash"])
+            chk = check_run_file(final, spec_hash=job.spec_hash)
             if not chk.ok:
                 raise RuntimeError(f"{final.name} exists and is not this run's valid file "
                                    f"({'; '.join(chk.problems)}); not overwritten") from None
-        out["sha256"] = sha256_file(final)
-        out["status"] = "complete"
+        sha256 = sha256_file(final)
+        status = "complete"
     except KeyboardInterrupt:
-        out["error"] = "interrupted"
         raise
     except Exception as exc:  # failures are data: the sweep records the error and goes on
-        out["error"] = failure_text(exc)[:500]
+        error = failure_text(exc)[:500]
     finally:
         _BUSY = False
-        out["wall_s"] = time.perf_counter() - t0
-        out["cpu_s"] = time.process_time() - c0
-    return out
+    return JobResult(index=job.index, status=status, error=error, file=job.file, sha256=sha256,
+                     model=model, wall_s=time.perf_counter() - t0, host=socket.gethostname(),
+                     cpu_s=time.process_time() - c0)
 
 
-def _run(job: dict, tmp: Path) -> str:
+def _run(job: Job, tmp: Path) -> str:
     """Acquire and analyse (unless the sweep keeps no analysis) into ``tmp``; returns the
     model that ran."""
     from daq.acquisition import acquire
@@ -111,18 +176,18 @@ def _run(job: dict, tmp: Path) -> str:
     from processing.dataset.runfile import write_outputs
     from rig.scene import scene_from_settings
 
-    scene = scene_from_settings(job["settings"], origin=job["scene_source"])
-    summary = acquire(scene, seed=job["seed"], sinks=[Hdf5Sink(tmp)])
+    scene = scene_from_settings(job.settings, origin=job.scene_source)
+    summary = acquire(scene, seed=job.seed, sinks=[Hdf5Sink(tmp)])
     analysis = None
-    if job["keep"].get("analysis", True):
+    if job.keep.get("analysis", True):
         settings = AnalyzerSettings(**{k: tuple(v) if isinstance(v, list) else v
-                                       for k, v in job["analysis"].items()})
-        analysis = analyze(read_run(tmp), settings, source=job["file"])
-    write_outputs(tmp, analysis, job["keep"], spec={
-        "sweep_seed": job["sweep_seed"], "run_index": job["index"], "run_seed": job["seed"],
-        "spec_hash": job["spec_hash"], "parameters": job["params"],
-        "overrides": job["overrides"]})
-    return str(summary.model_info.get("model", ""))
+                                       for k, v in job.analysis.items()})
+        analysis = analyze(read_run(tmp), settings, source=job.file)
+    write_outputs(tmp, analysis, job.keep, spec={
+        "sweep_seed": job.sweep_seed, "run_index": job.index, "run_seed": job.seed,
+        "spec_hash": job.spec_hash, "parameters": job.params,
+        "overrides": list(job.overrides)})
+    return str(summary.model_info.model or "")
 
 
 def failure_text(exc: BaseException) -> str:

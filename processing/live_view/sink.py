@@ -280,7 +280,7 @@ class LiveView(Sink):
         h = self.header
         info = h.model_info
         clip, sat = self._clip, self._sat
-        budget = info.get("error_budget")
+        budget = info.error_budget
         lines = [
             f"**Record {records} of {h.plan.records} ({state}"
             + (f": {message}" if message else "") + ")**  ",
@@ -288,10 +288,10 @@ class LiveView(Sink):
             f"{h.plan.record_s:g} s after {h.plan.settle_s:g} s of settling  ",
             "**clipped / saturated samples** " + ", ".join(
                 f"{c} {int(clip[i])} / {int(sat[i])}" for i, c in enumerate(self.names)) + "  ",
-            f"**model** {info.get('model', '-')}, estimated error "
-            f"{_error_text(info.get('error_estimate', '-'))}"
+            f"**model** {info.model or '-'}, estimated error "
+            f"{_error_text('-' if info.error_estimate is None else info.error_estimate)}"
             + (f", budget {_plain(budget)}" if budget is not None else "") + "  ",
-            f"**why** {_why(info.get('reason', '-'))}  ",
+            f"**why** {_why(info.reason or '-')}  ",
             f"*bench: sizes to scale, angles x{self.drawing.magnification:g}, stage travel "
             f"x{self.drawing.stage_magnification:g}; PSD to scale*",
         ]

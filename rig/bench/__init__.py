@@ -50,12 +50,13 @@ from rig.bench.response import (BenchResponse, calibrations, expected_response,
 from rig.bench.sampled import SampledResponse, sampled_response
 from rig.bench.estimates import linear_method, model_info, model_seed
 from rig.bench.fused import fused_model_info
+from rig.model_info import ModelInfo
 from rig.bench.simulation import BenchSimulation
 
 __all__ = ["BenchSimulation", "BenchModel", "BenchState", "BenchResponse", "build_model", "start",
            "advance", "calibrations", "expected_response", "stationary_levels", "signal_to_noise",
            "linear_scene", "sampled_response", "SampledResponse",
-           "model_info", "linear_method", "fused_model_info", "select_model",
+           "model_info", "ModelInfo", "linear_method", "fused_model_info", "select_model",
            "predict_linearisation_error", "MODELS", "NONLINEAR_METHODS", "STREAMS"]
 
 

@@ -38,6 +38,7 @@ Public API: :class:`Lifted`, :func:`lift`, :func:`advance_decimated`,
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -46,6 +47,7 @@ import numpy as np
 from rig.jit import njit
 from rig.blocks import DecimatedBlock
 from rig.bench.estimates import linear_method
+from rig.model_info import ModelInfo
 from rig.bench.run import (SENSOR_STREAMS, bench_states, mirror_point, sensor_generators,
                            source_samples, state_after)
 from rig.devices.accelerometer import accelerometer_row
@@ -65,12 +67,13 @@ PER_SAMPLE = {
            "rate; the rest is not linear and not lifted: the lever's second-order geometry is "
            "~0.4 % of the spot's rms in u (far above round-off), clipping and flags act on "
            "each sample, and the filter's input is the sum of those and the noise",
-    "lifted": "bench state at the kept instants (rig.lifted)",
+    "lifted": "bench state at the kept instants (rig.bench.fused)",
 }
 
 
 #: how the lifted chain steps the linear bench (the linear model's ``method`` text ends so)
-LIFTED_STEP = "lifted (rig.lifted): one exact step Phi^q per output sample, q = the decimation"
+LIFTED_STEP = ("lifted (rig.bench.fused): one exact step Phi^q per output sample, q = the "
+               "decimation")
 
 
 @dataclass(frozen=True, eq=False)
@@ -408,20 +411,19 @@ PER_SAMPLE_NONLINEAR = {
              "pass (the per-sample path's own arithmetic), then the anti-alias filter lifted to "
              "the output rate "
              "(its sections' exact linear map over each interval, computing only the kept "
-             "instants; equal to filtering every sample up to round-off) (rig.lifted)",
+             "instants; equal to filtering every sample up to round-off) (rig.bench.fused)",
 }
 
 
-def fused_model_info(model) -> dict:
-    """What the fused chain adds to :meth:`rig.bench.BenchSimulation.model_info` for ``model``:
-    ``per_sample`` (what runs at every DAC sample and why, with its ``rate_hz``) and, for the
-    linear model, the ``method`` it steps the bench by (lifted)."""
+def fused_model_info(model, info: ModelInfo) -> ModelInfo:
+    """``info`` (:meth:`rig.bench.BenchSimulation.model_info` of ``model``) as the fused chain
+    runs it: its ``per_sample`` (what runs at every DAC sample and why, with its ``rate_hz``)
+    and, for the linear model, the ``method`` it steps the bench by (lifted)."""
     linear = model.model == "linear"
-    out = {"per_sample": dict(PER_SAMPLE if linear else PER_SAMPLE_NONLINEAR,
-                              rate_hz=float(model.fs_hz))}
-    if linear:
-        out["method"] = linear_method(model, LIFTED_STEP)
-    return out
+    per_sample = dict(PER_SAMPLE if linear else PER_SAMPLE_NONLINEAR, rate_hz=float(model.fs_hz))
+    return dataclasses.replace(info, per_sample=per_sample,
+                               method=linear_method(model, LIFTED_STEP) if linear
+                               else info.method)
 
 
 def advance_decimated_nonlinear(model, state, chain: DecimatedState, n: int, sections: tuple,

@@ -59,7 +59,7 @@ RESPONSE_LONG_NAMES = {
     "h_t_pendulum": "mirror translation / stage acceleration of the sampled bench",
     "theta_2_pendulum": "mirror rotation / stage acceleration of the sampled bench",
     "h_t_pendulum_continuous": "mirror translation / stage acceleration, continuous linear "
-                               "pendulum (rig.response.mirror_response)",
+                               "pendulum (rig.describe.mirror_response)",
     "theta_2_pendulum_continuous": "mirror rotation / stage acceleration, continuous linear "
                                    "pendulum",
 }

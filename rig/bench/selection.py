@@ -112,46 +112,106 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
     those realisations (``stopped_early``: "under" or "over", else "").
     """
     acq = scene.acquisition
-    fs = acq.simulation_rate_hz
-    chain = scene.chain
-    n = chain.n
-    stage = scene.stage
-    fr = _predictor_rate(scene, fs)
-    src = dataclasses.replace(scene.source, reconstruction_hz=0.0, fs_hz=fr)
-    ss = stage.state_space(chain)
-    a = ss.a
-    nz = a.shape[0]
-    hr = 1.0 / fr
-    phi, g0, g1 = discretise(a, ss.b, hr, "linear")
-    prm = coupled_params(chain, stage, a)
-    nf = prm.rows.size
-    bf = np.zeros((nz, nf))
-    bf[prm.rows, np.arange(nf)] = 1.0
-    _, gf0, gf1 = discretise(a, bf, hr, "linear")
+    n = scene.chain.n
+    fr = _predictor_rate(scene, acq.simulation_rate_hz)
     settle, t_rec = float(acq.settle_s), float(acq.records * acq.record_s)
-    tau = _amplitude_time_constant_s(chain)
+    tau = _amplitude_time_constant_s(scene.chain)
+    k_runs, batches, settle_p, rec_p = _probe_plan(tau, settle, t_rec)
+    n_tot = max(1, int(round((settle_p + rec_p) * fr)))
+    k_rec = min(int(round(settle_p * fr)), n_tot - 1)
+    sums, peaks, stopped_early = _realisations(scene, fr, k_runs, batches, n_tot, k_rec,
+                                               decide_at)
+    k_runs = sums.shape[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = float(np.nan_to_num(np.max(peaks[:, 1, :]) / np.max(peaks[:, 0, :])))
+    t2 = sums[:, :, 0, :].reshape(-1, n)
+    d2 = sums[:, :, 1, :].reshape(-1, n)
+    nb = t2.shape[0]
+    pooled, spread, unc = _batch_statistics(t2, d2, k_runs, rec_p / t_rec)
+    t975 = _T975.get(nb - 1, 2.0)  # Student-t: the spread is itself estimated from nb values
+    upper = pooled + t975 * np.sqrt(spread**2 + unc**2)
+    n_rec = n_tot + 1 - k_rec
+    how = (f"first-order perturbation: the linear bench (coil, stage, pendulum"
+           f"{' with its reaction' if scene.stage.reaction else ''}) and its first-order "
+           "linearisation error d' = A d + f(z_lin) (f: nonlinear minus linear accelerations "
+           f"along the linear trajectory), both discretised exactly at {fr:g} Hz (first-order "
+           "hold) and driven by the scene's source regenerated at that rate (own random stream); "
+           f"{k_runs} run(s) of {settle_p:g} s settle + {rec_p:g} s recorded from the scene's "
+           f"initial state (the run: {settle:g} s + {t_rec:g} s; longest amplitude time constant "
+           f"tau = {tau:.3g} s), each recorded span in {batches} batch(es); " + _STATISTICS_HOW +
+           f"uncertainty^2), t = {t975:.3g} the two-sided 95 % Student-t quantile for "
+           f"{nb - 1} degrees of freedom. Exact to first order: the neglected term is O(e^2) "
+           "relative")
+    return {
+        "relative_rms_theta": pooled.tolist(),
+        "spread_relative_rms_theta": spread.tolist(),
+        "uncertainty_relative_rms_theta": unc.tolist(),
+        "upper_relative_rms_theta": upper.tolist(),
+        "max": float(np.max(pooled)),
+        "upper": float(np.max(upper)),
+        "max_abs_theta_rad": float(np.max(sums[:, :, 2, :])),
+        "theta_rms_rad": np.sqrt(t2.sum(0) / (k_runs * n_rec)).tolist(),
+        "rate_hz": fr,
+        "realisations": k_runs,
+        "batches": batches,
+        "tau_s": tau,
+        "probe_settle_s": settle_p,
+        "probe_recorded_s": rec_p,
+        "simulated_s": k_runs * n_tot / fr,
+        "stopped_early": stopped_early,
+        "first_order_valid": ratio <= FIRST_ORDER_LIMIT,
+        "peak_error_over_peak_theta": ratio,
+        "how": how + (f"; stopped after {k_runs} run(s), the decision at {decide_at:g} being "
+                      "clear" if stopped_early else ""),
+    }
+
+
+#: how the predictor's statistics are made (the middle of its ``how``)
+_STATISTICS_HOW = (
+    "one run: estimate = pooled RMS ratio, its uncertainty = the delete-one-batch jackknife "
+    f"standard deviation times {SPREAD_CALIBRATION:g} (the jackknife of 8 batches underestimates "
+    "the scatter by 20-35 %, measured over 30 predictor streams), spread of the actual run = that "
+    "times sqrt(probe records / run records); several runs: estimate = their mean, spread = "
+    "their standard deviation, uncertainty = spread / sqrt(runs); upper = estimate + t "
+    "sqrt(spread^2 + ")
+
+
+def _probe_plan(tau: float, settle: float, t_rec: float) -> tuple[int, int, float, float]:
+    """``(runs, batches, settle_s, recorded_s)`` of the predictor's probe for a run of
+    ``settle`` + ``t_rec`` seconds whose slowest amplitude time constant is ``tau`` [s]."""
     nb_all = PREDICTOR_BATCHES
     if math.isfinite(tau) and t_rec >= 2 * nb_all * tau:
         # a long run: one realisation cut into 8 batches of >= 2 tau; longer than 24 tau, its
         # records are stationary after 5 tau and a probe of 5 tau + 24 tau estimates them
         # (conservatively: a shorter settle only lowers the error)
-        k_runs, batches = 1, nb_all
         if t_rec > 3 * nb_all * tau:
-            settle_p, rec_p = 5 * tau, 3 * nb_all * tau
-        else:
-            settle_p, rec_p = settle, t_rec
-    else:  # a short run: 8 independent realisations of it
-        k_runs, batches = nb_all, 1
-        settle_p, rec_p = settle, t_rec
-    n_tot = max(1, int(round((settle_p + rec_p) * fr)))
-    k_rec = min(int(round(settle_p * fr)), n_tot - 1)
+            return 1, nb_all, 5 * tau, 3 * nb_all * tau
+        return 1, nb_all, settle, t_rec
+    return nb_all, 1, settle, t_rec  # a short run: 8 independent realisations of it
+
+
+def _realisations(scene: Scene, fr: float, k_runs: int, batches: int, n_tot: int, k_rec: int,
+                  decide_at: float | None):
+    """Run the first-order kernel over ``k_runs`` realisations of the scene's source at ``fr``
+    [Hz]: ``(sums (runs, batches, 3, n), peaks (runs, 2, n), stopped_early)``, fewer runs if
+    ``decide_at`` decides early (see :func:`predict_linearisation_error`)."""
+    chain, stage, n = scene.chain, scene.stage, scene.chain.n
+    src = dataclasses.replace(scene.source, reconstruction_hz=0.0, fs_hz=fr)
+    ss = stage.state_space(chain)
+    a = ss.a
+    nz = a.shape[0]
+    phi, g0, g1 = discretise(a, ss.b, 1.0 / fr, "linear")
+    prm = coupled_params(chain, stage, a)
+    nf = prm.rows.size
+    bf = np.zeros((nz, nf))
+    bf[prm.rows, np.arange(nf)] = 1.0
+    _, gf0, gf1 = discretise(a, bf, 1.0 / fr, "linear")
     sums = np.zeros((k_runs, batches, 3, n))
     z0 = np.zeros(nz)
     z0[3:3 + n] = scene.theta0_rad
     z0[3 + n:3 + 2 * n] = scene.omega0_rad_s
     g0c, g1c = np.ascontiguousarray(g0[:, 0]), np.ascontiguousarray(g1[:, 0])
     gf0, gf1 = np.ascontiguousarray(gf0), np.ascontiguousarray(gf1)
-    stopped_early = ""
     peaks = np.zeros((k_runs, 2, n))
     for r, child in enumerate(np.random.SeedSequence(PREDICTOR_ENTROPY).spawn(k_runs)):
         v, _ = generate(src, start_source(src, child), n_tot + 1)
@@ -168,15 +228,15 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
             invalid = np.max(peaks[:r + 1, 1]) > FIRST_ORDER_LIMIT * np.max(peaks[:r + 1, 0])
             under = r >= 1 and np.all(e_r < decide_at / 10)
             if invalid or np.all(e_r > 10 * decide_at) or under:
-                stopped_early = "under" if under else "over"
-                k_runs = r + 1
-                sums, peaks = sums[:k_runs], peaks[:k_runs]
-                break
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = float(np.nan_to_num(np.max(peaks[:, 1, :]) / np.max(peaks[:, 0, :])))
-    first_order_valid = ratio <= FIRST_ORDER_LIMIT
-    t2 = sums[:, :, 0, :].reshape(-1, n)
-    d2 = sums[:, :, 1, :].reshape(-1, n)
+                return sums[:r + 1], peaks[:r + 1], "under" if under else "over"
+    return sums, peaks, ""
+
+
+def _batch_statistics(t2: np.ndarray, d2: np.ndarray, k_runs: int,
+                      probe_over_run: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(estimate, spread, uncertainty)`` per body from the batches' sums of theta^2 ``t2``
+    and d_theta^2 ``d2`` (batches, n): one run: pooled ratio and the delete-one-batch
+    jackknife; several: their mean and scatter."""
     nb = t2.shape[0]
     with np.errstate(divide="ignore", invalid="ignore"):
         if k_runs == 1:  # pooled ratio; delete-one-batch jackknife for its uncertainty
@@ -185,55 +245,13 @@ def predict_linearisation_error(scene: Scene, *, decide_at: float | None = None)
             e_loo = np.where(loo_t > 0, np.sqrt((d2.sum(0) - d2) / loo_t), 0.0)
             unc = SPREAD_CALIBRATION * np.sqrt(
                 (nb - 1) / nb * np.sum((e_loo - e_loo.mean(0)) ** 2, axis=0))
-            spread = unc * math.sqrt(rec_p / t_rec)  # the variance shrinks as 1 / length
+            spread = unc * math.sqrt(probe_over_run)  # the variance shrinks as 1 / length
         else:  # the runs' own values: their mean, their scatter
             e_k = np.where(t2 > 0, np.sqrt(d2 / t2), 0.0)
             pooled = e_k.mean(0)
             spread = e_k.std(0, ddof=1) if nb > 1 else pooled.copy()
             unc = spread / math.sqrt(nb)
-    t975 = _T975.get(nb - 1, 2.0)  # Student-t: the spread is itself estimated from nb values
-    upper = pooled + t975 * np.sqrt(spread**2 + unc**2)
-    n_rec = n_tot + 1 - k_rec
-    theta_rms = np.sqrt(t2.sum(0) / (k_runs * n_rec))
-    how = (f"first-order perturbation: the linear bench (coil, stage, pendulum"
-           f"{' with its reaction' if stage.reaction else ''}) and its first-order linearisation "
-           "error d' = A d + f(z_lin) (f: nonlinear minus linear accelerations along the linear "
-           f"trajectory), both discretised exactly at {fr:g} Hz (first-order hold) and driven by "
-           f"the scene's source regenerated at that rate (own random stream); {k_runs} run(s) of "
-           f"{settle_p:g} s settle + {rec_p:g} s recorded from the scene's initial state (the "
-           f"run: {settle:g} s + {t_rec:g} s; longest amplitude time constant tau = {tau:.3g} s), "
-           f"each recorded span in {batches} batch(es); one run: estimate = pooled RMS ratio, "
-           "its uncertainty = the delete-one-batch jackknife standard deviation times "
-           f"{SPREAD_CALIBRATION:g} (the jackknife of 8 batches underestimates the scatter by "
-           "20-35 %, measured over 30 predictor streams), spread of the actual run = that times "
-           "sqrt(probe records / run records); several runs: estimate = their mean, spread = "
-           "their standard deviation, uncertainty = spread / sqrt(runs); "
-           "upper = estimate + t sqrt(spread^2 + "
-           f"uncertainty^2), t = {t975:.3g} the two-sided 95 % Student-t quantile for "
-           f"{nb - 1} degrees of freedom. Exact to first order: the neglected term is O(e^2) "
-           "relative")
-    return {
-        "relative_rms_theta": pooled.tolist(),
-        "spread_relative_rms_theta": spread.tolist(),
-        "uncertainty_relative_rms_theta": unc.tolist(),
-        "upper_relative_rms_theta": upper.tolist(),
-        "max": float(np.max(pooled)),
-        "upper": float(np.max(upper)),
-        "max_abs_theta_rad": float(np.max(sums[:, :, 2, :])),
-        "theta_rms_rad": theta_rms.tolist(),
-        "rate_hz": fr,
-        "realisations": k_runs,
-        "batches": batches,
-        "tau_s": tau,
-        "probe_settle_s": settle_p,
-        "probe_recorded_s": rec_p,
-        "simulated_s": k_runs * n_tot / fr,
-        "stopped_early": stopped_early,
-        "first_order_valid": first_order_valid,
-        "peak_error_over_peak_theta": ratio,
-        "how": how + (f"; stopped after {k_runs} run(s), the decision at {decide_at:g} being "
-                      "clear" if stopped_early else ""),
-    }
+    return pooled, spread, unc
 
 
 @per_scene()

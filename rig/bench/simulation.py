@@ -19,6 +19,7 @@ from rig.sosfilt import lift_sections
 from rig.scene import Scene
 from rig.devices.source import generate, start_source
 from rig.bench.estimates import model_info_of
+from rig.model_info import ModelInfo
 from rig.bench.fused import advance_decimated, advance_decimated_nonlinear, lift, start_decimated
 from rig.bench.model import build_model
 from rig.bench.response import calibrations
@@ -207,13 +208,13 @@ class BenchSimulation:
         """Per-channel calibrations (:func:`calibrations`)."""
         return calibrations(self.model.scene)
 
-    def model_info(self, *, probe_s: float = 20.0) -> dict:
-        """What runs, why, and how accurate it is (computed once, cached; JSON-ready).
+    def model_info(self, *, probe_s: float = 20.0) -> ModelInfo:
+        """What runs, why, and how accurate it is (computed once, cached).
 
-        Keys: ``model`` ("linear" or "nonlinear": what runs), ``requested_model``
-        (``acquisition.model``), ``error_budget``, ``reason`` (a sentence: the choice and the
-        numbers behind it), ``budget_met`` (the estimated error of the model that runs is within
-        the budget), ``selection`` (:func:`select_model`, with the predictor's ``how``),
+        Fields (:class:`rig.model_info.ModelInfo`): ``model`` ("linear" or "nonlinear": what
+        runs), ``requested_model`` (``acquisition.model``), ``error_budget``, ``reason`` (a
+        sentence: the choice and the numbers behind it), ``budget_met`` (the estimated error of
+        the model that runs is within the budget), ``selection`` (:func:`select_model`, with the predictor's ``how``),
         ``method`` (how it is integrated; etdab also ``remainder_every_steps``: the steps
         between its remainder's evaluations), ``error_estimate`` (``max_abs_theta_rad`` first,
         ``relative_rms_theta``: the total relative RMS angle error, and its parts),
@@ -222,7 +223,7 @@ class BenchSimulation:
         ``estimate_wall_time_s``. The error of the nonlinear model's integrator and the linear
         model's round-off are measured on a ``probe_s`` run of the scene's drive from rest.
         """
-        if self._info is None or self._info["probe_s"] != probe_s:
+        if self._info is None or self._info.probe_s != probe_s:
             n = max(1, int(round(probe_s * self.model.fs_hz)))
             self._info = model_info_of(self.model, probe_s=probe_s, seed=self.seed,
                                        probe_v=self._first_samples(n))

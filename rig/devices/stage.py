@@ -66,7 +66,7 @@ class Stage:
     damping_nspm: float = param(1.0, "viscous damping of the guide [N s/m], >= 0", unit="N s/m",
                                 lo=0.0)
     reaction: bool = param(True, "the pendulum's reaction force loads the stage (linear "
-                           "and nonlinear models, rig/coupled.py)")
+                           "and nonlinear models, rig/solvers/coupled.py)")
 
     def __post_init__(self):
         check_fields(self, "stage")

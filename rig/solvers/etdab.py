@@ -258,6 +258,33 @@ ETDAB_OPTIONS = dict(cache=True, nogil=True, error_model="numpy", fastmath={"con
 _by_pattern: dict[tuple, object] = {}
 
 
+def _etdab_step_lines(phi_t: np.ndarray, used: np.ndarray, lag: int, every: int) -> list[str]:
+    """The generated loop's step: zn[r] = gam[r] v, then + phi_t[col, r] z[col] for col = 0 ..
+    nz - 1; zw[r] from 0.0, + w[ph, j, i, r] hist[lag + j, i] for j = order - 1 .. 0, i = 0 ..
+    nf - 1; z = zn + zw (the exact zeros of ``phi_t`` and of the weights, ``used``, left out)."""
+    nz = phi_t.shape[0]
+    order, nf = used.shape[0], used.shape[1]
+    out = []
+    for r in range(nz):
+        e = f"g{r} * vk"
+        for col in range(nz):
+            if phi_t[col, r] != 0.0:
+                e = f"{e} + p{r}_{col} * z{col}"
+        out.append(f"            n{r} = {e}")
+    for r in range(nz):
+        e = "0.0"
+        for j in range(order - 1, -1, -1):
+            for i in range(nf):
+                if used[j, i, r]:
+                    wt = f"w{j}_{i}_{r}" if every == 1 else f"w[ph, {j}, {i}, {r}]"
+                    e = f"{e} + {wt} * h{lag + j}_{i}"
+        out.append(f"            s{r} = {e}")
+    for r in range(nz):
+        out.append(f"            z{r} = n{r} + s{r}")
+        out.append(f"            z[{r}] = z{r}")
+    return out
+
+
 def etdab_source(phi_t: np.ndarray, gam: np.ndarray, w: np.ndarray, hist_rows: int,
                  two: bool, name: str = "etd_ab_unrolled") -> str:
     """Python source of a function with :func:`etd_ab_kernel`'s signature and
@@ -339,26 +366,7 @@ def etdab_source(phi_t: np.ndarray, gam: np.ndarray, w: np.ndarray, hist_rows: i
     put("                ax_out[kk] = ax")
     for r in range(nz):
         put(f"                z_out[kk, {r}] = z{r}")
-    # the loop kernel: zn[r] = gam[r] v, then + phi_t[col, r] z[col] for col = 0 .. nz - 1; zw[r]
-    # from 0.0, + w[ph, j, i, r] hist[lag + j, i] for j = order - 1 .. 0, i = 0 .. nf - 1;
-    # z = zn + zw
-    for r in range(nz):
-        e = f"g{r} * vk"
-        for col in range(nz):
-            if phi_t[col, r] != 0.0:
-                e = f"{e} + p{r}_{col} * z{col}"
-        put(f"            n{r} = {e}")
-    for r in range(nz):
-        e = "0.0"
-        for j in range(order - 1, -1, -1):
-            for i in range(nf):
-                if used[j, i, r]:
-                    wt = f"w{j}_{i}_{r}" if every == 1 else f"w[ph, {j}, {i}, {r}]"
-                    e = f"{e} + {wt} * h{lag + j}_{i}"
-        put(f"            s{r} = {e}")
-    for r in range(nz):
-        put(f"            z{r} = n{r} + s{r}")
-        put(f"            z[{r}] = z{r}")
+    L.extend(_etdab_step_lines(phi_t, used, lag, every))
     put("            ph += 1")
     put("            if ph == w.shape[0]:")
     put("                ph = 0")

@@ -128,7 +128,7 @@ def test_inspect_tells_what_a_file_holds(runner, tmp_path):
     assert runner.invoke(main, ["acquire", *SHORT, "--seed", "5", "--out", str(out)]).exit_code == 0
     res = runner.invoke(main, ["inspect", str(out)])
     assert res.exit_code == 0, res.output
-    for text in ("pendulum-daq run 1.1, written by pendulum-daq 0.1.0",
+    for text in ("pendulum-daq run 1.2, written by pendulum-daq 0.1.0",
                  "scene: ishizaki2009 (preset:ishizaki2009), seed 5, started ",
                  "status: complete, 2 of 2 records",
                  "sampling: 100 Hz (simulated at 1000 Hz, decimation 10), 500 samples per record",

@@ -319,7 +319,7 @@ def test_rig_runs_are_reproducible_and_records_join_continuously():
         np.testing.assert_array_equal(a.codes[k], b.codes[k])
         np.testing.assert_array_equal(a.codes[k].reshape(-1), one.codes[k][0])
     np.testing.assert_array_equal(a.truth["theta_rad"].reshape(-1, 2), one.truth["theta_rad"][0])
-    assert a.header.model_info["model"] == "linear" and "error_estimate" in a.header.model_info
+    assert a.header.model_info.model == "linear" and a.header.model_info.error_estimate
 
 
 def test_rig_channels_are_the_sensor_chain_of_the_truth_within_half_an_lsb():

@@ -61,11 +61,11 @@ def test_a_sound_run_and_trajectory_file_pass(sound):
     res = daq("check", "run.h5", "trajectory.h5", cwd=sound)
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.splitlines() == [
-        "run.h5: OK run, complete, 3 of 3 records verify, format 1.1",
+        "run.h5: OK run, complete, 3 of 3 records verify, format 1.2",
         "trajectory.h5: OK trajectory, complete, format 1.1"]
     got = json.loads(daq("check", "run.h5", "--json", cwd=sound).stdout)
     assert got == [{"path": "run.h5", "kind": "run", "ok": True, "status": "complete",
-                    "records_valid": 3, "records_planned": 3, "format_version": "1.1",
+                    "records_valid": 3, "records_planned": 3, "format_version": "1.2",
                     "problems": [], "notes": [], "bad_records": [], "records_complete": 3}]
 
 
@@ -98,7 +98,7 @@ def test_a_corrupt_record_is_named_and_analyze_refuses_or_leaves_it_out(sound, t
     _flip_chunk(p, "entry/data/x", 1)
     res = daq("check", p, cwd=tmp_path)
     assert res.returncode == 1
-    assert res.stdout.strip() == (f"{p}: BAD run, corrupt, 2 of 3 records verify, format 1.1; "
+    assert res.stdout.strip() == (f"{p}: BAD run, corrupt, 2 of 3 records verify, format 1.2; "
                                   "entry/data/x: record 1 fails the checksum (corrupt data)")
     res = daq("inspect", p, cwd=tmp_path)
     assert res.returncode == 1 and "Traceback" not in res.stderr
@@ -185,6 +185,27 @@ def test_format_1_0_files_are_still_read(sound, tmp_path):
                                   read_run(sound / "run.h5").header.antialias.sos)
 
 
+#: module names the model info of format 1.0 and 1.1 files wrote, gone since 1.2
+OLD_MODULE_NAMES = ("rig.integrators", "rig.lifted", "rig.response.", "(rig.coupled)",
+                    "rig/coupled.py")
+
+
+def test_format_1_1_files_with_the_old_module_names_are_still_read(sound, tmp_path):
+    p = _copy(sound, tmp_path)
+    with h5py.File(p, "r+") as f:  # 1.1: 1.2's layout, the model info naming old modules
+        m = f["entry/model"]
+        info = json.loads(m.attrs["model_info_json"])
+        assert not [n for n in OLD_MODULE_NAMES if n in m.attrs["model_info_json"]]
+        info["method"] = ("exact discretisation ...; lifted (rig.lifted): one exact step Phi^q "
+                          "per output sample, q = the decimation")
+        m.attrs["model_info_json"] = json.dumps(info)
+        f.attrs["file_format_version"] = f["entry"].attrs["file_format_version"] = "1.1"
+    fc = check_file(p)
+    assert fc.ok and fc.format_version == "1.1" and fc.records_valid == 3
+    got = read_run(p).header.model_info
+    assert got.method == info["method"] and got.to_dict() == info
+
+
 def test_other_files_are_results_and_only_a_missing_path_raises(sound, tmp_path):
     text = tmp_path / "notes.h5"
     text.write_bytes(b"\x00\x01 not hdf5 \xff" * 10)
@@ -197,7 +218,7 @@ def test_other_files_are_results_and_only_a_missing_path_raises(sound, tmp_path)
     res = daq("check", tmp_path / "missing.h5", cwd=tmp_path)
     assert res.returncode == 2 and "does not exist" in res.stderr and "Traceback" not in res.stderr
     res = daq("check", sound / "run.h5", text, cwd=tmp_path)
-    assert res.returncode == 1 and res.stdout.splitlines()[0].endswith("format 1.1")
+    assert res.returncode == 1 and res.stdout.splitlines()[0].endswith("format 1.2")
 
 
 def test_damage_anywhere_is_never_reported_sound_with_wrong_data(sound, tmp_path):

@@ -37,8 +37,8 @@ def test_a_lifted_run_equals_the_per_sample_run_within_round_off():
         assert d.max() <= 1 and np.mean(d > 0) <= 1e-3, k
         assert np.array_equal(new.clipped[k], old.clipped[k]), k
         assert np.array_equal(new.saturated[k], old.saturated[k]), k
-    assert "lifted" in new.header.model_info["per_sample"]
-    assert "lifted" not in old.header.model_info["per_sample"]
+    assert "lifted" in new.header.model_info.per_sample
+    assert "lifted" not in old.header.model_info.per_sample
 
 
 def _same(new, old):
@@ -57,7 +57,7 @@ def test_a_fused_nonlinear_run_equals_the_per_sample_run_bit_for_bit(over):
     over = ["acquisition.model=nonlinear", *over]
     new, old = _run(over), _run(over, lifted=False)
     _same(new, old)
-    info, old_info = new.header.model_info["per_sample"], old.header.model_info["per_sample"]
+    info, old_info = new.header.model_info.per_sample, old.header.model_info.per_sample
     assert "fused" in info and "lifted" not in info
     assert "fused" not in old_info and "lifted" not in old_info
     assert info["rate_hz"] == old_info["rate_hz"]
@@ -76,7 +76,7 @@ def test_inspect_says_what_runs_per_dac_sample_and_that_the_linear_bench_is_lift
     res = CliRunner().invoke(main, ["inspect", str(out)])
     assert res.exit_code == 0, res.output
     method = next(line for line in res.output.splitlines() if line.startswith("  method: "))
-    assert "lifted (rig.lifted): one exact step Phi^q per output sample" in method
+    assert "lifted (rig.bench.fused): one exact step Phi^q per output sample" in method
     assert "one step per DAC sample" not in method
     assert "  per DAC sample (at 1000 Hz): the sensors' three linear readings" in res.output
     assert "  why: the bench from the DAC to the readings is linear" in res.output
@@ -92,8 +92,8 @@ def test_the_model_probe_takes_its_source_from_the_run_not_a_second_generation(m
     monkeypatch.setattr(est, "generate", lambda *a, **k: calls.append(a) or real(*a, **k))
     rec = _run([f"acquisition.model={model}", "acquisition.settle_s=30"])
     assert calls == []  # the probe's 20 s came from the blocks made ahead
-    assert rec.header.model_info["probe_s"] == 20.0
-    assert np.isfinite(rec.header.model_info["error_estimate"]["relative_rms_theta"])
+    assert rec.header.model_info.probe_s == 20.0
+    assert np.isfinite(rec.header.model_info.error_estimate["relative_rms_theta"])
 
 
 def test_a_paced_run_s_one_second_blocks_give_the_same_records_and_progress_each_second():

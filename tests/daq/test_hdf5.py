@@ -97,7 +97,7 @@ def test_layout_is_nexus_with_a_default_plot_chain_and_described_channels(run_fi
         assert e["status"][()].strip(b"\0 ") == b"complete"
         assert e["records_complete"][()] == e["records_planned"][()] == 3
         assert e.attrs["seed"] == 3
-        assert e.attrs["software_version"] == "0.1.0" and e.attrs["file_format_version"] == "1.1"
+        assert e.attrs["software_version"] == "0.1.0" and e.attrs["file_format_version"] == "1.2"
         assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{6}Z", e.attrs["start_time"])
         m = e["model"]
         assert (m.attrs["model"], m.attrs["method"], m.attrs["error_estimate"]) == (

@@ -14,7 +14,7 @@ def test_run_file_records_what_runs_at_the_dac_rate_and_why(tmp_path):
     scene = load_scene("ishizaki2009", SHORT)
     path = tmp_path / "run.h5"
     acquire(scene, seed=3, sinks=[Hdf5Sink(path)])
-    info = read_run(path).header.model_info["per_sample"]
+    info = read_run(path).header.model_info.per_sample
     assert info["rate_hz"] == scene.settings["acquisition"]["simulation_rate_hz"]
     assert "optical lever" in info["what"] and "anti-alias" in info["what"]
     assert "second-order geometry" in info["why"]

@@ -283,7 +283,7 @@ def test_default_drive_keeps_the_pendulum_linear_and_the_spot_on_the_detector():
     assert not b.truth["a_overrange"].any()
     x0 = b.truth["stage_disp_m"]
     assert np.sqrt(np.mean(x0**2)) < 3e-3 and np.max(np.abs(x0)) < 0.012
-    lin = sim.model_info(probe_s=2.0)["linearity"]
+    lin = sim.model_info(probe_s=2.0).linearity
     assert lin["shift_over_half_bandwidth"] < 0.05
 
 
@@ -310,9 +310,9 @@ def test_nonlinear_model_agrees_with_the_exact_linear_bench_within_its_error_est
         nl = sim.run(10.0)
         diff = np.max(np.abs(nl.truth["theta_rad"] - lin.truth["theta_rad"]))
         info = sim.model_info(probe_s=10.0)
-        est = info["error_estimate"]["max_abs_theta_rad"]
+        est = info.error_estimate["max_abs_theta_rad"]
         assert 0.5 * est <= diff <= 1.5 * est
-        assert info["error_estimate"]["integrator_max_abs_theta_rad"] < 1e-3 * est
+        assert info.error_estimate["integrator_max_abs_theta_rad"] < 1e-3 * est
         errs[m] = est
         np.testing.assert_allclose(nl.truth["stage_accel_mps2"], lin.truth["stage_accel_mps2"],
                                    rtol=1e-9, atol=1e-15)
@@ -336,16 +336,16 @@ def test_a_bad_remainder_spacing_is_refused_naming_the_value(bad):
 
 def test_linear_model_info_reports_round_off_and_the_predicted_linearisation_error():
     info = model_info(ishizaki("acquisition.model=linear"), probe_s=5.0)
-    assert info["model"] == "linear" and "exact discretisation" in info["method"]
-    est = info["error_estimate"]
+    assert info.model == "linear" and "exact discretisation" in info.method
+    est = info.error_estimate
     assert list(est)[0] == "max_abs_theta_rad"  # what `daq acquire` prints first
     assert est["discretisation_relative_rms_theta"] < 1e-10  # round-off
     # the model error dominates: the Q = 530 mode turns a 1e-5 frequency shift into ~0.5 %
     lin = est["linearisation_relative_rms_theta"]
-    assert lin == info["selection"]["predicted_linear_error"] and 2e-3 < lin < 1e-2
+    assert lin == info.selection["predicted_linear_error"] and 2e-3 < lin < 1e-2
     assert est["relative_rms_theta"] == pytest.approx(lin, rel=1e-6)
-    assert info["states"][:3] == ["coil_current_a", "stage_disp_m", "stage_vel_mps"]
-    assert info["budget_met"] and info["selection"]["linear_meets_budget"]
+    assert info.states[:3] == ["coil_current_a", "stage_disp_m", "stage_vel_mps"]
+    assert info.budget_met and info.selection["linear_meets_budget"]
 
 
 # -- the coupled nonlinear bench (rig.solvers.coupled, method lawson4) ----------------------------

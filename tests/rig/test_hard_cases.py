@@ -255,8 +255,8 @@ def test_large_base_excitation_is_noticed():
     assert 0.04 < sel["prediction"]["theta_rms_rad"][0] < 0.09
     forced = model_info(load_scene("ishizaki2009", ["source.level_vrms=1.0", *runs,
                                                     "acquisition.model=linear"]), probe_s=1.0)
-    assert not forced["budget_met"] and "OVER the error budget" in forced["reason"]
-    assert forced["linearity"]["shift_over_half_bandwidth"] > 1  # the rule of thumb agrees
+    assert not forced.budget_met and "OVER the error budget" in forced.reason
+    assert forced.linearity["shift_over_half_bandwidth"] > 1  # the rule of thumb agrees
 
 
 # -- float64 throughout ----------------------------------------------------------------------

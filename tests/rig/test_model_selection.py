@@ -76,7 +76,7 @@ def test_large_drive_runs_the_nonlinear_model_and_the_linear_one_would_have_exce
     sim = BenchSimulation(sc)
     assert sim.model.model == "nonlinear" and sim.model.method == "etdab"  # the default
     info = sim.model_info(probe_s=5.0)
-    assert info["budget_met"] and info["error_estimate"]["relative_rms_theta"] < 1e-6
+    assert info.budget_met and info.error_estimate["relative_rms_theta"] < 1e-6
     measured = measured_linear_error(sc, seed=22)
     assert np.max(measured) > sel["error_budget"]
     assert 0.5 * sel["predicted_linear_error"] < measured[0] < 2 * sel["predicted_linear_error"]
@@ -119,15 +119,15 @@ def test_a_forced_model_runs_and_the_record_says_whether_it_meets_the_budget():
     sim = BenchSimulation(strong)
     assert sim.model.model == "linear"
     info = sim.model_info(probe_s=2.0)
-    assert info["requested_model"] == "linear" and not info["budget_met"]
-    assert "forced by acquisition.model = 'linear'" in info["reason"]
-    assert "OVER the error budget" in info["reason"]
-    assert info["error_estimate"]["relative_rms_theta"] > 1e-2
+    assert info.requested_model == "linear" and not info.budget_met
+    assert "forced by acquisition.model = 'linear'" in info.reason
+    assert "OVER the error budget" in info.reason
+    assert info.error_estimate["relative_rms_theta"] > 1e-2
     weak = ishizaki("acquisition.model=nonlinear", *run_length(10, 1, 10))
     sim = BenchSimulation(weak)
     assert sim.model.model == "nonlinear"
     info = sim.model_info(probe_s=2.0)
-    assert info["budget_met"] and "the linear model would have met the budget" in info["reason"]
+    assert info.budget_met and "the linear model would have met the budget" in info.reason
 
 
 def test_the_run_file_records_the_choice_and_why(tmp_path):
@@ -174,9 +174,10 @@ def test_model_info_of_the_library_function_matches_the_simulation():
     sc = ishizaki(*run_length(10, 1, 10))
     a = model_info(sc, probe_s=2.0)
     b = BenchSimulation(sc).model_info(probe_s=2.0)
-    strip = lambda d: {k: v for k, v in d.items() if "wall_time" not in k and k != "selection"}
+    strip = lambda i: {k: v for k, v in i.to_dict().items()
+                       if "wall_time" not in k and k != "selection"}
     assert strip(a) == strip(b)
-    assert a["selection"]["reason"] == b["selection"]["reason"]
+    assert a.selection["reason"] == b.selection["reason"]
 
 
 def test_a_release_far_from_rest_defeats_the_first_order_and_runs_nonlinear():

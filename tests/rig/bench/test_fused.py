@@ -169,7 +169,7 @@ def test_the_model_info_probe_reuses_the_run_s_source_made_ahead_without_changin
                                      "acquisition.record_s=10", "acquisition.settle_s=10"])
     ahead = BenchSimulation(sc, 5, ahead=(10.0, 30.0))
     plain = BenchSimulation(sc, 5)
-    assert ahead.model_info()["error_estimate"] == plain.model_info()["error_estimate"]
+    assert ahead.model_info().error_estimate == plain.model_info().error_estimate
     aa = antialias_for(sc.acquisition, RecordPlan.from_acquisition(sc.acquisition))
     for a, b in zip(ahead.decimated_blocks(10.0, 30.0, aa.sos),
                     plain.decimated_blocks(10.0, 30.0, aa.sos)):

@@ -51,7 +51,7 @@ def test_etdab_equals_the_reference_path_within_its_stated_error(name):
                                                                            ).truth["theta_rad"]
     ref_err = _rel_rms(ref - ref2, ref2) * 16 / 15
     measured = _rel_rms(theta - ref, ref)
-    est = sim.model_info(probe_s=t_s)["error_estimate"]["relative_rms_theta"]
+    est = sim.model_info(probe_s=t_s).error_estimate["relative_rms_theta"]
     assert est > 0
     # Richardson at order 4 is asymptotically exact: within a factor 2 either way, the
     # reference's own error aside
@@ -73,8 +73,8 @@ def test_etdab_with_the_remainder_every_five_steps_is_within_its_stated_error(na
     ref = BenchSimulation(sc, 5, method="lawson4", substeps=ref_sub).run(t_s).truth["theta_rad"]
     measured = _rel_rms(theta - ref, ref)
     info = sim.model_info(probe_s=t_s)
-    est = info["error_estimate"]["relative_rms_theta"]
-    assert "evaluated every 5 steps" in info["method"]
+    est = info.error_estimate["relative_rms_theta"]
+    assert "evaluated every 5 steps" in info.method
     assert 0.5 * est <= measured <= 2.0 * est, (measured, est)
     every1 = _rel_rms(BenchSimulation(sc, 5, every=1).run(t_s).truth["theta_rad"] - ref, ref)
     assert every1 < measured < 1e-6  # coarser, and within the 1e-6
