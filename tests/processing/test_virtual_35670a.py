@@ -349,7 +349,10 @@ def _serve(*extra):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     p = subprocess.Popen([sys.executable, "-m", "daq.cli", "serve", SCENE, "--scpi",
                           "127.0.0.1:0", "--seed", "1", *extra],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                         # as from an interactive shell: a background job or a test worker
+                         # may have SIGINT ignored, which the child would inherit
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     line = p.stdout.readline()  # bounded by the test's own timeout below
     assert "TCPIP::127.0.0.1::" in line, line
     resource = line.split(" at ")[-1].strip()

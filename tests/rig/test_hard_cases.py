@@ -160,7 +160,8 @@ def test_long_rod_chains_whip_harder_and_cost_o_n_per_step():
     """The highest mode frequency grows ~linearly with n (29.6, 79.6, 164 Hz for n = 20, 50, 100)
     and so does the tip's angular speed after release (36, 91, 146 rad/s); the cost of a step
     grows as O(n) (measured x4.8 from n = 20 to 100; a dense mass-matrix solve would be x25 or
-    more), checked loosely (< x12) on a shared machine."""
+    more), checked loosely (< x12) in CPU time, best of three (wall time on a loaded shared
+    machine measured x23)."""
     res = {n: released_chain(n) for n in (20, 50, 100)}
     f_top = [res[n][1] for n in (20, 50, 100)]
     tip = [np.max(np.abs(res[n][2].omega_rad_s[:, -1])) for n in (20, 50, 100)]
@@ -172,10 +173,10 @@ def test_long_rod_chains_whip_harder_and_cost_o_n_per_step():
         ch, _, tr = res[n]
         best = math.inf
         for _ in range(3):
-            t = time.perf_counter()
+            t = time.process_time()
             run = simulate(ch, 0.2, theta0=bent(n), method="rk4", dt_s=tr.settings["dt_s"],
                            output_dt_s=0.01, estimate_error=False)
-            best = min(best, (time.perf_counter() - t) / run.n_steps)
+            best = min(best, (time.process_time() - t) / run.n_steps)
         per_step[n] = best
     assert per_step[100] / per_step[20] < 12, per_step
 
