@@ -32,13 +32,46 @@ def _updates(stdout):
     return [int(m.group(1)) for m in re.finditer(line, stdout, re.M)]
 
 
+def _first_line(proc, timeout):
+    """What ``proc`` has written to stdout up to its first whole line, within ``timeout``
+    seconds. Read from the pipe itself (as ``communicate`` later reads the rest), never
+    through the text wrapper's buffer, so no output is lost between the two."""
+    import os
+    import selectors
+
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stdout.fileno(), selectors.EVENT_READ)
+    got, t0 = b"", time.monotonic()
+    while b"\n" not in got:
+        assert time.monotonic() - t0 < timeout, f"no whole line in {timeout} s: {got!r}"
+        if sel.select(timeout=0.5):
+            chunk = os.read(proc.stdout.fileno(), 4096)
+            assert chunk, proc.communicate()  # the reader ended before a line
+            got += chunk
+    return got.decode()
+
+
 def test_follow_prints_the_estimate_as_records_land_and_stops_when_the_run_ends(tmp_path):
+    """The writer is paused (SIGSTOP) once its first record is in and resumed when the reader
+    has printed its first estimate, so the reader sees the run part way whatever the host's
+    speed."""
     out = tmp_path / "run.h5"
     writer = _start(*RUN, "--records", 300, "--out", out, cwd=tmp_path)
-    _wait_exists(out, writer)
-    reader = _start("analyze", out, "--follow", cwd=tmp_path)
+    try:
+        _wait_exists(out, writer)
+        t0 = time.monotonic()
+        while _seen_records(out) < 1:
+            assert writer.poll() is None and time.monotonic() - t0 < 120, writer.communicate()
+            time.sleep(0.01)
+        writer.send_signal(signal.SIGSTOP)
+        assert _seen_records(out) < 300
+        reader = _start("analyze", out, "--follow", cwd=tmp_path)
+        head = _first_line(reader, 300)
+    finally:
+        writer.send_signal(signal.SIGCONT)
     w_out, w_err = writer.communicate(timeout=300)
     r_out, r_err = reader.communicate(timeout=300)
+    r_out = head + r_out
     assert writer.returncode == 0, w_err
     assert reader.returncode == 0, r_err
     seen = _updates(r_out)
